@@ -1,0 +1,194 @@
+//! Byte-stream decoder: finds SBUS frames in whatever a UART delivers.
+//!
+//! SBUS has no checksum and its header byte 0x0F also occurs inside channel
+//! data, so after garbage or a partial frame the decoder slides to the next
+//! 0x0F and accepts a candidate only when header, reserved flag bits and footer
+//! all check out. A receiver that is powered on mid-frame, a UART overrun or a
+//! noisy line therefore costs at most the frames it actually damaged.
+
+use crate::wire::{SbusFrame, SbusRepr};
+
+const LEN: usize = SbusFrame::<&[u8]>::LEN;
+
+/// Counters a decoder keeps, for status reports and tests.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DecoderStats {
+    /// Well-formed frames returned.
+    pub frames: u32,
+    /// Bytes dropped while looking for a frame start.
+    pub discarded_bytes: u32,
+    /// Candidate frames rejected for bad framing.
+    pub rejected_frames: u32,
+}
+
+/// Incremental SBUS decoder; see the [module docs](self).
+#[derive(Debug, Clone)]
+pub struct SbusDecoder {
+    buf: [u8; LEN],
+    len: usize,
+    stats: DecoderStats,
+}
+
+impl Default for SbusDecoder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SbusDecoder {
+    pub const fn new() -> Self {
+        SbusDecoder {
+            buf: [0; LEN],
+            len: 0,
+            stats: DecoderStats {
+                frames: 0,
+                discarded_bytes: 0,
+                rejected_frames: 0,
+            },
+        }
+    }
+
+    pub fn stats(&self) -> DecoderStats {
+        self.stats
+    }
+
+    /// Bytes of a frame started but not finished.
+    pub fn pending(&self) -> usize {
+        self.len
+    }
+
+    /// Drops a partial frame, e.g. after a UART parity, framing or overrun error.
+    pub fn abort_frame(&mut self) {
+        self.stats.discarded_bytes += self.len as u32;
+        self.len = 0;
+    }
+
+    /// Feeds one byte; returns a frame when this byte completes a valid one.
+    pub fn push(&mut self, byte: u8) -> Option<SbusRepr> {
+        if self.len == 0 && byte != crate::wire::sbus::HEADER {
+            self.stats.discarded_bytes += 1;
+            return None;
+        }
+        self.buf[self.len] = byte;
+        self.len += 1;
+        if self.len < LEN {
+            return None;
+        }
+        match SbusRepr::parse(&SbusFrame::new_unchecked(&self.buf[..])) {
+            Ok(repr) => {
+                self.len = 0;
+                self.stats.frames += 1;
+                Some(repr)
+            }
+            Err(_) => {
+                self.stats.rejected_frames += 1;
+                self.resync();
+                None
+            }
+        }
+    }
+
+    /// Feeds many bytes, calling `on_frame` for each complete frame in order.
+    pub fn push_slice(&mut self, bytes: &[u8], mut on_frame: impl FnMut(SbusRepr)) {
+        for &byte in bytes {
+            if let Some(frame) = self.push(byte) {
+                on_frame(frame);
+            }
+        }
+    }
+
+    /// Restarts at the next header byte after the rejected candidate's first byte.
+    fn resync(&mut self) {
+        let next = self.buf[1..self.len]
+            .iter()
+            .position(|&b| b == crate::wire::sbus::HEADER)
+            .map(|p| p + 1)
+            .unwrap_or(self.len);
+        self.buf.copy_within(next..self.len, 0);
+        self.len -= next;
+        self.stats.discarded_bytes += next as u32;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::Flags;
+
+    fn frame(seed: u16) -> SbusRepr {
+        let mut repr = SbusRepr::default();
+        for (i, ch) in repr.channels.iter_mut().enumerate() {
+            *ch = (seed.wrapping_mul(131).wrapping_add(i as u16 * 97)) & 0x7FF;
+        }
+        repr.flags = Flags::from_byte((seed % 16) as u8);
+        repr
+    }
+
+    fn decode_all(bytes: &[u8]) -> (Vec<SbusRepr>, DecoderStats) {
+        let mut decoder = SbusDecoder::new();
+        let mut frames = Vec::new();
+        decoder.push_slice(bytes, |f| frames.push(f));
+        (frames, decoder.stats())
+    }
+
+    #[test]
+    fn back_to_back_frames() {
+        let mut bytes = [0u8; 75];
+        for k in 0..3 {
+            bytes[k * 25..(k + 1) * 25].copy_from_slice(&frame(k as u16).to_bytes());
+        }
+        let (frames, stats) = decode_all(&bytes);
+        assert_eq!(frames.len(), 3);
+        for k in 0..3 {
+            assert_eq!(frames[k], frame(k as u16));
+        }
+        assert_eq!(stats.discarded_bytes, 0);
+    }
+
+    #[test]
+    fn garbage_before_between_and_after_frames_is_skipped() {
+        let garbage = [0x0F, 0x0F, 0x00, 0xFF, 0x0F, 0x12];
+        let mut bytes = [0u8; 6 + 25 + 6 + 25 + 6];
+        let mut at = 0;
+        for chunk in [
+            &garbage[..],
+            &frame(1).to_bytes()[..],
+            &garbage[..],
+            &frame(2).to_bytes()[..],
+            &garbage[..],
+        ] {
+            bytes[at..at + chunk.len()].copy_from_slice(chunk);
+            at += chunk.len();
+        }
+        let (frames, _) = decode_all(&bytes);
+        assert_eq!(frames.len(), 2);
+        assert_eq!(frames[0], frame(1));
+        assert_eq!(frames[1], frame(2));
+    }
+
+    #[test]
+    fn truncated_frame_followed_by_full_frame() {
+        let first = frame(5).to_bytes();
+        let second = frame(6).to_bytes();
+        let mut bytes = [0u8; 12 + 25];
+        bytes[..12].copy_from_slice(&first[..12]);
+        bytes[12..].copy_from_slice(&second);
+        let (frames, _) = decode_all(&bytes);
+        assert_eq!(frames.len(), 1);
+        assert_eq!(frames[0], frame(6));
+    }
+
+    #[test]
+    fn abort_frame_drops_partial() {
+        let bytes = frame(3).to_bytes();
+        let mut decoder = SbusDecoder::new();
+        for &b in &bytes[..10] {
+            assert!(decoder.push(b).is_none());
+        }
+        decoder.abort_frame();
+        assert_eq!(decoder.pending(), 0);
+        let mut got = None;
+        decoder.push_slice(&bytes, |f| got = Some(f));
+        assert_eq!(got, Some(frame(3)));
+    }
+}

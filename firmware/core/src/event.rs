@@ -1,0 +1,144 @@
+//! What MultiRX reports: receiver power, link changes, which receiver is in
+//! control. The firmware writes these as status lines on a spare UART and the
+//! emulated device on its status port; the rig reads them to power emulated
+//! receivers and to time handovers, and a ground station may log them.
+//!
+//! Line format (ASCII, one event a line, receivers 0-based):
+//! ```text
+//! <micros> power <rx> on|off
+//! <micros> link <rx> off|silent|failsafe|acquiring|up
+//! <micros> active <rx>|none
+//! <micros> ifs on|off
+//! ```
+
+use core::fmt;
+
+use crate::mux::LinkState;
+use crate::time::Instant;
+
+/// A change inside MultiRX.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Event {
+    /// A receiver's power switch changed.
+    Power { rx: u8, on: bool },
+    /// A receiver's link changed state.
+    Link { rx: u8, state: LinkState },
+    /// Control passed to a receiver, or to nobody (neutral sticks, auto-loiter).
+    Active { rx: Option<u8> },
+    /// The independent fail-safe system started or stopped overriding channels.
+    Ifs { overriding: bool },
+}
+
+/// An event and when it happened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct TimedEvent {
+    pub at: Instant,
+    pub event: Event,
+}
+
+impl fmt::Display for Event {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Event::Power { rx, on } => write!(f, "power {rx} {}", on_off(on)),
+            Event::Link { rx, state } => write!(f, "link {rx} {}", state.name()),
+            Event::Active { rx: Some(rx) } => write!(f, "active {rx}"),
+            Event::Active { rx: None } => write!(f, "active none"),
+            Event::Ifs { overriding } => write!(f, "ifs {}", on_off(overriding)),
+        }
+    }
+}
+
+impl fmt::Display for TimedEvent {
+    /// One status line, without its newline.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} {}", self.at.total_micros(), self.event)
+    }
+}
+
+fn on_off(on: bool) -> &'static str {
+    if on { "on" } else { "off" }
+}
+
+/// A status line that is not one of ours.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("not a MultiRX status line (expected `<micros> power|link|active|ifs ...`)")]
+pub struct StatusLineError;
+
+impl TimedEvent {
+    /// Parses one status line (surrounding whitespace ignored).
+    pub fn parse_line(line: &str) -> Result<TimedEvent, StatusLineError> {
+        let mut words = line.split_ascii_whitespace();
+        let mut next = || words.next().ok_or(StatusLineError);
+        let at = Instant::from_micros(next()?.parse().map_err(|_| StatusLineError)?);
+        let rx = |w: &str| w.parse::<u8>().map_err(|_| StatusLineError);
+        let on = |w: &str| match w {
+            "on" => Ok(true),
+            "off" => Ok(false),
+            _ => Err(StatusLineError),
+        };
+        let event = match next()? {
+            "power" => Event::Power {
+                rx: rx(next()?)?,
+                on: on(next()?)?,
+            },
+            "link" => Event::Link {
+                rx: rx(next()?)?,
+                state: LinkState::from_name(next()?).ok_or(StatusLineError)?,
+            },
+            "active" => match next()? {
+                "none" => Event::Active { rx: None },
+                w => Event::Active { rx: Some(rx(w)?) },
+            },
+            "ifs" => Event::Ifs {
+                overriding: on(next()?)?,
+            },
+            _ => return Err(StatusLineError),
+        };
+        if next().is_ok() {
+            return Err(StatusLineError);
+        }
+        Ok(TimedEvent { at, event })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_round_trip() {
+        let events = [
+            Event::Power { rx: 3, on: true },
+            Event::Link {
+                rx: 0,
+                state: LinkState::Failsafe,
+            },
+            Event::Active { rx: Some(5) },
+            Event::Active { rx: None },
+            Event::Ifs { overriding: false },
+        ];
+        for event in events {
+            let timed = TimedEvent {
+                at: Instant::from_micros(1_234_567),
+                event,
+            };
+            let line = timed.to_string();
+            assert_eq!(TimedEvent::parse_line(&line), Ok(timed), "{line}");
+        }
+    }
+
+    #[test]
+    fn garbage_lines_are_refused() {
+        for line in [
+            "",
+            "12",
+            "12 power",
+            "12 power x on",
+            "12 active 1 2",
+            "x active 1",
+            "12 link 0 meh",
+        ] {
+            assert_eq!(TimedEvent::parse_line(line), Err(StatusLineError), "{line}");
+        }
+    }
+}

@@ -1,0 +1,27 @@
+//! MultiRX core: lets several RC receivers, each bound to a different pilot's
+//! transmitter, share one flight controller (Andersen et al., ICUAS 2021, §V).
+//!
+//! - [`wire::SbusFrame`] / [`wire::SbusRepr`]: the SBUS frame as a view and a representation;
+//! - [`decoder::SbusDecoder`]: finds frames in a byte stream, resynchronising after garbage;
+//! - [`config::Config`]: receivers, channels, timeouts, mode; read from TOML with feature `toml`;
+//! - [`mux::Multiplexer`]: the engine deciding who is in control and what the flight controller gets;
+//! - [`event::TimedEvent`]: power, link and control changes, and their status-line form.
+//!
+//! The contract: no IO, no clock, no allocation, deterministic. Callers pass
+//! [`time::Instant`]s and move bytes; the same code runs in the SAMD21 firmware,
+//! the emulated device on a host, and tests under a virtual clock.
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![deny(unsafe_code)]
+#![warn(missing_debug_implementations)]
+
+pub mod config;
+pub mod decoder;
+pub mod event;
+pub mod mux;
+pub mod time;
+pub mod wire;
+
+pub use config::{Config, Mode};
+pub use event::{Event, TimedEvent};
+pub use mux::Multiplexer;
+pub use time::{Duration, Instant};

@@ -1,0 +1,219 @@
+//! One SBUS input's link state: decodes its bytes and decides whether the
+//! receiver behind it currently has a transmitter.
+//!
+//! Link loss is the failsafe flag or silence past the timeout; the frame-lost
+//! flag alone is normal on a fading link and is not a loss.
+
+use crate::decoder::SbusDecoder;
+use crate::time::{Duration, Instant};
+use crate::wire::SbusRepr;
+
+/// What MultiRX knows of an input's link, as reported in status lines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LinkState {
+    /// Not powered (scan mode powers one receiver at a time).
+    Off,
+    /// Powered, no frame within the silence timeout.
+    Silent,
+    /// Sending frames with the failsafe flag: its transmitter is gone.
+    Failsafe,
+    /// Valid frames, but fewer in a row than needed to trust it.
+    Acquiring,
+    /// Valid frames in a row: may be given control.
+    Up,
+}
+
+impl LinkState {
+    pub const fn name(self) -> &'static str {
+        match self {
+            LinkState::Off => "off",
+            LinkState::Silent => "silent",
+            LinkState::Failsafe => "failsafe",
+            LinkState::Acquiring => "acquiring",
+            LinkState::Up => "up",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        [
+            LinkState::Off,
+            LinkState::Silent,
+            LinkState::Failsafe,
+            LinkState::Acquiring,
+            LinkState::Up,
+        ]
+        .into_iter()
+        .find(|s| s.name() == name)
+    }
+}
+
+/// An SBUS input and its link tracking.
+#[derive(Debug, Clone)]
+pub struct Link {
+    decoder: SbusDecoder,
+    state: LinkState,
+    last_frame: Option<SbusRepr>,
+    last_frame_at: Option<Instant>,
+    up_since: Option<Instant>,
+    good_run: u8,
+}
+
+impl Link {
+    pub const fn new(powered: bool) -> Self {
+        Link {
+            decoder: SbusDecoder::new(),
+            state: if powered {
+                LinkState::Silent
+            } else {
+                LinkState::Off
+            },
+            last_frame: None,
+            last_frame_at: None,
+            up_since: None,
+            good_run: 0,
+        }
+    }
+
+    pub fn state(&self) -> LinkState {
+        self.state
+    }
+
+    pub fn is_up(&self) -> bool {
+        self.state == LinkState::Up
+    }
+
+    pub fn is_powered(&self) -> bool {
+        self.state != LinkState::Off
+    }
+
+    /// When the link came up (for choosing among several live receivers).
+    pub fn up_since(&self) -> Option<Instant> {
+        self.up_since
+    }
+
+    /// The newest valid frame while the link is up.
+    pub fn frame(&self) -> Option<&SbusRepr> {
+        self.last_frame.as_ref().filter(|_| self.is_up())
+    }
+
+    pub fn decoder(&self) -> &SbusDecoder {
+        &self.decoder
+    }
+
+    /// Powers the receiver on or off; off forgets everything it said.
+    pub fn set_powered(&mut self, on: bool) {
+        if on == self.is_powered() {
+            return;
+        }
+        *self = Link::new(on);
+    }
+
+    /// Feeds bytes read from the input at `now`.
+    pub fn handle_bytes(&mut self, now: Instant, bytes: &[u8], acquire_frames: u8) {
+        if !self.is_powered() {
+            // An unpowered receiver cannot talk; bytes are line noise.
+            return;
+        }
+        for &byte in bytes {
+            if let Some(frame) = self.decoder.push(byte) {
+                self.handle_frame(now, frame, acquire_frames);
+            }
+        }
+    }
+
+    fn handle_frame(&mut self, now: Instant, frame: SbusRepr, acquire_frames: u8) {
+        self.last_frame_at = Some(now);
+        if frame.flags.failsafe {
+            self.good_run = 0;
+            self.up_since = None;
+            self.state = LinkState::Failsafe;
+            return;
+        }
+        self.last_frame = Some(frame);
+        self.good_run = self.good_run.saturating_add(1);
+        if self.good_run >= acquire_frames {
+            self.up_since.get_or_insert(now);
+            self.state = LinkState::Up;
+        } else {
+            self.state = LinkState::Acquiring;
+        }
+    }
+
+    /// When silence would end this link, if it has one to lose.
+    pub fn silence_deadline(&self, timeout: Duration) -> Option<Instant> {
+        match self.state {
+            LinkState::Off | LinkState::Silent => None,
+            _ => self.last_frame_at.map(|at| at + timeout),
+        }
+    }
+
+    /// Applies the silence timeout.
+    pub fn handle_timeout(&mut self, now: Instant, timeout: Duration) {
+        if self.silence_deadline(timeout).is_some_and(|d| now >= d) {
+            self.state = LinkState::Silent;
+            self.good_run = 0;
+            self.up_since = None;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::Flags;
+
+    const T: Duration = Duration::from_millis(60);
+
+    fn bytes(failsafe: bool, frame_lost: bool) -> [u8; 25] {
+        let mut repr = SbusRepr::default();
+        repr.flags = Flags {
+            failsafe,
+            frame_lost,
+            ..Flags::default()
+        };
+        repr.to_bytes()
+    }
+
+    #[test]
+    fn comes_up_after_acquire_frames() {
+        let mut link = Link::new(true);
+        link.handle_bytes(Instant::from_millis(0), &bytes(false, false), 3);
+        assert_eq!(link.state(), LinkState::Acquiring);
+        link.handle_bytes(Instant::from_millis(7), &bytes(false, false), 3);
+        link.handle_bytes(Instant::from_millis(14), &bytes(false, false), 3);
+        assert_eq!(link.state(), LinkState::Up);
+        assert_eq!(link.up_since(), Some(Instant::from_millis(14)));
+    }
+
+    #[test]
+    fn failsafe_flag_drops_at_once_frame_lost_does_not() {
+        let mut link = Link::new(true);
+        link.handle_bytes(Instant::ZERO, &bytes(false, false), 1);
+        link.handle_bytes(Instant::from_millis(7), &bytes(false, true), 1);
+        assert!(link.is_up(), "frame lost alone is not a link loss");
+        link.handle_bytes(Instant::from_millis(14), &bytes(true, false), 1);
+        assert_eq!(link.state(), LinkState::Failsafe);
+        assert!(link.frame().is_none());
+    }
+
+    #[test]
+    fn silence_drops_after_timeout() {
+        let mut link = Link::new(true);
+        link.handle_bytes(Instant::from_millis(10), &bytes(false, false), 1);
+        assert_eq!(link.silence_deadline(T), Some(Instant::from_millis(70)));
+        link.handle_timeout(Instant::from_millis(69), T);
+        assert!(link.is_up());
+        link.handle_timeout(Instant::from_millis(70), T);
+        assert_eq!(link.state(), LinkState::Silent);
+        assert_eq!(link.silence_deadline(T), None);
+    }
+
+    #[test]
+    fn unpowered_input_ignores_bytes() {
+        let mut link = Link::new(false);
+        link.handle_bytes(Instant::ZERO, &bytes(false, false), 1);
+        assert_eq!(link.state(), LinkState::Off);
+        link.set_powered(true);
+        assert_eq!(link.state(), LinkState::Silent);
+    }
+}

@@ -1,0 +1,292 @@
+//! The multiplexer engine: N receiver inputs in, one SBUS stream out.
+//!
+//! Sans-IO, after quinn-proto: feed it bytes with [`Multiplexer::handle_receiver_bytes`]
+//! and [`Multiplexer::handle_ifs_bytes`], call [`Multiplexer::handle_timeout`]
+//! whenever `now` reaches [`Multiplexer::poll_timeout`], then drain
+//! [`Multiplexer::poll_transmit`] (frames for the flight controller) and
+//! [`Multiplexer::poll_event`] (power switching and status). It never reads a
+//! clock and never blocks, so the firmware, the emulated device and tests
+//! under a virtual clock all run the same decisions.
+//!
+//! Rules, from the paper and beyond it:
+//! - The receiver in control keeps it while its link is up: a pilot whose
+//!   transmitter comes on while another is in control gains nothing (scenario A).
+//! - When it loses its link (failsafe flag, or silence past the timeout),
+//!   **parallel** mode hands over at once to the receiver whose link has been
+//!   up longest; **scan** mode powers it off and powers the others one at a
+//!   time, listening a window each (the paper's design).
+//! - One output frame every period whatever happens; with nobody in control,
+//!   neutral sticks with the flight-mode channel at auto-loiter.
+
+mod link;
+mod output;
+
+pub use link::{Link, LinkState};
+pub use output::compose;
+
+use heapless::Deque;
+
+use crate::config::{Config, MAX_RECEIVERS, Mode};
+use crate::event::{Event, TimedEvent};
+use crate::time::Instant;
+use crate::wire::{SbusFrame, SbusRepr};
+
+/// Events buffered between polls; a slow reader loses the oldest.
+const EVENT_CAPACITY: usize = 32;
+
+/// Counters for status reports and tests.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MuxStats {
+    /// Frames produced for the flight controller.
+    pub frames_out: u32,
+    /// Times control moved from one receiver to another or to nobody.
+    pub control_changes: u32,
+    /// Events dropped because nobody polled them in time.
+    pub events_dropped: u32,
+}
+
+/// Scan mode while nobody is in control: which receiver we listen to, until when.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Scan {
+    rx: u8,
+    until: Instant,
+}
+
+/// The MultiRX engine; see the [module docs](self).
+#[derive(Debug)]
+pub struct Multiplexer {
+    config: Config,
+    links: [Link; MAX_RECEIVERS],
+    ifs: Link,
+    active: Option<u8>,
+    scan: Option<Scan>,
+    next_output: Instant,
+    pending_output: Option<SbusRepr>,
+    events: Deque<TimedEvent, EVENT_CAPACITY>,
+    stats: MuxStats,
+}
+
+impl Multiplexer {
+    /// Starts the engine at `now`. The configuration must have passed
+    /// [`Config::validate`]; the first frame is due at once.
+    pub fn new(config: Config, now: Instant) -> Self {
+        let mut mux = Multiplexer {
+            links: core::array::from_fn(|_| Link::new(false)),
+            ifs: Link::new(!config.ifs_channels.is_empty()),
+            active: None,
+            scan: None,
+            next_output: now,
+            pending_output: None,
+            events: Deque::new(),
+            stats: MuxStats::default(),
+            config,
+        };
+        match mux.config.mode {
+            Mode::Parallel => {
+                for rx in mux.config.receiver_indices() {
+                    mux.set_power(now, rx, true);
+                }
+            }
+            Mode::Scan => mux.start_scan(now, 0),
+        }
+        mux.push_event(now, Event::Active { rx: None });
+        mux
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The receiver in control, if any.
+    pub fn active(&self) -> Option<u8> {
+        self.active
+    }
+
+    /// Whether receiver `rx`'s power switch is on.
+    pub fn is_powered(&self, rx: u8) -> bool {
+        self.links
+            .get(usize::from(rx))
+            .is_some_and(|l| l.is_powered())
+    }
+
+    /// Link state of receiver `rx`.
+    pub fn link(&self, rx: u8) -> &Link {
+        &self.links[usize::from(rx)]
+    }
+
+    pub fn stats(&self) -> MuxStats {
+        self.stats
+    }
+
+    /// Bytes received from receiver `rx` at `now`. Indices beyond the
+    /// configured receivers are ignored.
+    pub fn handle_receiver_bytes(&mut self, now: Instant, rx: u8, bytes: &[u8]) {
+        if rx >= self.config.receivers {
+            return;
+        }
+        let link = &mut self.links[usize::from(rx)];
+        let before = link.state();
+        link.handle_bytes(now, bytes, self.config.acquire_frames);
+        let after = link.state();
+        if before != after {
+            self.push_event(now, Event::Link { rx, state: after });
+        }
+        self.select(now);
+    }
+
+    /// Bytes from the independent fail-safe system at `now`.
+    pub fn handle_ifs_bytes(&mut self, now: Instant, bytes: &[u8]) {
+        let before = self.ifs.is_up();
+        self.ifs.handle_bytes(now, bytes, 1);
+        self.note_ifs(now, before);
+    }
+
+    /// Handles every deadline at or before `now`: link silence, scan windows,
+    /// and the output frame.
+    pub fn handle_timeout(&mut self, now: Instant) {
+        let timeout = self.config.silence_timeout;
+        for rx in self.config.receiver_indices() {
+            let link = &mut self.links[usize::from(rx)];
+            let before = link.state();
+            link.handle_timeout(now, timeout);
+            if link.state() != before {
+                let state = link.state();
+                self.push_event(now, Event::Link { rx, state });
+            }
+        }
+        let ifs_before = self.ifs.is_up();
+        self.ifs.handle_timeout(now, timeout);
+        self.note_ifs(now, ifs_before);
+        self.select(now);
+        if now >= self.next_output {
+            self.pending_output = Some(self.output_frame());
+            self.stats.frames_out = self.stats.frames_out.wrapping_add(1);
+            self.next_output += self.config.frame_period;
+            if self.next_output <= now {
+                // We were not called for more than a period: keep the cadence
+                // from here rather than bursting frames to catch up.
+                self.next_output = now + self.config.frame_period;
+            }
+        }
+    }
+
+    /// The next time [`handle_timeout`](Self::handle_timeout) must be called.
+    pub fn poll_timeout(&self) -> Instant {
+        let timeout = self.config.silence_timeout;
+        let links = self.links[..usize::from(self.config.receivers)]
+            .iter()
+            .chain(core::iter::once(&self.ifs))
+            .filter_map(|l| l.silence_deadline(timeout));
+        let scan = self.scan.map(|s| s.until);
+        links
+            .chain(scan)
+            .fold(self.next_output, |earliest, t| earliest.min(t))
+    }
+
+    /// The frame due for the flight controller, once per period.
+    pub fn poll_transmit(&mut self) -> Option<[u8; SbusFrame::<&[u8]>::LEN]> {
+        self.pending_output.take().map(|repr| repr.to_bytes())
+    }
+
+    /// The oldest unread event.
+    pub fn poll_event(&mut self) -> Option<TimedEvent> {
+        self.events.pop_front()
+    }
+
+    /// The frame that would go out now.
+    pub fn output_frame(&self) -> SbusRepr {
+        let active = self
+            .active
+            .and_then(|rx| self.links[usize::from(rx)].frame().map(|f| (rx, f)));
+        let ifs = if self.config.ifs_channels.is_empty() {
+            None
+        } else {
+            self.ifs.frame()
+        };
+        compose(&self.config, active, ifs)
+    }
+
+    /// Decides who is in control; the one place control changes.
+    fn select(&mut self, now: Instant) {
+        if let Some(rx) = self.active {
+            if self.links[usize::from(rx)].is_up() {
+                return;
+            }
+            self.set_active(now, None);
+            if self.config.mode == Mode::Scan {
+                self.set_power(now, rx, false);
+                self.start_scan(now, self.next_receiver(rx));
+            }
+        }
+        match self.config.mode {
+            Mode::Parallel => {
+                let best = self
+                    .config
+                    .receiver_indices()
+                    .filter_map(|rx| self.links[usize::from(rx)].up_since().map(|t| (t, rx)))
+                    .filter(|&(_, rx)| self.links[usize::from(rx)].is_up())
+                    .min();
+                if let Some((_, rx)) = best {
+                    self.set_active(now, Some(rx));
+                }
+            }
+            Mode::Scan => {
+                let Some(scan) = self.scan else { return };
+                if self.links[usize::from(scan.rx)].is_up() {
+                    self.scan = None;
+                    self.set_active(now, Some(scan.rx));
+                } else if now >= scan.until {
+                    self.set_power(now, scan.rx, false);
+                    self.start_scan(now, self.next_receiver(scan.rx));
+                }
+            }
+        }
+    }
+
+    fn start_scan(&mut self, now: Instant, rx: u8) {
+        self.set_power(now, rx, true);
+        self.scan = Some(Scan {
+            rx,
+            until: now + self.config.scan_window,
+        });
+    }
+
+    fn next_receiver(&self, rx: u8) -> u8 {
+        (rx + 1) % self.config.receivers
+    }
+
+    fn set_active(&mut self, now: Instant, rx: Option<u8>) {
+        if self.active != rx {
+            self.active = rx;
+            self.stats.control_changes = self.stats.control_changes.wrapping_add(1);
+            self.push_event(now, Event::Active { rx });
+        }
+    }
+
+    fn set_power(&mut self, now: Instant, rx: u8, on: bool) {
+        let link = &mut self.links[usize::from(rx)];
+        if link.is_powered() != on {
+            link.set_powered(on);
+            let state = link.state();
+            self.push_event(now, Event::Power { rx, on });
+            self.push_event(now, Event::Link { rx, state });
+        }
+    }
+
+    fn note_ifs(&mut self, now: Instant, was_up: bool) {
+        let up = self.ifs.is_up() && !self.config.ifs_channels.is_empty();
+        if up != was_up {
+            self.push_event(now, Event::Ifs { overriding: up });
+        }
+    }
+
+    fn push_event(&mut self, at: Instant, event: Event) {
+        let timed = TimedEvent { at, event };
+        if self.events.is_full() {
+            self.events.pop_front();
+            self.stats.events_dropped = self.stats.events_dropped.wrapping_add(1);
+        }
+        // Cannot fail: we just made room.
+        let _ = self.events.push_back(timed);
+    }
+}
