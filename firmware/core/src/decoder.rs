@@ -139,8 +139,8 @@ mod tests {
         }
         let (frames, stats) = decode_all(&bytes);
         assert_eq!(frames.len(), 3);
-        for k in 0..3 {
-            assert_eq!(frames[k], frame(k as u16));
+        for (k, got) in frames.iter().enumerate() {
+            assert_eq!(*got, frame(k as u16));
         }
         assert_eq!(stats.discarded_bytes, 0);
     }

@@ -165,13 +165,15 @@ mod tests {
     const T: Duration = Duration::from_millis(60);
 
     fn bytes(failsafe: bool, frame_lost: bool) -> [u8; 25] {
-        let mut repr = SbusRepr::default();
-        repr.flags = Flags {
-            failsafe,
-            frame_lost,
-            ..Flags::default()
-        };
-        repr.to_bytes()
+        SbusRepr {
+            flags: Flags {
+                failsafe,
+                frame_lost,
+                ..Flags::default()
+            },
+            ..SbusRepr::default()
+        }
+        .to_bytes()
     }
 
     #[test]

@@ -77,8 +77,10 @@ mod tests {
     fn ifs_overrides_only_its_channels() {
         let mut config = Config::new(Mode::Parallel, 2);
         config.ifs_channels = ChannelSet::EMPTY.with(4);
-        let mut ifs = SbusRepr::default();
-        ifs.channels = [100; 16];
+        let ifs = SbusRepr {
+            channels: [100; 16],
+            ..SbusRepr::default()
+        };
         let out = compose(&config, None, Some(&ifs));
         assert_eq!(out.channels[4], 100);
         assert_eq!(out.channels[0], config.neutral[0]);
