@@ -1,0 +1,103 @@
+//! The emulated device's loop: the same engine as the firmware, with host
+//! threads standing in for UART interrupts and `std::time::Instant` for the timer.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::time::Instant as HostInstant;
+
+use multirx_core::{Config, Instant, Multiplexer};
+
+use crate::ports::{Input, Output, Source};
+
+/// Counters printed at exit.
+#[derive(Debug, Default)]
+pub struct RunStats {
+    pub frames_out: u64,
+    pub frames_dropped: u64,
+    pub status_lines: u64,
+}
+
+pub struct Device {
+    epoch: HostInstant,
+    mux: Multiplexer,
+    fc: Output,
+    status: Option<Output>,
+}
+
+impl Device {
+    pub fn new(config: Config, fc: Output, status: Option<Output>) -> Self {
+        let epoch = HostInstant::now();
+        Device {
+            epoch,
+            mux: Multiplexer::new(config, Instant::ZERO),
+            fc,
+            status,
+        }
+    }
+
+    fn to_core(&self, t: HostInstant) -> Instant {
+        Instant::from_micros(t.saturating_duration_since(self.epoch).as_micros() as u64)
+    }
+
+    fn to_host(&self, t: Instant) -> HostInstant {
+        self.epoch + std::time::Duration::from_micros(t.total_micros())
+    }
+
+    /// Runs until `stop` is set or every input and the stop flag are gone.
+    pub fn run(&mut self, inputs: Receiver<Input>, stop: &AtomicBool) -> RunStats {
+        self.flush();
+        while !stop.load(Ordering::Relaxed) {
+            let deadline = self.to_host(self.mux.poll_timeout());
+            let wait = deadline
+                .saturating_duration_since(HostInstant::now())
+                // Wake now and then to notice `stop`.
+                .min(std::time::Duration::from_millis(100));
+            match inputs.recv_timeout(wait) {
+                Ok(input) => self.handle_input(input),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => {
+                    // No reader left: keep the output going all the same,
+                    // as the board would with every receiver unplugged.
+                    std::thread::sleep(wait);
+                }
+            }
+            let now = self.to_core(HostInstant::now());
+            if now >= self.mux.poll_timeout() {
+                self.mux.handle_timeout(now);
+            }
+            self.flush();
+        }
+        RunStats {
+            frames_out: self.fc.written,
+            frames_dropped: self.fc.dropped,
+            status_lines: self.status.as_ref().map_or(0, |s| s.written),
+        }
+    }
+
+    fn handle_input(&mut self, input: Input) {
+        match input {
+            Input::Bytes { source, at, bytes } => {
+                let at = self.to_core(at);
+                match source {
+                    Source::Receiver(rx) => self.mux.handle_receiver_bytes(at, rx, &bytes),
+                    Source::Ifs => self.mux.handle_ifs_bytes(at, &bytes),
+                }
+            }
+            Input::Closed { source, error } => {
+                tracing::warn!(?source, %error, "input closed; treating it as silent");
+            }
+        }
+    }
+
+    fn flush(&mut self) {
+        while let Some(frame) = self.mux.poll_transmit() {
+            self.fc.send(&frame);
+        }
+        while let Some(event) = self.mux.poll_event() {
+            tracing::debug!(%event, "status");
+            if let Some(status) = &mut self.status {
+                status.send(format!("{event}\n").as_bytes());
+            }
+        }
+    }
+}
