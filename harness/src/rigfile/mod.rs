@@ -1,0 +1,718 @@
+//! The rig description: which ports, devices, fixtures and limits a run uses.
+//!
+//! One rig file per bench (or `rigs/emulated.toml` for CI); the scenarios are
+//! the same everywhere, only this file changes. [`RigFile::load`] checks the
+//! whole file before anything runs: unknown keys are rejected (a typo must not
+//! silently fall back to a default), values are range-checked, paths are made
+//! absolute relative to the rig file's folder, and every [`RigFileError`]
+//! names the file, line and dotted key.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::fs;
+use std::path::{Component, Path, PathBuf};
+
+use serde::{Deserialize, Deserializer, Serialize};
+use toml::de::DeTable;
+
+use crate::measurement::Limits;
+
+mod error;
+mod schema;
+
+pub use error::RigFileError;
+use error::{Location, Locator, dotted};
+use schema::RawFile;
+
+/// Output folder used when the rig file names none, relative to the current
+/// directory.
+pub const DEFAULT_OUTPUT: &str = "rig-report";
+/// Python interpreter used for fixtures when the rig file names none.
+pub const DEFAULT_PYTHON: &str = "python3";
+/// Fixture folder used when the rig file names none, relative to the rig file.
+pub const DEFAULT_FIXTURES_DIR: &str = "../fixtures";
+/// Chip flashed when a board rig names none.
+pub const DEFAULT_CHIP: &str = "ATSAMD21G18A";
+/// Most receivers a MultiRX board has inputs for.
+pub const MAX_RECEIVERS: usize = 6;
+/// Longest receiver boot silence accepted, in milliseconds.
+pub const MAX_BOOT_MS: u32 = 5000;
+
+/// A loaded and checked rig file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigFile {
+    /// Absolute path of the rig file.
+    pub path: PathBuf,
+    /// `[rig]`.
+    pub rig: RigSection,
+    /// `[fixtures]`.
+    pub fixtures: FixturesSection,
+    /// `[multirx]`; `None` means no MultiRX scenarios on this rig.
+    pub multirx: Option<MultirxSection>,
+    /// `[limits]`: overrides of built-in SLA limits, by measurement name.
+    pub limits: BTreeMap<String, Limits>,
+    /// Where each `[limits]` key is, for [`RigFile::check_limit_names`].
+    limit_locations: BTreeMap<String, Location>,
+}
+
+/// `[rig]`: what this rig is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RigSection {
+    /// Short name, shown in reports (non-empty).
+    pub name: String,
+    /// What the rig is, for the reader of a report.
+    pub description: String,
+    /// Default output folder, absolute; `None` uses [`DEFAULT_OUTPUT`]
+    /// (see [`RigFile::output_dir`]).
+    pub output: Option<PathBuf>,
+}
+
+/// `[fixtures]`: the Python programs that play peers (pymavlink, receivers).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FixturesSection {
+    /// Interpreter: a bare name (`python3`) is looked up on `PATH`; anything
+    /// with a `/` was resolved relative to the rig file.
+    pub python: PathBuf,
+    /// Absolute folder holding the fixture scripts.
+    pub dir: PathBuf,
+}
+
+/// `[multirx]`: the MultiRX device and how the rig is wired to it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MultirxSection {
+    /// Mode suites to run, in file order, without duplicates.
+    pub modes: Vec<Mode>,
+    /// `[multirx.device]`.
+    pub device: DeviceSection,
+    /// `[multirx.ports]`.
+    pub ports: PortsSection,
+    /// `[multirx.receivers]`.
+    pub receivers: ReceiversSection,
+}
+
+impl MultirxSection {
+    /// The MultiRX config file for `mode`; present for every mode in
+    /// [`MultirxSection::modes`].
+    pub fn config(&self, mode: Mode) -> Option<&Path> {
+        self.device.configs.get(&mode).map(PathBuf::as_path)
+    }
+}
+
+/// MultiRX operating mode; each has its own scenario suite and config file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// All receivers powered; the active one is forwarded.
+    Parallel,
+    /// One receiver powered at a time, cycling while no link is found.
+    Scan,
+}
+
+impl Mode {
+    /// Both modes, in the order suites run by default.
+    pub const ALL: [Mode; 2] = [Mode::Parallel, Mode::Scan];
+
+    /// Lower-case name, as in rig files and measurement names.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mode::Parallel => "parallel",
+            Mode::Scan => "scan",
+        }
+    }
+}
+
+impl fmt::Display for Mode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// What the MultiRX under test is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DeviceKind {
+    /// The host build of the MultiRX core, started by the rig.
+    Emulated,
+    /// A SAMD21 board flashed with the firmware, reached over a debug probe.
+    Board,
+}
+
+impl DeviceKind {
+    /// Lower-case name, as in rig files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DeviceKind::Emulated => "emulated",
+            DeviceKind::Board => "board",
+        }
+    }
+}
+
+impl fmt::Display for DeviceKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// `[multirx.device]`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DeviceSection {
+    /// Absolute path of the MultiRX config file for each mode.
+    pub configs: BTreeMap<Mode, PathBuf>,
+    /// Kind-specific settings.
+    pub setup: DeviceSetup,
+}
+
+impl DeviceSection {
+    /// Which kind of device this is.
+    pub fn kind(&self) -> DeviceKind {
+        match self.setup {
+            DeviceSetup::Emulated { .. } => DeviceKind::Emulated,
+            DeviceSetup::Board(_) => DeviceKind::Board,
+        }
+    }
+}
+
+/// Settings that exist for one device kind only; keys of the other kind are
+/// rejected at load, so a bench file cannot half-describe an emulator.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum DeviceSetup {
+    /// Host program over serial ports.
+    Emulated {
+        /// Program to start; `None` means `multirx-emu` next to the running
+        /// `rig` binary. A bare name is looked up on `PATH`; anything with a
+        /// `/` was resolved relative to the rig file.
+        program: Option<PathBuf>,
+    },
+    /// Flashed SAMD21 board.
+    Board(BoardSetup),
+}
+
+/// How to reach and prepare a MultiRX board.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BoardSetup {
+    /// Which debug probe to use.
+    pub probe: ProbeSelector,
+    /// Chip name as probe-rs knows it.
+    pub chip: String,
+    /// Whether to flash the firmware before the run (off by default so a
+    /// bench run does not silently replace a certified image).
+    pub flash: bool,
+}
+
+/// A debug probe: the only one attached, or one by USB id.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ProbeSelector {
+    /// The single attached probe (`"auto"`).
+    Auto,
+    /// `"VID:PID"` or `"VID:PID:SERIAL"`, hex ids, as probe-rs accepts them.
+    Usb {
+        /// USB vendor id.
+        vid: u16,
+        /// USB product id.
+        pid: u16,
+        /// Probe serial number, to tell identical probes apart.
+        serial: Option<String>,
+    },
+}
+
+impl ProbeSelector {
+    /// Parses `auto`, `VID:PID` or `VID:PID:SERIAL` (ids in hex).
+    pub fn parse(s: &str) -> Result<Self, String> {
+        if s == "auto" {
+            return Ok(ProbeSelector::Auto);
+        }
+        let mut parts = s.splitn(3, ':');
+        let hex = |p: Option<&str>, what: &str| {
+            let p = p.unwrap_or("");
+            u16::from_str_radix(p, 16).map_err(|_| {
+                format!("{what} `{p}` in \"{s}\" is not a 16-bit hex USB id; expected \"auto\", \"VID:PID\" or \"VID:PID:SERIAL\", e.g. \"2e8a:000c\"")
+            })
+        };
+        let vid = hex(parts.next(), "vendor id")?;
+        let pid = hex(parts.next(), "product id")?;
+        let serial = match parts.next() {
+            None => None,
+            Some("") => return Err(format!("empty serial number in \"{s}\"")),
+            Some(serial) => Some(serial.to_owned()),
+        };
+        Ok(ProbeSelector::Usb { vid, pid, serial })
+    }
+}
+
+/// Renders the selector as probe-rs's `--probe` accepts it.
+impl fmt::Display for ProbeSelector {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ProbeSelector::Auto => f.write_str("auto"),
+            ProbeSelector::Usb { vid, pid, serial } => {
+                write!(f, "{vid:04x}:{pid:04x}")?;
+                if let Some(s) = serial {
+                    write!(f, ":{s}")?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// `[multirx.ports]`: where each MultiRX line is reached.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PortsSection {
+    /// Flight-controller side: where MultiRX's SBUS output is read.
+    pub fc: PortSpec,
+    /// MultiRX status line (power and active receiver).
+    pub status: PortSpec,
+    /// Independent fail-safe input into MultiRX, if wired.
+    pub ifs: Option<PortSpec>,
+    /// One per receiver input, in receiver order (1..=6 entries).
+    pub receivers: Vec<PortSpec>,
+}
+
+/// A serial line: a pty pair the rig makes, or a device path.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum PortSpec {
+    /// `"pty"`: the rig creates a pty pair and hands one end to the device.
+    Pty,
+    /// A device path such as `/dev/ttyUSB0` (absolute after load).
+    Path(PathBuf),
+}
+
+impl PortSpec {
+    /// Parses `"pty"` or a device path. A path must contain a `/`, so that a
+    /// misspelt `"PTY"` or a bare `"ttyUSB0"` is reported, not opened.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        match s {
+            "pty" => Ok(PortSpec::Pty),
+            "" => {
+                Err("empty port: expected \"pty\" or a device path such as \"/dev/ttyUSB0\"".into())
+            }
+            s if s.contains('/') => Ok(PortSpec::Path(PathBuf::from(s))),
+            s => Err(format!(
+                "port \"{s}\" is neither \"pty\" nor a device path (a path contains '/', e.g. \"/dev/{s}\")"
+            )),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for PortSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        PortSpec::parse(&s).map_err(serde::de::Error::custom)
+    }
+}
+
+impl fmt::Display for PortSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PortSpec::Pty => f.write_str("pty"),
+            PortSpec::Path(p) => write!(f, "{}", p.display()),
+        }
+    }
+}
+
+/// `[multirx.receivers]`: how the emulated receivers behave.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ReceiversSection {
+    /// SBUS frame period: 7 (high speed) or 14 (normal) ms.
+    pub period_ms: u32,
+    /// Silence after power-on before the first frame, 0..=5000 ms.
+    pub boot_ms: u32,
+}
+
+impl Default for ReceiversSection {
+    fn default() -> Self {
+        ReceiversSection {
+            period_ms: 7,
+            boot_ms: 300,
+        }
+    }
+}
+
+impl RigFile {
+    /// Reads and checks a rig file.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, RigFileError> {
+        let path = path.as_ref();
+        let text = fs::read_to_string(path).map_err(|source| RigFileError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_str(&text, path)
+    }
+
+    /// Checks rig file text; `path` is where it came from: relative paths in
+    /// the text are resolved against its folder, and errors name it.
+    pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<Self, RigFileError> {
+        let given = path.as_ref();
+        let syntax = |e: toml::de::Error, field: Option<String>| {
+            let at = Location::of_offset(text, e.span().map_or(0, |s| s.start));
+            RigFileError::Syntax {
+                path: given.to_path_buf(),
+                line: at.line,
+                column: at.column,
+                field,
+                message: e.message().trim_end().to_owned(),
+            }
+        };
+        let doc = DeTable::parse(text).map_err(|e| syntax(e, None))?;
+        let loc = Locator::new(text, doc.get_ref());
+        let raw: RawFile = toml::from_str(text).map_err(|e| {
+            let field = e.span().and_then(|s| loc.field_at(s.start));
+            syntax(e, field)
+        })?;
+        let file = absolute_file(given);
+        let base = file.parent().map(Path::to_path_buf).unwrap_or_default();
+        let check = Checker {
+            given,
+            loc: &loc,
+            base: &base,
+        };
+        check.rig_file(raw, file)
+    }
+
+    /// The output folder: `rig.output`, else [`DEFAULT_OUTPUT`] in the
+    /// current directory.
+    pub fn output_dir(&self) -> PathBuf {
+        self.rig
+            .output
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(DEFAULT_OUTPUT))
+    }
+
+    /// The limits for measurement `name`: the rig file's override, else the
+    /// built-in ones.
+    pub fn limits_for(&self, name: &str, builtin: Limits) -> Limits {
+        self.limits.get(name).copied().unwrap_or(builtin)
+    }
+
+    /// Rejects `[limits]` keys that name no known measurement, since a
+    /// misspelt override would otherwise leave the built-in limit in force
+    /// without anyone noticing.
+    pub fn check_limit_names<'a>(
+        &self,
+        known: impl IntoIterator<Item = &'a str>,
+    ) -> Result<(), RigFileError> {
+        let known: BTreeSet<&str> = known.into_iter().collect();
+        match self.limits.keys().find(|k| !known.contains(k.as_str())) {
+            None => Ok(()),
+            Some(name) => {
+                let at = self.limit_locations[name];
+                Err(RigFileError::Invalid {
+                    path: self.path.clone(),
+                    line: at.line,
+                    column: at.column,
+                    field: dotted(&["limits", name]),
+                    message: format!("no measurement is named \"{name}\""),
+                })
+            }
+        }
+    }
+}
+
+/// Turns the raw file into checked public types, or the first error.
+struct Checker<'a> {
+    given: &'a Path,
+    loc: &'a Locator<'a>,
+    base: &'a Path,
+}
+
+impl Checker<'_> {
+    fn invalid(&self, at: &[&str], message: impl Into<String>) -> RigFileError {
+        self.invalid_named(at, dotted(at), message)
+    }
+
+    fn invalid_named(
+        &self,
+        at: &[&str],
+        field: String,
+        message: impl Into<String>,
+    ) -> RigFileError {
+        let l = self.loc.locate(at);
+        RigFileError::Invalid {
+            path: self.given.to_path_buf(),
+            line: l.line,
+            column: l.column,
+            field,
+            message: message.into(),
+        }
+    }
+
+    fn resolve(&self, p: &Path) -> PathBuf {
+        normalize(&self.base.join(p))
+    }
+
+    /// A program name stays as is (found on `PATH`); a path is resolved.
+    fn resolve_program(&self, p: &str) -> PathBuf {
+        if p.contains('/') {
+            self.resolve(Path::new(p))
+        } else {
+            PathBuf::from(p)
+        }
+    }
+
+    fn rig_file(&self, raw: RawFile, path: PathBuf) -> Result<RigFile, RigFileError> {
+        if raw.rig.name.trim().is_empty() {
+            return Err(self.invalid(&["rig", "name"], "empty; give the rig a short name"));
+        }
+        let rig = RigSection {
+            name: raw.rig.name,
+            description: raw.rig.description,
+            output: raw.rig.output.map(|p| self.resolve(&p)),
+        };
+        let python = match raw.fixtures.python.as_deref() {
+            None => PathBuf::from(DEFAULT_PYTHON),
+            Some("") => {
+                return Err(self.invalid(&["fixtures", "python"], "empty; e.g. \"python3\""));
+            }
+            Some(p) => self.resolve_program(p),
+        };
+        let fixtures = FixturesSection {
+            python,
+            dir: self.resolve(
+                raw.fixtures
+                    .dir
+                    .as_deref()
+                    .unwrap_or(Path::new(DEFAULT_FIXTURES_DIR)),
+            ),
+        };
+        let multirx = raw.multirx.map(|m| self.multirx(m)).transpose()?;
+        let mut limit_locations = BTreeMap::new();
+        for (name, limits) in &raw.limits {
+            let at = ["limits", name.as_str()];
+            if limits.is_empty() {
+                return Err(self.invalid(
+                    &at,
+                    "no limit given; set min, max, marginal_min or marginal_max",
+                ));
+            }
+            limits.validate().map_err(|e| self.invalid(&at, e))?;
+            limit_locations.insert(name.clone(), self.loc.locate(&at));
+        }
+        Ok(RigFile {
+            path,
+            rig,
+            fixtures,
+            multirx,
+            limits: raw.limits,
+            limit_locations,
+        })
+    }
+
+    fn multirx(&self, raw: schema::RawMultirx) -> Result<MultirxSection, RigFileError> {
+        let modes = match raw.modes {
+            None => Mode::ALL.to_vec(),
+            Some(modes) => {
+                let at = ["multirx", "modes"];
+                if modes.is_empty() {
+                    return Err(self.invalid(
+                        &at,
+                        "empty; list \"parallel\" and/or \"scan\", or remove [multirx] to run no MultiRX scenarios",
+                    ));
+                }
+                for (i, m) in modes.iter().enumerate() {
+                    if modes[..i].contains(m) {
+                        return Err(self.invalid(&at, format!("\"{m}\" is listed twice")));
+                    }
+                }
+                modes
+            }
+        };
+
+        let d = raw.device;
+        let mut configs = BTreeMap::new();
+        for (mode, p) in [
+            (Mode::Parallel, d.configs.parallel),
+            (Mode::Scan, d.configs.scan),
+        ] {
+            if let Some(p) = p {
+                configs.insert(mode, self.resolve(&p));
+            }
+        }
+        if let Some(mode) = modes.iter().find(|m| !configs.contains_key(m)) {
+            return Err(self.invalid_named(
+                &["multirx", "device", "configs", mode.as_str()],
+                format!("multirx.device.configs.{mode}"),
+                format!(
+                    "mode \"{mode}\" is in multirx.modes but has no MultiRX config file; \
+                     add {mode} = \"multirx/{mode}.toml\" under [multirx.device.configs]"
+                ),
+            ));
+        }
+        let only_for = |key: &str, kind: DeviceKind| {
+            self.invalid(
+                &["multirx", "device", key],
+                format!(
+                    "only for kind = \"{kind}\"; this device is kind = \"{}\"",
+                    d.kind
+                ),
+            )
+        };
+        let setup = match d.kind {
+            DeviceKind::Emulated => {
+                for (key, set) in [
+                    ("probe", d.probe.is_some()),
+                    ("chip", d.chip.is_some()),
+                    ("flash", d.flash.is_some()),
+                ] {
+                    if set {
+                        return Err(only_for(key, DeviceKind::Board));
+                    }
+                }
+                let program = match d.program.as_deref() {
+                    Some("") => {
+                        return Err(self.invalid(
+                            &["multirx", "device", "program"],
+                            "empty; omit it to use multirx-emu next to the rig binary",
+                        ));
+                    }
+                    p => p.map(|p| self.resolve_program(p)),
+                };
+                DeviceSetup::Emulated { program }
+            }
+            DeviceKind::Board => {
+                if d.program.is_some() {
+                    return Err(only_for("program", DeviceKind::Emulated));
+                }
+                let probe = match d.probe.as_deref() {
+                    None => ProbeSelector::Auto,
+                    Some(s) => ProbeSelector::parse(s)
+                        .map_err(|e| self.invalid(&["multirx", "device", "probe"], e))?,
+                };
+                let chip = d.chip.unwrap_or_else(|| DEFAULT_CHIP.to_owned());
+                if chip.trim().is_empty() {
+                    return Err(self.invalid(
+                        &["multirx", "device", "chip"],
+                        format!("empty; e.g. \"{DEFAULT_CHIP}\""),
+                    ));
+                }
+                DeviceSetup::Board(BoardSetup {
+                    probe,
+                    chip,
+                    flash: d.flash.unwrap_or(false),
+                })
+            }
+        };
+
+        let ports = self.ports(raw.ports)?;
+
+        let r = raw.receivers;
+        let defaults = ReceiversSection::default();
+        let period_ms = r.period_ms.unwrap_or(defaults.period_ms);
+        if period_ms != 7 && period_ms != 14 {
+            return Err(self.invalid(
+                &["multirx", "receivers", "period_ms"],
+                format!(
+                    "{period_ms} ms; SBUS sends a frame every 7 ms (high speed) or 14 ms (normal)"
+                ),
+            ));
+        }
+        let boot_ms = r.boot_ms.unwrap_or(defaults.boot_ms);
+        if boot_ms > MAX_BOOT_MS {
+            return Err(self.invalid(
+                &["multirx", "receivers", "boot_ms"],
+                format!("{boot_ms} ms is out of range 0..={MAX_BOOT_MS}"),
+            ));
+        }
+
+        Ok(MultirxSection {
+            modes,
+            device: DeviceSection { configs, setup },
+            ports,
+            receivers: ReceiversSection { period_ms, boot_ms },
+        })
+    }
+
+    fn ports(&self, raw: schema::RawPorts) -> Result<PortsSection, RigFileError> {
+        let n = raw.receivers.len();
+        let at = ["multirx", "ports", "receivers"];
+        if n == 0 {
+            return Err(self.invalid(&at, "no receivers given, at least 1"));
+        }
+        if n > MAX_RECEIVERS {
+            return Err(self.invalid(&at, format!("{n} receivers given, at most {MAX_RECEIVERS}")));
+        }
+        let resolve = |p: PortSpec| match p {
+            PortSpec::Pty => PortSpec::Pty,
+            // Joined but not normalized: a device path is kept as written
+            // (by-id names are symlinks and must stay readable).
+            PortSpec::Path(p) => PortSpec::Path(self.base.join(p)),
+        };
+        let ports = PortsSection {
+            fc: resolve(raw.fc),
+            status: resolve(raw.status),
+            ifs: raw.ifs.map(resolve),
+            receivers: raw.receivers.into_iter().map(resolve).collect(),
+        };
+        // One device path wired to two lines is a wiring mistake that would
+        // otherwise show up as garbled frames mid-run.
+        let mut named: Vec<(String, &[&str], &PortSpec)> = vec![
+            (
+                "multirx.ports.fc".into(),
+                &["multirx", "ports", "fc"],
+                &ports.fc,
+            ),
+            (
+                "multirx.ports.status".into(),
+                &["multirx", "ports", "status"],
+                &ports.status,
+            ),
+        ];
+        if let Some(ifs) = &ports.ifs {
+            named.push((
+                "multirx.ports.ifs".into(),
+                &["multirx", "ports", "ifs"],
+                ifs,
+            ));
+        }
+        for (i, r) in ports.receivers.iter().enumerate() {
+            named.push((format!("multirx.ports.receivers[{i}]"), &at, r));
+        }
+        for (i, (field, at, spec)) in named.iter().enumerate() {
+            if let PortSpec::Path(p) = spec
+                && let Some((other, _, _)) = named[..i].iter().find(|(_, _, s)| s == spec)
+            {
+                return Err(self.invalid_named(
+                    at,
+                    field.clone(),
+                    format!("{} is also used for {other}", p.display()),
+                ));
+            }
+        }
+        Ok(ports)
+    }
+}
+
+/// The rig file's absolute path, with its folder's symlinks resolved when
+/// the folder exists, so that `../fixtures` from a symlinked `rigs/` means
+/// the folder next to the real one, as the shell would open it.
+fn absolute_file(given: &Path) -> PathBuf {
+    let abs = normalize(&std::path::absolute(given).unwrap_or_else(|_| given.to_path_buf()));
+    match (abs.parent(), abs.file_name()) {
+        (Some(dir), Some(name)) => fs::canonicalize(dir)
+            .map(|dir| dir.join(name))
+            .unwrap_or(abs),
+        _ => abs,
+    }
+}
+
+/// Removes `.` and folds `..` without touching the file system, so paths in
+/// reports read `/work/main/fixtures`, not `/work/main/rigs/../fixtures`.
+fn normalize(p: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for c in p.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => match out.components().next_back() {
+                Some(Component::Normal(_)) => {
+                    out.pop();
+                }
+                Some(Component::RootDir | Component::Prefix(_)) => {}
+                _ => out.push(".."),
+            },
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;
