@@ -3,10 +3,21 @@
 //!
 //! Vocabulary (after labgrid and OpenHTF):
 //! - [`rigfile`]: the rig description (TOML) naming ports, devices, fixtures and limits;
+//! - [`driver`]: binds a resource (a port, a program) and does things with it;
+//! - [`strategy`]: brings devices from files on disk to running and wired;
+//! - [`scenario`]: what is done to the devices and measured;
 //! - [`measurement`]: a named value with a unit, limits and an outcome;
-//! - [`record`]: the saved record of a run, from which [`report`]s are rendered.
+//! - [`record`]: the saved record of a run, from which [`report`]s are rendered;
+//! - [`px4`]: how the flight controller reads what it is sent;
+//! - [`runner`]: scenarios as libtest-mimic trials, and the run record.
 
+pub mod clock;
+pub mod driver;
 pub mod measurement;
+pub mod px4;
 pub mod record;
 pub mod report;
 pub mod rigfile;
+pub mod runner;
+pub mod scenario;
+pub mod strategy;

@@ -1,1 +1,125 @@
-fn main() {}
+//! `rig`: runs C2-link scenarios on a bench or emulated, and writes evidence.
+//!
+//! Exit codes: 0 every phase passed; 1 a phase failed or errored; 2 the rig
+//! file, a device config or the command line is wrong (nothing ran).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use rig::record::RunOutcome;
+use rig::report;
+use rig::rigfile::RigFile;
+use rig::runner::{self, RunOptions};
+
+/// Test rig for SORA-grade drone C2 links (MultiRX, MavLora).
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the scenarios a rig file describes and write results.json, junit.xml and summary.txt.
+    Run {
+        /// Rig file (TOML).
+        #[arg(default_value = "rigs/emulated.toml")]
+        rig: PathBuf,
+        /// Output folder (default: the rig file's `output`, else ./rig-report).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Only run phases whose name contains this (e.g. `parallel::b_handover`).
+        #[arg(long)]
+        filter: Option<String>,
+        /// Match --filter exactly.
+        #[arg(long, requires = "filter")]
+        exact: bool,
+        /// List the phases instead of running them.
+        #[arg(long)]
+        list: bool,
+    },
+    /// Check a rig file and the device configs it names, without running anything.
+    Check {
+        #[arg(default_value = "rigs/emulated.toml")]
+        rig: PathBuf,
+    },
+    /// Render junit.xml and summary.txt again from a saved results.json.
+    Report { results: PathBuf },
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match execute(cli.command) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("rig: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn execute(command: Command) -> Result<ExitCode> {
+    match command {
+        Command::Run {
+            rig,
+            out,
+            filter,
+            exact,
+            list,
+        } => {
+            let rig = RigFile::load(&rig)?;
+            let out_dir = out.unwrap_or_else(|| rig.output_dir());
+            let result = runner::run(
+                rig,
+                RunOptions {
+                    out_dir: out_dir.clone(),
+                    filter,
+                    exact,
+                    list,
+                },
+            )?;
+            let (Some(record), Some(paths)) = (result.record, result.paths) else {
+                return Ok(ExitCode::SUCCESS);
+            };
+            let summary = std::fs::read_to_string(&paths.summary)
+                .with_context(|| format!("cannot read {}", paths.summary.display()))?;
+            println!("\n{summary}");
+            Ok(match record.outcome {
+                RunOutcome::Pass => ExitCode::SUCCESS,
+                _ => ExitCode::from(1),
+            })
+        }
+        Command::Check { rig } => {
+            let rig = RigFile::load(&rig)?;
+            if let Some(section) = &rig.multirx {
+                for (mode, path) in &section.device.configs {
+                    let text = std::fs::read_to_string(path)
+                        .with_context(|| format!("cannot read {}", path.display()))?;
+                    let config = multirx_core::Config::from_toml(&text)
+                        .map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))?;
+                    println!(
+                        "{}: mode {mode}: {} receivers, ok",
+                        path.display(),
+                        config.receivers
+                    );
+                }
+            }
+            println!("{}: ok", rig.path.display());
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Report { results } => {
+            let paths = report::rerender(&results)?;
+            println!("{}\n{}", paths.junit.display(), paths.summary.display());
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}

@@ -340,8 +340,8 @@ impl Measurement {
     /// The value with its unit (`12.5 ms`), or `unset`/`skipped`.
     pub fn render_value(&self) -> String {
         match (self.value, self.outcome) {
-            (Some(v), _) if self.unit.is_empty() => format!("{v}"),
-            (Some(v), _) => format!("{v} {}", self.unit),
+            (Some(v), _) if self.unit.is_empty() => format_value(v),
+            (Some(v), _) => format!("{} {}", format_value(v), self.unit),
             (None, Outcome::Skipped) => "skipped".to_owned(),
             (None, Outcome::Fail) => "not a number".to_owned(),
             (None, _) => "unset".to_owned(),
@@ -349,9 +349,29 @@ impl Measurement {
     }
 }
 
+/// At most three decimals, trailing zeros trimmed: `0.7`, `63.492`, `5`.
+/// The full value stays in results.json.
+fn format_value(v: f64) -> String {
+    let text = format!("{v:.3}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".to_owned()
+    } else {
+        text.to_owned()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn values_render_with_at_most_three_decimals() {
+        assert_eq!(format_value(0.6998300004852354), "0.7");
+        assert_eq!(format_value(63.4919), "63.492");
+        assert_eq!(format_value(5.0), "5");
+        assert_eq!(format_value(-0.0001), "0");
+    }
 
     #[test]
     fn new_measurement_is_unset() {

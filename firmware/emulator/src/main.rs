@@ -11,6 +11,7 @@
 
 mod device;
 mod ports;
+mod realtime;
 
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -109,6 +110,7 @@ fn run(args: Args) -> Result<()> {
         period_ms = config.frame_period.total_millis(),
         "MultiRX emulated device running"
     );
+    realtime::request("engine");
     let mut device = Device::new(config, fc, status);
     let stats = device.run(rx, &stop);
     tracing::info!(

@@ -45,6 +45,7 @@ pub fn open_sbus(path: &str, timeout: Duration) -> Result<TTYPort> {
 pub fn spawn_reader(source: Source, mut port: TTYPort, tx: Sender<Input>) -> Result<()> {
     let name = format!("read-{source:?}");
     thread::Builder::new().name(name).spawn(move || {
+        crate::realtime::request("input");
         let mut buf = [0u8; 256];
         loop {
             match port.read(&mut buf) {

@@ -1,0 +1,10 @@
+//! Drivers bind resources (ports, programs) and do things with them
+//! (labgrid's vocabulary): read the flight-controller line, play receivers,
+//! run the emulated device.
+
+pub mod fc;
+pub mod process;
+pub mod pty;
+pub mod realtime;
+pub mod receiver;
+pub mod status;

@@ -1,0 +1,50 @@
+//! Scenario A: the idle pilot switches on while another pilot flies; the idle
+//! pilot must gain no control.
+
+use std::time::Duration;
+
+use anyhow::Result;
+
+use super::{Limits, Scenario, SessionOptions};
+use crate::clock::Mono;
+use crate::measurement::Measurement;
+use crate::scenario::PhaseContext;
+use crate::strategy::multirx::MultirxSession;
+
+pub const SCENARIO: Scenario = Scenario {
+    name: "a_idle_takeover",
+    summary: "A: pilot 2 switches on while pilot 1 flies; pilot 2 must gain no control",
+    options: SessionOptions {
+        loss: crate::driver::receiver::Loss::Failsafe,
+    },
+    measurements,
+    run,
+};
+
+const WATCH: Duration = Duration::from_secs(3);
+
+fn measurements(l: &Limits) -> Vec<Measurement> {
+    vec![
+        Measurement::new(l.name("idle_takeovers"), "")
+            .describe(
+                "frames at the flight controller showing pilot 2 while pilot 1 still had a link",
+            )
+            .equal_to(0.0),
+    ]
+}
+
+fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
+    s.fly(0)?;
+    ctx.log("pilot 1 in control");
+    let on = Mono::now();
+    s.receiver(1).set_tx(true)?;
+    std::thread::sleep(WATCH);
+    let takeovers =
+        s.fc.frames()
+            .iter()
+            .filter(|f| f.at >= on && f.channels[s.pilot_index()] != s.pilot_value(0))
+            .count();
+    ctx.log(format!("watched {WATCH:?} after pilot 2 switched on"));
+    ctx.record(&l.name("idle_takeovers"), takeovers as f64);
+    Ok(())
+}

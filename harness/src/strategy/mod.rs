@@ -1,0 +1,4 @@
+//! Strategies bring a rig from files on disk to devices running and wired
+//! (labgrid's vocabulary): build → (flash) → running → torn down.
+
+pub mod multirx;
