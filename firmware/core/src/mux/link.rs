@@ -5,6 +5,13 @@
 //! flag alone is normal on a fading link and is not a loss.
 
 use crate::decoder::SbusDecoder;
+
+/// A partial frame older than this is dead: on the wire the bytes of a frame
+/// are ~120 µs apart and frames are ≥ 4 ms apart, so a pause this long inside
+/// a frame means bytes were lost. Resynchronising on it (as PX4 does) stops a
+/// truncated frame from being glued to the start of the next one, which the
+/// header/footer checks alone could occasionally accept.
+pub const INTRA_FRAME_GAP: Duration = Duration::from_millis(3);
 use crate::time::{Duration, Instant};
 use crate::wire::SbusRepr;
 
@@ -55,6 +62,7 @@ pub struct Link {
     last_frame: Option<SbusRepr>,
     last_frame_at: Option<Instant>,
     up_since: Option<Instant>,
+    last_byte_at: Option<Instant>,
     good_run: u8,
 }
 
@@ -70,6 +78,7 @@ impl Link {
             last_frame: None,
             last_frame_at: None,
             up_since: None,
+            last_byte_at: None,
             good_run: 0,
         }
     }
@@ -108,12 +117,25 @@ impl Link {
         *self = Link::new(on);
     }
 
+    /// Drops a partial frame: the UART saw a parity, framing or overrun error.
+    pub fn abort_frame(&mut self) {
+        self.decoder.abort_frame();
+    }
+
     /// Feeds bytes read from the input at `now`.
     pub fn handle_bytes(&mut self, now: Instant, bytes: &[u8], acquire_frames: u8) {
         if !self.is_powered() {
             // An unpowered receiver cannot talk; bytes are line noise.
             return;
         }
+        if self.decoder.pending() > 0
+            && self
+                .last_byte_at
+                .is_some_and(|t| now - t >= INTRA_FRAME_GAP)
+        {
+            self.decoder.abort_frame();
+        }
+        self.last_byte_at = Some(now);
         for &byte in bytes {
             if let Some(frame) = self.decoder.push(byte) {
                 self.handle_frame(now, frame, acquire_frames);
@@ -208,6 +230,48 @@ mod tests {
         link.handle_timeout(Instant::from_millis(70), T);
         assert_eq!(link.state(), LinkState::Silent);
         assert_eq!(link.silence_deadline(T), None);
+    }
+
+    #[test]
+    fn a_pause_inside_a_frame_drops_the_partial_frame() {
+        // A frame cut short after 10 bytes, then a frame of zero sticks. Glued
+        // together, the first 25 bytes pass every framing check (zeros make a
+        // valid flags byte and footer) and would yield a frame that never was.
+        let cut = SbusRepr {
+            channels: [1500; 16],
+            ..SbusRepr::default()
+        }
+        .to_bytes();
+        let zeros = SbusRepr {
+            channels: [0; 16],
+            ..SbusRepr::default()
+        };
+        let mut glued = SbusDecoder::new();
+        let mut got = Vec::new();
+        glued.push_slice(&cut[..10], |f| got.push(f));
+        glued.push_slice(&zeros.to_bytes(), |f| got.push(f));
+        assert_eq!(got.len(), 1);
+        assert_ne!(
+            got[0], zeros,
+            "the glued candidate is accepted without a gap check"
+        );
+
+        // With the 5 ms pause between them seen, only the real frame comes out.
+        let mut link = Link::new(true);
+        link.handle_bytes(Instant::ZERO, &cut[..10], 1);
+        link.handle_bytes(Instant::from_millis(5), &zeros.to_bytes(), 1);
+        assert!(link.is_up());
+        assert_eq!(link.frame(), Some(&zeros));
+    }
+
+    #[test]
+    fn abort_frame_recovers_after_a_uart_error() {
+        let frame = bytes(false, false);
+        let mut link = Link::new(true);
+        link.handle_bytes(Instant::ZERO, &frame[..10], 1);
+        link.abort_frame();
+        link.handle_bytes(Instant::from_micros(100), &frame, 1);
+        assert!(link.is_up());
     }
 
     #[test]

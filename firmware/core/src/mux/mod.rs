@@ -134,6 +134,19 @@ impl Multiplexer {
         self.select(now);
     }
 
+    /// Receiver `rx`'s UART reported a parity, framing or overrun error: the
+    /// frame in progress is dropped rather than risk accepting a damaged one.
+    pub fn handle_receiver_error(&mut self, rx: u8) {
+        if rx < self.config.receivers {
+            self.links[usize::from(rx)].abort_frame();
+        }
+    }
+
+    /// The IFS input's UART reported an error; see [`Self::handle_receiver_error`].
+    pub fn handle_ifs_error(&mut self) {
+        self.ifs.abort_frame();
+    }
+
     /// Bytes from the independent fail-safe system at `now`.
     pub fn handle_ifs_bytes(&mut self, now: Instant, bytes: &[u8]) {
         let before = self.ifs.is_up();

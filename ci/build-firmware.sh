@@ -1,0 +1,133 @@
+#!/usr/bin/env bash
+# Builds the MultiRX SAMD21 firmware in release for both memory layouts (bare
+# chip, and behind the 8 KiB UF2 bootloader) and prints flash and RAM use of
+# each, as a share of the ATSAMD21G18A (256 KiB flash, 32 KiB RAM). Also writes
+# the UF2 layout as a .uf2 file for the bootloader's USB drive.
+#
+# Needs only cargo (with the thumbv6m-none-eabi target, which
+# rust-toolchain.toml pulls in) and python3's standard library: sizes come from
+# the ELF section headers, not from llvm-size or binutils.
+#
+# Usage: ci/build-firmware.sh [OUT_DIR]   (default: firmware/samd21/target/dist)
+# Environment: MULTIRX_CONFIG (see firmware/samd21/README.md) is passed through.
+# Exit codes: 0 built and measured; non-zero if a build or a measurement failed.
+set -euo pipefail
+
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+crate="$repo/firmware/samd21"
+out="${1:-$crate/target/dist}"
+mkdir -p "$out"
+out="$(cd "$out" && pwd)"
+elf="$crate/target/thumbv6m-none-eabi/release/multirx-samd21"
+
+for layout in bare uf2; do
+    features=()
+    if [[ $layout == uf2 ]]; then
+        features=(--features uf2)
+    fi
+    echo "== building $layout layout" >&2
+    start=$SECONDS
+    (cd "$crate" && cargo build --release --locked "${features[@]}")
+    echo "== built $layout in $((SECONDS - start)) s" >&2
+    cp "$elf" "$out/multirx-samd21-$layout.elf"
+done
+
+python3 - "$out" <<'PY'
+"""Flash/RAM use from ELF32 section headers; UF2 image from program headers."""
+import struct
+import sys
+from pathlib import Path
+
+CHIP_FLASH = 256 * 1024
+CHIP_RAM = 32 * 1024
+RAM_START = 0x2000_0000
+SHF_ALLOC = 0x2
+SHT_NOBITS = 8
+PT_LOAD = 1
+
+# UF2 (https://github.com/microsoft/uf2): 512-byte blocks of 256 payload bytes.
+UF2_MAGIC = (0x0A324655, 0x9E5D5157, 0x0AB16F30)
+UF2_FLAG_FAMILY = 0x0000_2000
+UF2_FAMILY_SAMD21 = 0x68ED_2B88
+UF2_PAYLOAD = 256
+
+
+def elf32(data):
+    if data[:4] != b"\x7fELF" or data[4] != 1 or data[5] != 1:
+        sys.exit("not a little-endian ELF32 file")
+    (phoff, shoff) = struct.unpack_from("<II", data, 0x1C)
+    (phentsize, phnum, shentsize, shnum, shstrndx) = struct.unpack_from("<HHHHH", data, 0x2A)
+    sections = []
+    for i in range(shnum):
+        sections.append(struct.unpack_from("<IIIIIIIIII", data, shoff + i * shentsize))
+    strtab = sections[shstrndx][4]
+
+    def name(off):
+        end = data.index(b"\0", strtab + off)
+        return data[strtab + off : end].decode()
+
+    named = [(name(s[0]), s) for s in sections]
+    segments = [struct.unpack_from("<IIIIIIII", data, phoff + i * phentsize) for i in range(phnum)]
+    return named, segments
+
+
+def measure(named):
+    flash = ram = 0
+    parts = []
+    for name, (_, kind, flags, addr, _, size, *_rest) in named:
+        if not flags & SHF_ALLOC or size == 0:
+            continue
+        in_ram = addr >= RAM_START
+        loaded = kind != SHT_NOBITS
+        if loaded:  # stored in flash (.data: its initial values)
+            flash += size
+        if in_ram:
+            ram += size
+        parts.append(f"{name} {size}")
+    return flash, ram, parts
+
+
+def uf2(segments, data):
+    image = {}
+    for (ptype, offset, _vaddr, paddr, filesz, *_rest) in segments:
+        if ptype == PT_LOAD and filesz:
+            for i in range(filesz):
+                image[paddr + i] = data[offset + i]
+    if not image:
+        sys.exit("no loadable bytes")
+    start = min(image) // UF2_PAYLOAD * UF2_PAYLOAD
+    end = max(image) + 1
+    blocks = list(range(start, end, UF2_PAYLOAD))
+    out = bytearray()
+    for n, addr in enumerate(blocks):
+        payload = bytes(image.get(addr + i, 0xFF) for i in range(UF2_PAYLOAD))
+        head = struct.pack(
+            "<IIIIIIII", UF2_MAGIC[0], UF2_MAGIC[1], UF2_FLAG_FAMILY, addr,
+            UF2_PAYLOAD, n, len(blocks), UF2_FAMILY_SAMD21,
+        )
+        out += head + payload.ljust(476, b"\0") + struct.pack("<I", UF2_MAGIC[2])
+    return bytes(out), start
+
+
+out = Path(sys.argv[1])
+print(f"{'layout':<6} {'flash':>22} {'RAM':>22}  sections")
+for layout, app_flash in (("bare", CHIP_FLASH), ("uf2", CHIP_FLASH - 8 * 1024)):
+    data = (out / f"multirx-samd21-{layout}.elf").read_bytes()
+    named, segments = elf32(data)
+    flash, ram, parts = measure(named)
+    if flash == 0:
+        sys.exit(f"{layout}: no flash contents found")
+    if flash > app_flash or ram > CHIP_RAM:
+        sys.exit(f"{layout}: does not fit ({flash} B flash of {app_flash}, {ram} B RAM)")
+    print(
+        f"{layout:<6} {flash:>7} B {100 * flash / CHIP_FLASH:5.1f} % of 256K"
+        f" {ram:>7} B {100 * ram / CHIP_RAM:5.1f} % of 32K  {', '.join(parts)}"
+    )
+    if layout == "uf2":
+        image, base = uf2(segments, data)
+        if base < 0x2000:
+            sys.exit(f"uf2: image starts at {base:#x}, inside the bootloader")
+        (out / "multirx-samd21.uf2").write_bytes(image)
+print("RAM is static data (.data + .bss + .uninit); the stack takes the rest, from the top of RAM down.")
+print(f"UF2 image for the bootloader drive: {out / 'multirx-samd21.uf2'}")
+PY

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Installs what a fresh Debian machine needs to build and test everything:
+# libudev (serialport, probe-rs), Python fixtures' packages, the firmware's
+# Rust target. Safe to run again: it skips what is already there.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need_apt=()
+for pkg in pkg-config libudev-dev; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
+done
+if [ ${#need_apt[@]} -gt 0 ]; then
+    echo "setup: apt-get install ${need_apt[*]}"
+    SUDO=""
+    [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
+fi
+
+if ! python3 -c "import serial, pymavlink, pytest" 2>/dev/null; then
+    echo "setup: pip install -r fixtures/requirements.txt"
+    python3 -m pip install -q --disable-pip-version-check -r fixtures/requirements.txt
+fi
+
+# rust-toolchain.toml names the toolchain and the thumbv6m target; this makes
+# rustup install whatever of it is missing before cargo needs it.
+rustup show active-toolchain >/dev/null
+rustup target list --installed | grep -qx thumbv6m-none-eabi || rustup target add thumbv6m-none-eabi

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Every test: formatting and lints, the Rust workspace (unit, property,
+# scenario and end-to-end tests over real ptys), the Python fixtures, the
+# SAMD21 firmware build with its size, the core's benchmark, and finally the
+# full emulated rig suite.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash ci/setup.sh
+
+step() { printf '\n=== %s\n' "$*"; }
+
+step "cargo fmt --check"
+cargo fmt --all -- --check
+step "cargo clippy -D warnings"
+cargo clippy --locked --workspace --all-targets -- -D warnings
+step "cargo test --workspace"
+cargo test --locked --workspace
+step "pytest fixtures"
+python3 -m pytest -q fixtures/tests
+step "firmware build and size"
+bash ci/build-firmware.sh
+step "multirx-core benchmark"
+cargo bench --locked -q -p multirx-core
+step "rig suite, emulated rig"
+bash ci/rig-emulated.sh --out target/rig-report

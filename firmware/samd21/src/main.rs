@@ -1,0 +1,324 @@
+//! MultiRX firmware for the SAMD21G18: the host-tested `multirx_core` engine
+//! wired to the board in [`board`]. This file only moves bytes and time:
+//!
+//! - SBUS bytes from each receiver (and the IFS) arrive by RX interrupt into a
+//!   small lock-free SPSC queue per SERCOM; the main loop drains them into
+//!   [`Multiplexer::handle_receiver_bytes`] / [`Multiplexer::handle_ifs_bytes`].
+//!   A UART error travels the same queue as a marker, so the engine drops the
+//!   frame it belongs to ([`Multiplexer::handle_receiver_error`]).
+//! - When `now` reaches [`Multiplexer::poll_timeout`] it calls
+//!   [`Multiplexer::handle_timeout`], then queues the due SBUS frame for the
+//!   flight controller and turns events into power-switch changes and status
+//!   lines, each TX queue drained into its UART as the data register empties.
+//! - The watchdog is fed only after a pass that left the engine with no
+//!   overdue deadline.
+//!
+//! Why interrupts for RX rather than polling: a SERCOM buffers two bytes, so
+//! a polled loop would have to come round within ~240 µs (two 120 µs SBUS
+//! bytes) on every pass, whatever the engine and the status formatting cost
+//! on a 48 MHz Cortex-M0+. The interrupt handlers only move a byte into a
+//! 64-byte queue (7.7 ms of one receiver's line), so the loop's worst case
+//! is decoupled from the byte timing. TX is polled: a late poll only widens
+//! the gap between two bytes of a frame, which SBUS decoders accept.
+
+#![no_std]
+#![no_main]
+
+mod board;
+
+/// The configuration compiled in by `build.rs` from `MULTIRX_CONFIG`.
+mod config {
+    include!(concat!(env!("OUT_DIR"), "/config.rs"));
+}
+
+use core::cell::RefCell;
+use core::fmt::Write as _;
+
+use atsamd_hal::ehal_nb::serial::{Read, Write};
+use atsamd_hal::pac::{self, NVIC, interrupt};
+use atsamd_hal::sercom::uart::{Flags, Status, Uart};
+use cortex_m_rt::entry;
+use critical_section::Mutex;
+use heapless::Deque;
+use heapless::spsc::{Consumer, Producer, Queue};
+use multirx_core::{Event, Multiplexer, TimedEvent};
+
+use board::{Board, PowerSwitches, RECEIVER_PORTS};
+use config::CONFIG;
+
+// panic-reset rather than panic-halt: a halted MultiRX sends nothing and the
+// flight controller declares RC loss after COM_RC_LOSS_T (0.5 s on PX4);
+// resetting at once restarts the neutral / auto-loiter frames after the
+// start-up time (the watchdog would reset a halted chip too, but 250 ms
+// later). For a debugging session swap in panic-halt and stop the watchdog.
+use panic_reset as _;
+
+/// Whether SERCOM5's RX pad is the independent fail-safe system's input
+/// rather than receiver 5's.
+const IFS: bool = !CONFIG.ifs_channels.is_empty();
+/// The SERCOM (and queue) the IFS uses when [`IFS`].
+const IFS_PORT: usize = 5;
+const _: () = assert!(
+    CONFIG.receivers as usize <= if IFS { IFS_PORT } else { RECEIVER_PORTS },
+    "build.rs checks the board limits; this backs it up"
+);
+
+/// Bytes buffered per SBUS input between the RX interrupt and the main loop.
+const RX_QUEUE: usize = 64;
+/// Bytes queued for the flight controller: two 25-byte frames.
+const FC_QUEUE: usize = 64;
+/// Bytes queued for the status output (~13 lines); a line that does not fit
+/// whole is dropped: status never holds up SBUS or the power switches.
+const STATUS_QUEUE: usize = 512;
+
+/// A queue entry: a received byte, or [`UART_ERROR`].
+type RxEntry = u16;
+/// Queued in place of a byte received with a parity, framing or overrun error.
+const UART_ERROR: RxEntry = 0x100;
+
+/// An SBUS input owned by its interrupt handler.
+struct RxPort<U> {
+    uart: U,
+    queue: Producer<'static, RxEntry>,
+}
+
+type Slot<U> = Mutex<RefCell<Option<RxPort<U>>>>;
+
+static RX0: Slot<board::Rx0> = Mutex::new(RefCell::new(None));
+static RX1: Slot<board::Rx1> = Mutex::new(RefCell::new(None));
+static RX2: Slot<board::Rx2> = Mutex::new(RefCell::new(None));
+static RX3: Slot<board::Rx3> = Mutex::new(RefCell::new(None));
+static RX4: Slot<board::Rx4> = Mutex::new(RefCell::new(None));
+static RX5: Slot<board::Rx5> = Mutex::new(RefCell::new(None));
+
+/// What an RX interrupt needs of a UART, whatever its pads.
+trait SbusRx {
+    fn listen(&mut self);
+    fn service(&mut self, queue: &mut Producer<'static, RxEntry>);
+}
+
+impl<C, D> SbusRx for Uart<C, D>
+where
+    C: atsamd_hal::sercom::uart::ValidConfig<Word = u8>,
+    D: atsamd_hal::sercom::uart::Receive,
+{
+    fn listen(&mut self) {
+        self.flush_rx_buffer();
+        self.enable_interrupts(Flags::RXC);
+    }
+
+    /// Moves every received byte to `queue`. A byte with a parity or framing
+    /// error, or after an overrun, becomes [`UART_ERROR`] so the engine drops
+    /// the frame it belongs to. A full queue drops bytes; the gap check in the
+    /// core's link tracking then discards the truncated frame.
+    fn service(&mut self, queue: &mut Producer<'static, RxEntry>) {
+        let errors = || Status::PERR | Status::FERR | Status::BUFOVF;
+        while self.read_flags().contains(Flags::RXC) {
+            let bad = self.read_status().intersects(errors());
+            if bad {
+                // `read` refuses while an error flag is set; clear it, then
+                // read the byte it belongs to and drop it.
+                self.clear_status(errors());
+            }
+            if let Ok(byte) = self.read() {
+                let _ = queue.enqueue(if bad { UART_ERROR } else { byte.into() });
+            }
+        }
+    }
+}
+
+fn on_interrupt<U: SbusRx>(slot: &Slot<U>) {
+    critical_section::with(|cs| {
+        if let Some(port) = slot.borrow_ref_mut(cs).as_mut() {
+            port.uart.service(&mut port.queue);
+        }
+    });
+}
+
+#[interrupt]
+fn SERCOM0() {
+    on_interrupt(&RX0);
+}
+
+#[interrupt]
+fn SERCOM1() {
+    on_interrupt(&RX1);
+}
+
+#[interrupt]
+fn SERCOM2() {
+    on_interrupt(&RX2);
+}
+
+#[interrupt]
+fn SERCOM3() {
+    on_interrupt(&RX3);
+}
+
+#[interrupt]
+fn SERCOM4() {
+    on_interrupt(&RX4);
+}
+
+#[interrupt]
+fn SERCOM5() {
+    on_interrupt(&RX5);
+}
+
+/// SERCOMi's interrupt serves SBUS input i.
+const SERCOM_IRQ: [pac::Interrupt; RECEIVER_PORTS] = [
+    pac::Interrupt::SERCOM0,
+    pac::Interrupt::SERCOM1,
+    pac::Interrupt::SERCOM2,
+    pac::Interrupt::SERCOM3,
+    pac::Interrupt::SERCOM4,
+    pac::Interrupt::SERCOM5,
+];
+
+/// Hands SBUS input `port` to its interrupt handler and unmasks it, if the
+/// configuration uses it; an unused input stays masked and is never read.
+fn install<U: SbusRx + Send>(
+    slot: &'static Slot<U>,
+    mut uart: U,
+    queue: Producer<'static, RxEntry>,
+    port: usize,
+) {
+    if !port_used(port) {
+        return;
+    }
+    uart.listen();
+    critical_section::with(|cs| slot.replace(cs, Some(RxPort { uart, queue })));
+    // SAFETY: the handler's slot is filled, and nothing here relies on
+    // interrupts being masked (all shared state is behind critical sections
+    // or in SPSC queues).
+    unsafe { NVIC::unmask(SERCOM_IRQ[port]) };
+}
+
+/// Whether SBUS input `port` is wired to something the configuration uses.
+const fn port_used(port: usize) -> bool {
+    port < CONFIG.receivers as usize || (IFS && port == IFS_PORT)
+}
+
+#[entry]
+fn main() -> ! {
+    let dp = pac::Peripherals::take().expect("first and only take");
+    let Board {
+        receivers,
+        mut fc_out,
+        mut status_out,
+        mut power,
+        mut clock,
+        mut watchdog,
+    } = Board::new(dp);
+
+    let queues = cortex_m::singleton!(
+        : [Queue<RxEntry, RX_QUEUE>; RECEIVER_PORTS] = [const { Queue::new() }; RECEIVER_PORTS]
+    )
+    .expect("created once");
+    let [q0, q1, q2, q3, q4, q5] = queues;
+    let (p0, c0) = q0.split();
+    let (p1, c1) = q1.split();
+    let (p2, c2) = q2.split();
+    let (p3, c3) = q3.split();
+    let (p4, c4) = q4.split();
+    let (p5, c5) = q5.split();
+    let mut inputs: [Consumer<'static, RxEntry>; RECEIVER_PORTS] = [c0, c1, c2, c3, c4, c5];
+    install(&RX0, receivers.rx0, p0, 0);
+    install(&RX1, receivers.rx1, p1, 1);
+    install(&RX2, receivers.rx2, p2, 2);
+    install(&RX3, receivers.rx3, p3, 3);
+    install(&RX4, receivers.rx4, p4, 4);
+    install(&RX5, receivers.rx5, p5, 5);
+
+    let mut mux = Multiplexer::new(CONFIG, clock.now());
+    let mut fc_queue: Deque<u8, FC_QUEUE> = Deque::new();
+    let mut status_queue: Deque<u8, STATUS_QUEUE> = Deque::new();
+    watchdog.start();
+
+    loop {
+        let now = clock.now();
+
+        for (port, input) in inputs.iter_mut().enumerate() {
+            let ifs = IFS && port == IFS_PORT;
+            let mut chunk = [0u8; RX_QUEUE];
+            let mut len = 0;
+            let feed = |mux: &mut Multiplexer, bytes: &[u8]| match (bytes.is_empty(), ifs) {
+                (true, _) => {}
+                (false, true) => mux.handle_ifs_bytes(now, bytes),
+                (false, false) => mux.handle_receiver_bytes(now, port as u8, bytes),
+            };
+            while len < chunk.len()
+                && let Some(entry) = input.dequeue()
+            {
+                if entry == UART_ERROR {
+                    // Bytes before the error first, then drop the frame.
+                    feed(&mut mux, &chunk[..len]);
+                    len = 0;
+                    if ifs {
+                        mux.handle_ifs_error();
+                    } else {
+                        mux.handle_receiver_error(port as u8);
+                    }
+                    continue;
+                }
+                chunk[len] = entry as u8;
+                len += 1;
+            }
+            feed(&mut mux, &chunk[..len]);
+        }
+
+        if now >= mux.poll_timeout() {
+            mux.handle_timeout(now);
+        }
+        while let Some(frame) = mux.poll_transmit() {
+            push_whole(&mut fc_queue, &frame);
+        }
+        while let Some(event) = mux.poll_event() {
+            apply(&mut power, &event);
+            status_line(&mut status_queue, &event);
+        }
+
+        drain(&mut fc_out, &mut fc_queue);
+        drain(&mut status_out, &mut status_queue);
+
+        if now < mux.poll_timeout() {
+            watchdog.feed();
+        }
+    }
+}
+
+/// Power events switch the receivers; the others only become status lines.
+fn apply(power: &mut PowerSwitches, event: &TimedEvent) {
+    if let Event::Power { rx, on } = event.event {
+        power.set(rx, on);
+    }
+}
+
+/// Queues `event` as one status line, or drops it whole if there is no room.
+fn status_line<const N: usize>(queue: &mut Deque<u8, N>, event: &TimedEvent) {
+    // "18446744073709551615 link 5 acquiring\n" is 38 bytes.
+    let mut line = heapless::String::<48>::new();
+    if writeln!(line, "{event}").is_ok() {
+        push_whole(queue, line.as_bytes());
+    }
+}
+
+/// Appends all of `bytes` or none: a partial SBUS frame or status line is
+/// worse than a missing one.
+fn push_whole<const N: usize>(queue: &mut Deque<u8, N>, bytes: &[u8]) {
+    if queue.capacity() - queue.len() >= bytes.len() {
+        for &byte in bytes {
+            let _ = queue.push_back(byte);
+        }
+    }
+}
+
+/// Writes queued bytes while the UART's data register has room; never waits.
+fn drain<const N: usize>(uart: &mut impl Write<u8>, queue: &mut Deque<u8, N>) {
+    while let Some(&byte) = queue.front() {
+        if uart.write(byte).is_err() {
+            break;
+        }
+        queue.pop_front();
+    }
+}
