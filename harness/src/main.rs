@@ -101,11 +101,8 @@ fn execute(command: Command) -> Result<ExitCode> {
         Command::Check { rig } => {
             let rig = RigFile::load(&rig)?;
             if let Some(section) = &rig.multirx {
-                for (mode, path) in &section.device.configs {
-                    let text = std::fs::read_to_string(path)
-                        .with_context(|| format!("cannot read {}", path.display()))?;
-                    let config = multirx_core::Config::from_toml(&text)
-                        .map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))?;
+                for (&mode, path) in &section.device.configs {
+                    let config = rig::strategy::multirx::load_config(&rig, mode)?;
                     println!(
                         "{}: mode {mode}: {} receivers, ok",
                         path.display(),

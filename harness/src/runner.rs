@@ -102,15 +102,10 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
 }
 
 fn mode_limits(rig: &RigFile, mode: Mode) -> Result<Limits> {
-    let section = rig.multirx.as_ref().context("no [multirx]")?;
-    let path = section
-        .config(mode)
-        .with_context(|| format!("no MultiRX config for mode {mode}"))?;
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let config = multirx_core::Config::from_toml(&text)
-        .map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))?;
-    Ok(Limits::new(mode, &config))
+    Ok(Limits::new(
+        mode,
+        &crate::strategy::multirx::load_config(rig, mode)?,
+    ))
 }
 
 fn scenario_trial(
