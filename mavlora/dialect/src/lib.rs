@@ -1,0 +1,12 @@
+//! MavLora's MAVLink dialect: everything in `common.xml` plus
+//! [`LINK_QUALITY`](mavlora::LINK_QUALITY_DATA) (id 15) and
+//! [`MAVLORA_TELEMETRY`](mavlora::MAVLORA_TELEMETRY_DATA) (id 16).
+//!
+//! Generated at build time by `mavlink-bindgen` from `message_definitions/mavlora.xml` (in the
+//! `mavlora` crate directory), so the Rust types, the CRC_EXTRA values and the XML that
+//! pymavlink's `mavgen` reads cannot drift apart. Messages use the `mavlink` crate's traits
+//! ([`mavlink_core::Message`], [`mavlink_core::MessageData`]).
+
+include!(concat!(env!("OUT_DIR"), "/dialect_mod.rs"));
+
+pub use mavlora::*;

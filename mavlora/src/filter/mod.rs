@@ -1,0 +1,11 @@
+//! The paper's two bandwidth mechanisms, driven by one [`Profile`]: stream-rate requests to
+//! the flight controller ([`set_message_interval_requests`]) and per-message filtering and
+//! rate limiting on the way to the radio ([`RadioFilter`]).
+
+mod limiter;
+mod profile;
+mod stream_rate;
+
+pub use limiter::{FilterStats, RadioFilter, Verdict};
+pub use profile::{MessageRule, Profile, ProfileError, RadioRule};
+pub use stream_rate::set_message_interval_requests;

@@ -1,0 +1,248 @@
+use mavlink::MavlinkVersion;
+use proptest::prelude::*;
+
+use super::*;
+use crate::testutil::raw_frame;
+
+const HEARTBEAT: u32 = 0;
+const GLOBAL_POSITION_INT: u32 = 33;
+const COMMAND_LONG: u32 = 76;
+const ROOM: usize = usize::MAX;
+
+fn config(rate: u32) -> SchedulerConfig {
+    SchedulerConfig {
+        rate_bytes_per_s: rate,
+        burst_bytes: MAX_FRAME_LEN as u32,
+        max_queued_bytes: 4096,
+    }
+}
+
+/// A frame of message `id` with a full-length, non-zero payload (MAVLink 2 would truncate an
+/// all-zero default message to one byte).
+fn frame(id: u32, sysid: u8, compid: u8, seq: u8) -> OwnedFrame {
+    let len = match id {
+        GLOBAL_POSITION_INT => 28,
+        COMMAND_LONG => 33,
+        HEARTBEAT => 9,
+        _ => unreachable!("test uses only the ids above"),
+    };
+    raw_frame(MavlinkVersion::V2, sysid, compid, seq, id, &vec![0x55; len])
+}
+
+fn ms(t: u64) -> Instant {
+    Instant::from_millis(t)
+}
+
+/// Drains everything the scheduler releases at `now`.
+fn drain(s: &mut LinkScheduler, now: Instant) -> Vec<OwnedFrame> {
+    std::iter::from_fn(|| s.poll_transmit(now, ROOM)).collect()
+}
+
+#[test]
+fn invalid_configs_are_rejected() {
+    let mut c = config(100);
+    c.burst_bytes = 100;
+    assert_eq!(
+        LinkScheduler::new(c, ms(0)).unwrap_err(),
+        ScheduleError::BurstTooSmall(100)
+    );
+    assert_eq!(
+        LinkScheduler::new(config(0), ms(0)).unwrap_err(),
+        ScheduleError::ZeroRate
+    );
+}
+
+#[test]
+fn priority_goes_before_periodic_in_arrival_order() {
+    let mut s = LinkScheduler::new(config(10_000), ms(0)).unwrap();
+    s.push(frame(GLOBAL_POSITION_INT, 1, 1, 0), Class::Periodic, ms(0));
+    s.push(frame(COMMAND_LONG, 1, 1, 1), Class::Priority, ms(0));
+    s.push(frame(HEARTBEAT, 1, 1, 2), Class::Priority, ms(0));
+    let out: Vec<_> = drain(&mut s, ms(0))
+        .iter()
+        .map(|f| f.message_id())
+        .collect();
+    assert_eq!(out, vec![COMMAND_LONG, HEARTBEAT, GLOBAL_POSITION_INT]);
+}
+
+#[test]
+fn newest_periodic_sample_replaces_the_queued_one_in_place() {
+    let mut s = LinkScheduler::new(config(10_000), ms(0)).unwrap();
+    s.push(frame(GLOBAL_POSITION_INT, 1, 1, 0), Class::Periodic, ms(0));
+    s.push(frame(HEARTBEAT, 1, 1, 1), Class::Periodic, ms(0));
+    s.push(frame(GLOBAL_POSITION_INT, 1, 1, 2), Class::Periodic, ms(0));
+    // another sender's position is a different stream
+    s.push(frame(GLOBAL_POSITION_INT, 2, 1, 0), Class::Periodic, ms(0));
+    assert_eq!(s.queued_frames(), (0, 3));
+    assert_eq!(s.stats().replaced, 1);
+    let out: Vec<_> = drain(&mut s, ms(0))
+        .iter()
+        .map(|f| (f.system_id(), f.message_id(), f.sequence()))
+        .collect();
+    assert_eq!(
+        out,
+        vec![
+            (1, GLOBAL_POSITION_INT, 2),
+            (1, HEARTBEAT, 1),
+            (2, GLOBAL_POSITION_INT, 0)
+        ]
+    );
+    assert_eq!(s.queued_bytes(), 0);
+}
+
+#[test]
+fn rate_is_enforced_and_poll_timeout_says_when() {
+    let mut s = LinkScheduler::new(config(100), ms(0)).unwrap();
+    // The burst (280 bytes) lets 6 frames of 45 bytes go at once.
+    for seq in 0..10 {
+        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Priority, ms(0));
+    }
+    let first = drain(&mut s, ms(0));
+    let burst_frames = 280 / first[0].as_bytes().len();
+    assert_eq!((first.len(), burst_frames), (6, 6));
+    let len = first[0].as_bytes().len() as u64;
+    // The next frame needs `len` more bytes at 100 B/s.
+    let leftover = 280 - burst_frames as u64 * len;
+    let wait_ms = ((len - leftover) * 1000).div_ceil(100);
+    assert_eq!(s.poll_timeout(ms(0)), Some(ms(wait_ms)));
+    assert!(s.poll_transmit(ms(wait_ms - 1), ROOM).is_none());
+    assert!(s.poll_transmit(ms(wait_ms), ROOM).is_some());
+}
+
+#[test]
+fn frame_larger_than_the_room_waits() {
+    let mut s = LinkScheduler::new(config(10_000), ms(0)).unwrap();
+    let f = frame(COMMAND_LONG, 1, 1, 0);
+    let len = f.as_bytes().len();
+    s.push(f, Class::Priority, ms(0));
+    assert!(s.poll_transmit(ms(0), len - 1).is_none());
+    assert!(s.poll_transmit(ms(0), len).is_some());
+}
+
+#[test]
+fn full_queue_drops_periodic_before_priority() {
+    let mut c = config(100);
+    c.max_queued_bytes = MAX_FRAME_LEN;
+    let mut s = LinkScheduler::new(c, ms(0)).unwrap();
+    let periodic = frame(GLOBAL_POSITION_INT, 1, 1, 0); // 40 bytes
+    s.push(periodic, Class::Periodic, ms(0));
+    for seq in 0..6 {
+        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Priority, ms(0)); // 45 bytes each
+    }
+    // 40 + 6*45 = 310 > 280: the periodic one goes first.
+    assert_eq!(s.stats().dropped_periodic, 1);
+    assert_eq!(s.stats().dropped_priority, 0);
+    s.push(frame(COMMAND_LONG, 1, 1, 6), Class::Priority, ms(0));
+    assert_eq!(s.stats().dropped_priority, 1);
+    assert!(s.queued_bytes() <= MAX_FRAME_LEN);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+#[derive(Debug, Clone)]
+enum Event {
+    /// After `gap_ms`, push a frame of `payload` bytes.
+    Push {
+        gap_ms: u64,
+        priority: bool,
+        sender: u8,
+        msgid: u32,
+        payload: usize,
+    },
+    /// After `gap_ms`, drain with this much room.
+    Poll { gap_ms: u64, room: usize },
+}
+
+fn event() -> impl Strategy<Value = Event> {
+    prop_oneof![
+        (0u64..200, any::<bool>(), 1u8..3, 0u32..6, 0usize..=255).prop_map(
+            |(gap_ms, priority, sender, msgid, payload)| Event::Push {
+                gap_ms,
+                priority,
+                sender,
+                msgid: 42_000 + msgid,
+                payload
+            }
+        ),
+        (0u64..300, prop_oneof![Just(usize::MAX), 0usize..400])
+            .prop_map(|(gap_ms, room)| Event::Poll { gap_ms, room }),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn budget_and_priority_hold_for_random_arrivals(
+        events in prop::collection::vec(event(), 1..200),
+        rate in 20u32..2_000,
+        extra_burst in 0u32..300,
+        queue_limit in MAX_FRAME_LEN..3_000,
+    ) {
+        let burst = MAX_FRAME_LEN as u32 + extra_burst;
+        let cfg = SchedulerConfig { rate_bytes_per_s: rate, burst_bytes: burst, max_queued_bytes: queue_limit };
+        let mut s = LinkScheduler::new(cfg, Instant::ZERO).unwrap();
+        let mut now = 0u64; // ms
+        let mut released: Vec<(u64, usize)> = Vec::new(); // (µs, bytes)
+        let mut priority_in = Vec::new();
+        let mut priority_out = Vec::new();
+        let mut next_seq = 0u8;
+        for e in events {
+            match e {
+                Event::Push { gap_ms, priority, sender, msgid, payload } => {
+                    now += gap_ms;
+                    next_seq = next_seq.wrapping_add(1);
+                    let f = raw_frame(MavlinkVersion::V2, sender, 1, next_seq, msgid, &vec![0x33; payload]);
+                    let class = if priority { Class::Priority } else { Class::Periodic };
+                    if priority {
+                        priority_in.push(f.as_bytes().to_vec());
+                    }
+                    let before = s.stats();
+                    s.push(f, class, ms(now));
+                    let after = s.stats();
+                    if after.dropped_priority > before.dropped_priority {
+                        prop_assert_eq!(s.queued_frames().1, 0, "priority dropped while periodic queued");
+                    }
+                    prop_assert!(s.queued_bytes() <= queue_limit);
+                }
+                Event::Poll { gap_ms, room } => {
+                    now += gap_ms;
+                    let mut left = room;
+                    while let Some(f) = s.poll_transmit(ms(now), left) {
+                        let len = f.as_bytes().len();
+                        prop_assert!(len <= left);
+                        left -= len;
+                        released.push((now * 1000, len));
+                        if priority_in.contains(&f.as_bytes().to_vec()) {
+                            priority_out.push(f.as_bytes().to_vec());
+                        }
+                    }
+                    if let Some(t) = s.poll_timeout(ms(now)) {
+                        prop_assert!(t >= ms(now));
+                    }
+                }
+            }
+        }
+        // Budget: for every window between two release instants.
+        for i in 0..released.len() {
+            let mut bytes = 0u64;
+            for (t, len) in &released[i..] {
+                bytes += *len as u64;
+                let window_us = t - released[i].0;
+                let allowed = (u64::from(rate) * window_us).div_ceil(1_000_000) + u64::from(burst);
+                prop_assert!(bytes <= allowed, "{} bytes in {} µs (allowed {})", bytes, window_us, allowed);
+            }
+        }
+        // Priority frames leave in order: what left is a prefix-ordered subsequence of what
+        // came in, and nothing was dropped unless counted.
+        let mut it = priority_in.iter();
+        for out in &priority_out {
+            prop_assert!(it.any(|x| x == out), "priority frame out of order");
+        }
+        let st = s.stats();
+        prop_assert_eq!(
+            priority_in.len() as u64,
+            priority_out.len() as u64 + st.dropped_priority + s.queued_frames().0 as u64
+        );
+    }
+}

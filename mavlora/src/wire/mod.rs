@@ -1,0 +1,17 @@
+//! MAVLink on the wire: frame views, the stream reader and its counters.
+//!
+//! Everything here works on raw frames. Routing needs only header fields, so payloads are
+//! never decoded unless a caller asks ([`Frame::decode`]).
+
+mod frame;
+pub mod known;
+mod reader;
+mod sender;
+mod stats;
+
+pub use frame::{
+    Frame, FrameError, IFLAG_SIGNED, MAX_FRAME_LEN, OwnedFrame, STX_V1, STX_V2, encode,
+};
+pub use reader::{CrcExtraFn, FrameReader, Integrity, Received};
+pub use sender::Sender;
+pub use stats::{ReaderStats, StreamCounters, StreamId};

@@ -1,0 +1,132 @@
+//! Counters the stream reader keeps: what the link-quality message reports.
+
+use std::collections::BTreeMap;
+
+/// One MAVLink stream: a sender's (system id, component id). Sequence numbers are per stream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct StreamId {
+    /// Sender's system id.
+    pub system: u8,
+    /// Sender's component id.
+    pub component: u8,
+}
+
+/// Counters for one stream.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct StreamCounters {
+    /// Frames accepted (checked or forwarded unchecked).
+    pub received: u64,
+    /// Frames missing, from sequence gaps (pymavlink's rule: `(seq - expected) mod 256`, so a
+    /// duplicate or reordered frame counts as 255 lost, as in MAVProxy's link statistics).
+    pub lost: u64,
+    /// Frames whose header named this stream but whose checksum failed. Counted only once the
+    /// stream has been seen in a good frame, so garbage cannot create streams.
+    pub bad_crc: u64,
+    last_sequence: Option<u8>,
+}
+
+/// Counters for everything a [`FrameReader`](super::FrameReader) has read.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ReaderStats {
+    /// Frames accepted with a verified checksum.
+    pub frames_checked: u64,
+    /// Frames of unknown message ids accepted without a checksum check.
+    pub frames_unchecked: u64,
+    /// Candidate frames of known ids whose checksum failed, all streams.
+    pub bad_crc: u64,
+    /// Frames missing from sequence gaps, all streams.
+    pub lost: u64,
+    /// Bytes discarded while resynchronising (not part of any accepted frame).
+    pub garbage_bytes: u64,
+    streams: BTreeMap<StreamId, StreamCounters>,
+}
+
+impl ReaderStats {
+    /// Counters of one stream, if it has sent a good frame.
+    pub fn stream(&self, id: StreamId) -> Option<&StreamCounters> {
+        self.streams.get(&id)
+    }
+
+    /// All streams seen, in (system, component) order.
+    pub fn streams(&self) -> impl Iterator<Item = (StreamId, &StreamCounters)> {
+        self.streams.iter().map(|(id, c)| (*id, c))
+    }
+
+    /// Frames accepted, checked or not.
+    pub fn frames(&self) -> u64 {
+        self.frames_checked + self.frames_unchecked
+    }
+
+    pub(crate) fn record_frame(&mut self, id: StreamId, sequence: u8, checked: bool) {
+        if checked {
+            self.frames_checked += 1;
+        } else {
+            self.frames_unchecked += 1;
+        }
+        let stream = self.streams.entry(id).or_default();
+        stream.received += 1;
+        if let Some(last) = stream.last_sequence {
+            let gap = u64::from(sequence.wrapping_sub(last.wrapping_add(1)));
+            stream.lost += gap;
+            self.lost += gap;
+        }
+        stream.last_sequence = Some(sequence);
+    }
+
+    pub(crate) fn record_bad_crc(&mut self, id: StreamId) {
+        self.bad_crc += 1;
+        if let Some(stream) = self.streams.get_mut(&id) {
+            stream.bad_crc += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const S: StreamId = StreamId {
+        system: 1,
+        component: 1,
+    };
+
+    #[test]
+    fn gaps_count_lost_frames_across_wraparound() {
+        let mut stats = ReaderStats::default();
+        for seq in [250, 251, 254, 255, 0, 3] {
+            stats.record_frame(S, seq, true);
+        }
+        // missing: 252, 253, 1, 2
+        assert_eq!(stats.stream(S).unwrap().lost, 4);
+        assert_eq!(stats.lost, 4);
+        assert_eq!(stats.stream(S).unwrap().received, 6);
+    }
+
+    #[test]
+    fn streams_are_independent() {
+        let other = StreamId {
+            system: 1,
+            component: 190,
+        };
+        let mut stats = ReaderStats::default();
+        stats.record_frame(S, 0, true);
+        stats.record_frame(other, 100, false);
+        stats.record_frame(S, 1, true);
+        stats.record_frame(other, 101, true);
+        assert_eq!(stats.lost, 0);
+        assert_eq!(stats.frames_checked, 3);
+        assert_eq!(stats.frames_unchecked, 1);
+    }
+
+    #[test]
+    fn bad_crc_of_unseen_stream_counts_only_in_total() {
+        let mut stats = ReaderStats::default();
+        stats.record_bad_crc(S);
+        assert_eq!(stats.bad_crc, 1);
+        assert!(stats.stream(S).is_none());
+        stats.record_frame(S, 0, true);
+        stats.record_bad_crc(S);
+        assert_eq!(stats.stream(S).unwrap().bad_crc, 1);
+        assert_eq!(stats.bad_crc, 2);
+    }
+}
