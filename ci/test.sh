@@ -20,6 +20,6 @@ python3 -m pytest -q fixtures/tests
 step "firmware build and size"
 bash ci/build-firmware.sh
 step "multirx-core benchmark"
-cargo bench --locked -q -p multirx-core
+cargo bench --locked -q -p multirx-core --bench mux
 step "rig suite, emulated rig"
 bash ci/rig-emulated.sh --out target/rig-report

@@ -13,6 +13,9 @@ use crate::ports::{Input, Output, Source};
 #[derive(Debug, Default)]
 pub struct RunStats {
     pub frames_out: u64,
+    /// Longest interval between two frames handed to the output port, as the
+    /// device itself timed it: separates our cadence from transport jitter.
+    pub max_gap: std::time::Duration,
     pub frames_dropped: u64,
     pub status_lines: u64,
 }
@@ -22,6 +25,8 @@ pub struct Device {
     mux: Multiplexer,
     fc: Output,
     status: Option<Output>,
+    last_frame_at: Option<HostInstant>,
+    max_gap: std::time::Duration,
 }
 
 impl Device {
@@ -32,6 +37,8 @@ impl Device {
             mux: Multiplexer::new(config, Instant::ZERO),
             fc,
             status,
+            last_frame_at: None,
+            max_gap: std::time::Duration::ZERO,
         }
     }
 
@@ -69,6 +76,7 @@ impl Device {
         }
         RunStats {
             frames_out: self.fc.written,
+            max_gap: self.max_gap,
             frames_dropped: self.fc.dropped,
             status_lines: self.status.as_ref().map_or(0, |s| s.written),
         }
@@ -91,6 +99,11 @@ impl Device {
 
     fn flush(&mut self) {
         while let Some(frame) = self.mux.poll_transmit() {
+            let now = HostInstant::now();
+            if let Some(last) = self.last_frame_at {
+                self.max_gap = self.max_gap.max(now - last);
+            }
+            self.last_frame_at = Some(now);
             self.fc.send(&frame);
         }
         while let Some(event) = self.mux.poll_event() {

@@ -116,6 +116,7 @@ fn run(args: Args) -> Result<()> {
     tracing::info!(
         frames_out = stats.frames_out,
         frames_dropped = stats.frames_dropped,
+        max_gap_ms = stats.max_gap.as_secs_f64() * 1000.0,
         status_lines = stats.status_lines,
         "stopped"
     );
