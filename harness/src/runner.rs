@@ -145,7 +145,7 @@ fn run_scenario(
     ctx.log(scenario.summary);
     let result = MultirxSession::start(rig, mode, scenario.options, &dir).and_then(|session| {
         let result = (scenario.run)(&session, &mut ctx, limits);
-        multirx::record_session(&session, &mut ctx, limits, scenario.name);
+        let recorded = multirx::record_session(&session, &mut ctx, limits, scenario.name);
         for log in session.finish() {
             let label = log
                 .file_stem()
@@ -158,7 +158,7 @@ fn run_scenario(
             };
             ctx.attach(label, log, media);
         }
-        result
+        result.and(recorded)
     });
     let error = result.err().map(|e| format!("{e:#}"));
     let (measurements, log, files) = ctx.into_parts();
@@ -184,8 +184,17 @@ fn run_scenario(
 fn whole_run_measurements(l: &Limits) -> Vec<Measurement> {
     vec![
         Measurement::new(l.name("max_output_gap_ms"), "ms")
-            .describe("longest interval between frames at the flight controller over every scenario of this mode")
+            .describe(format!(
+                "{}, over every scenario of this mode",
+                multirx::OUTPUT_GAP
+            ))
             .at_most(l.max_gap_ms()),
+        Measurement::new(l.name("fc_max_gap_ms"), "ms")
+            .describe(format!(
+                "{}, over every scenario of this mode",
+                multirx::FC_GAP
+            ))
+            .at_most(l.max_fc_gap_ms()),
         Measurement::new(l.name("rc_losses"), "")
             .describe("RC losses PX4 would have declared over every scenario of this mode")
             .equal_to(0.0),
@@ -203,7 +212,7 @@ fn whole_run_trial(rig: &Arc<RigFile>, phases: &Phases, mode: Mode, limits: Limi
             ctx.declare(m);
         }
         let prefix = format!("multirx::{}::", mode.as_str());
-        let (mut gap, mut losses, mut count): (f64, f64, usize) = (0.0, 0.0, 0);
+        let (mut gap, mut fc_gap, mut losses, mut count) = (0.0f64, 0.0f64, 0.0, 0usize);
         for phase in phases
             .lock()
             .unwrap()
@@ -215,6 +224,8 @@ fn whole_run_trial(rig: &Arc<RigFile>, phases: &Phases, mode: Mode, limits: Limi
                 if m.name.ends_with(".max_output_gap_ms") {
                     gap = gap.max(v);
                     count += 1;
+                } else if m.name.ends_with(".fc_max_gap_ms") {
+                    fc_gap = fc_gap.max(v);
                 } else if m.name.ends_with(".rc_losses") {
                     losses += v;
                 }
@@ -226,6 +237,7 @@ fn whole_run_trial(rig: &Arc<RigFile>, phases: &Phases, mode: Mode, limits: Limi
         } else {
             ctx.log(format!("{count} scenarios"));
             ctx.record(&limits.name("max_output_gap_ms"), gap);
+            ctx.record(&limits.name("fc_max_gap_ms"), fc_gap);
             ctx.record(&limits.name("rc_losses"), losses);
             let (measurements, log, _) = ctx.into_parts();
             let mut r = PhaseRecord::ran(&name, started, 0.0, measurements, None);

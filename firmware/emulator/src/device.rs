@@ -8,6 +8,12 @@ use std::time::Instant as HostInstant;
 use multirx_core::{Config, Instant, Multiplexer};
 
 use crate::ports::{Input, Output, Source};
+use crate::tap::TxTap;
+
+/// How long before a deadline the loop stops sleeping and polls. Costs up
+/// to SPIN of CPU per output period; buys a steady cadence on hosts whose
+/// timer wake-ups are late (virtual machines).
+const SPIN: std::time::Duration = std::time::Duration::from_micros(1500);
 
 /// Counters printed at exit.
 #[derive(Debug, Default)]
@@ -27,10 +33,11 @@ pub struct Device {
     status: Option<Output>,
     last_frame_at: Option<HostInstant>,
     max_gap: std::time::Duration,
+    tap: Option<TxTap>,
 }
 
 impl Device {
-    pub fn new(config: Config, fc: Output, status: Option<Output>) -> Self {
+    pub fn new(config: Config, fc: Output, status: Option<Output>, tap: Option<TxTap>) -> Self {
         let epoch = HostInstant::now();
         Device {
             epoch,
@@ -39,6 +46,7 @@ impl Device {
             status,
             last_frame_at: None,
             max_gap: std::time::Duration::ZERO,
+            tap,
         }
     }
 
@@ -59,20 +67,26 @@ impl Device {
                 .saturating_duration_since(HostInstant::now())
                 // Wake now and then to notice `stop`.
                 .min(std::time::Duration::from_millis(100));
-            match inputs.recv_timeout(wait) {
+            if wait <= SPIN {
+                // Close to a deadline: poll instead of sleeping, since waking a
+                // sleeping thread on a virtual machine can take milliseconds.
+                match inputs.try_recv() {
+                    Ok(input) => self.handle_input(input),
+                    Err(_) => std::hint::spin_loop(),
+                }
+                self.service();
+                continue;
+            }
+            match inputs.recv_timeout(wait - SPIN) {
                 Ok(input) => self.handle_input(input),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => {
                     // No reader left: keep the output going all the same,
                     // as the board would with every receiver unplugged.
-                    std::thread::sleep(wait);
+                    std::thread::sleep(wait - SPIN);
                 }
             }
-            let now = self.to_core(HostInstant::now());
-            if now >= self.mux.poll_timeout() {
-                self.mux.handle_timeout(now);
-            }
-            self.flush();
+            self.service();
         }
         RunStats {
             frames_out: self.fc.written,
@@ -80,6 +94,15 @@ impl Device {
             frames_dropped: self.fc.dropped,
             status_lines: self.status.as_ref().map_or(0, |s| s.written),
         }
+    }
+
+    /// Handles due deadlines and sends what they produced.
+    fn service(&mut self) {
+        let now = self.to_core(HostInstant::now());
+        if now >= self.mux.poll_timeout() {
+            self.mux.handle_timeout(now);
+        }
+        self.flush();
     }
 
     fn handle_input(&mut self, input: Input) {
@@ -104,6 +127,9 @@ impl Device {
                 self.max_gap = self.max_gap.max(now - last);
             }
             self.last_frame_at = Some(now);
+            if let Some(tap) = &mut self.tap {
+                tap.frame_sent();
+            }
             self.fc.send(&frame);
         }
         while let Some(event) = self.mux.poll_event() {

@@ -12,6 +12,7 @@
 mod device;
 mod ports;
 mod realtime;
+mod tap;
 
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -45,6 +46,10 @@ struct Args {
     /// Serial port of the independent fail-safe system (SBUS in).
     #[arg(long)]
     ifs: Option<String>,
+    /// Write when each frame left for the flight controller (CLOCK_MONOTONIC
+    /// seconds, a line per frame): a probe on the TX pin, for the rig.
+    #[arg(long)]
+    tx_log: Option<std::path::PathBuf>,
 }
 
 fn main() -> ExitCode {
@@ -53,6 +58,7 @@ fn main() -> ExitCode {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let args = Args::parse();
     match run(args) {
@@ -111,7 +117,8 @@ fn run(args: Args) -> Result<()> {
         "MultiRX emulated device running"
     );
     realtime::request("engine");
-    let mut device = Device::new(config, fc, status);
+    let tap = args.tx_log.as_deref().map(tap::TxTap::create).transpose()?;
+    let mut device = Device::new(config, fc, status, tap);
     let stats = device.run(rx, &stop);
     tracing::info!(
         frames_out = stats.frames_out,

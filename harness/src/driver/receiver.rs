@@ -39,6 +39,9 @@ pub struct ReceiverSpec {
     pub port: String,
     pub period_ms: u32,
     pub boot_ms: u32,
+    /// Extra boot time, uniform in [0, this], so frame phases are not locked
+    /// to the power command (see the fixture's README).
+    pub boot_jitter_ms: u32,
     pub loss: Loss,
     pub powered: bool,
     /// 1-based channel → raw value.
@@ -81,6 +84,7 @@ impl ReceiverFixture {
             .args(["--port", &spec.port, "--name", &spec.name])
             .args(["--period-ms", &spec.period_ms.to_string()])
             .args(["--boot-ms", &spec.boot_ms.to_string()])
+            .args(["--boot-jitter-ms", &spec.boot_jitter_ms.to_string()])
             .args(["--loss", spec.loss.as_str()])
             .args(["--power", if spec.powered { "on" } else { "off" }])
             .args(["--tx", "off"]);

@@ -51,6 +51,13 @@ impl<'a> PhaseContext<'a> {
         self.log.push(line);
     }
 
+    /// Adds a remark to a declared measurement (e.g. how it was measured).
+    pub fn annotate(&mut self, name: &str, note: &str) {
+        if let Some(m) = self.measurements.iter_mut().find(|m| m.name == name) {
+            m.annotate(note);
+        }
+    }
+
     pub fn log(&mut self, line: impl Into<String>) {
         let line = line.into();
         tracing::debug!("{line}");

@@ -60,6 +60,8 @@ pub struct MultirxSession {
     /// Where logs of this session go.
     pub log_dir: PathBuf,
     device: Option<Process>,
+    /// The emulated device's TX probe (see `multirx-emu --tx-log`).
+    tx_log: Option<PathBuf>,
     _links: Vec<PtyLink>,
     _ptys: Vec<PtyPair>,
 }
@@ -151,6 +153,7 @@ impl MultirxSession {
                     port: port.clone(),
                     period_ms: section.receivers.period_ms,
                     boot_ms: section.receivers.boot_ms,
+                    boot_jitter_ms: section.receivers.period_ms,
                     loss: options.loss,
                     powered: false,
                     channels: vec![
@@ -172,6 +175,7 @@ impl MultirxSession {
                     port,
                     period_ms: section.receivers.period_ms,
                     boot_ms: 0,
+                    boot_jitter_ms: section.receivers.period_ms,
                     loss: Loss::Silent,
                     powered: true,
                     channels: vec![],
@@ -216,6 +220,7 @@ impl MultirxSession {
                 if ifs.is_some() {
                     command.args(["--ifs", &device_inputs[receiver_ports.len()]]);
                 }
+                command.arg("--tx-log").arg(log_dir.join(TX_LOG));
                 let mut process =
                     Process::spawn("multirx-emu", command, &log_dir.join("multirx-emu.log"))?;
                 std::thread::sleep(Duration::from_millis(50));
@@ -235,6 +240,7 @@ impl MultirxSession {
             started: Mono::now(),
             judged_until: std::sync::Mutex::new(None),
             log_dir: log_dir.to_path_buf(),
+            tx_log: device.as_ref().map(|_| log_dir.join(TX_LOG)),
             device,
             _links: links,
             _ptys: ptys,
@@ -295,6 +301,35 @@ impl MultirxSession {
             &format!("pilot {rx} in control"),
             |f| self.shows_pilot(f, rx),
         )
+    }
+
+    /// Longest interval between frames leaving the device, from its TX probe,
+    /// over the window the last [`Self::px4_report`] judged; `None` without a
+    /// probe (a board: there the flight-controller side is all we see).
+    pub fn device_max_gap(&self) -> Result<Option<Duration>> {
+        let Some(path) = &self.tx_log else {
+            return Ok(None);
+        };
+        let until = self.judged_until.lock().unwrap().unwrap_or_else(Mono::now);
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let mut last = self.started;
+        let mut max = Duration::ZERO;
+        for (i, line) in text.lines().enumerate() {
+            let secs: f64 = line.parse().with_context(|| {
+                format!("{}:{}: not a timestamp: {line:?}", path.display(), i + 1)
+            })?;
+            let t = Mono::from_secs_f64(secs);
+            if t < self.started {
+                continue;
+            }
+            if t > until {
+                break;
+            }
+            max = max.max(t.since(last));
+            last = t;
+        }
+        Ok(Some(max.max(until.since(last))))
     }
 
     /// PX4's view of the whole session so far.
@@ -358,6 +393,7 @@ impl MultirxSession {
             device.stop(Duration::from_secs(2));
             logs.push(device.log_path().to_path_buf());
         }
+        logs.extend(self.tx_log.clone().filter(|p| p.exists()));
         self.fc.stop();
         self.status.stop();
         match self.write_capture() {
@@ -367,6 +403,9 @@ impl MultirxSession {
         logs
     }
 }
+
+/// The emulated device's TX probe file, in the session's log folder.
+const TX_LOG: &str = "multirx-tx.log";
 
 /// Most receivers the SAMD21 board takes with the IFS input wired: it has six
 /// SERCOMs and the IFS takes one.

@@ -1,0 +1,33 @@
+//! A probe on the emulated board's TX pin: when each frame for the flight
+//! controller was handed to the port, as CLOCK_MONOTONIC seconds, one line per
+//! frame. A logic analyser gives the same on real hardware; the rig reads it to
+//! judge the device's own cadence apart from the serial transport's latency.
+
+use std::fs::File;
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+pub struct TxTap {
+    file: Option<File>,
+}
+
+impl TxTap {
+    pub fn create(path: &Path) -> Result<TxTap> {
+        let file =
+            File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+        Ok(TxTap { file: Some(file) })
+    }
+
+    /// Notes a frame leaving now. A write error stops the tap, never the device.
+    pub fn frame_sent(&mut self) {
+        let Some(file) = &mut self.file else { return };
+        let ts = rustix::time::clock_gettime(rustix::time::ClockId::Monotonic);
+        // Unbuffered: the rig may read the file while the device runs.
+        if let Err(e) = writeln!(file, "{}.{:09}", ts.tv_sec, ts.tv_nsec) {
+            tracing::warn!(error = %e, "TX tap stopped");
+            self.file = None;
+        }
+    }
+}
