@@ -10,8 +10,9 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use rig::record::RunOutcome;
 use rig::report;
-use rig::rigfile::RigFile;
+use rig::rigfile::{DeviceSetup, Mode, RigFile};
 use rig::runner::{self, RunOptions};
+use rig::strategy::firmware;
 
 /// Test rig for SORA-grade drone C2 links (MultiRX, MavLora).
 #[derive(Debug, Parser)]
@@ -45,6 +46,17 @@ enum Command {
     Check {
         #[arg(default_value = "rigs/emulated.toml")]
         rig: PathBuf,
+    },
+    /// Build the firmware with a mode's config from a board rig file, and flash it.
+    Flash {
+        #[arg(default_value = "rigs/bench.example.toml")]
+        rig: PathBuf,
+        /// Which mode's MultiRX config to compile in.
+        #[arg(long, value_parser = ["parallel", "scan"], default_value = "parallel")]
+        mode: String,
+        /// Build and print sizes only.
+        #[arg(long)]
+        no_flash: bool,
     },
     /// Render junit.xml and summary.txt again from a saved results.json.
     Report { results: PathBuf },
@@ -112,6 +124,52 @@ fn execute(command: Command) -> Result<ExitCode> {
                 }
             }
             println!("{}: ok", rig.path.display());
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Flash {
+            rig,
+            mode,
+            no_flash,
+        } => {
+            let rig = RigFile::load(&rig)?;
+            let mode = if mode == "scan" {
+                Mode::Scan
+            } else {
+                Mode::Parallel
+            };
+            let section = rig
+                .multirx
+                .as_ref()
+                .context("the rig file has no [multirx] section")?;
+            let DeviceSetup::Board(board) = &section.device.setup else {
+                anyhow::bail!(
+                    "{}: [multirx.device] is not kind = \"board\"",
+                    rig.path.display()
+                );
+            };
+            rig::strategy::multirx::load_config(&rig, mode)?;
+            let config = section.config(mode).context("no config for this mode")?;
+            eprintln!(
+                "rig: building {} with {}...",
+                board.firmware.display(),
+                config.display()
+            );
+            let image = firmware::build(&board.firmware, config)?;
+            println!(
+                "{}: flash {} B, RAM {} B, sha256 {}",
+                image.elf.display(),
+                image.flash_bytes,
+                image.ram_bytes,
+                image.sha256
+            );
+            if !no_flash {
+                let flashed = firmware::flash(board, &image)?;
+                println!(
+                    "flashed through {} in {:.1} s",
+                    flashed.probe,
+                    flashed.duration.as_secs_f64()
+                );
+            }
             Ok(ExitCode::SUCCESS)
         }
         Command::Report { results } => {

@@ -15,9 +15,10 @@ use crate::record::{
     ToolIdentity, now_rfc3339, sha256_file,
 };
 use crate::report::{self, ReportPaths};
-use crate::rigfile::{DeviceSetup, Mode, RigFile};
+use crate::rigfile::{BoardSetup, DeviceSetup, Mode, RigFile};
 use crate::scenario::PhaseContext;
 use crate::scenario::multirx::{self, Limits, Scenario};
+use crate::strategy::firmware::{self, FirmwareImage};
 use crate::strategy::multirx::MultirxSession;
 
 /// What to run and where to write.
@@ -35,6 +36,8 @@ pub struct RunResult {
 }
 
 type Phases = Arc<Mutex<Vec<PhaseRecord>>>;
+/// Firmware images flashed during the run, for the device identities.
+type Images = Arc<Mutex<Vec<(Mode, FirmwareImage)>>>;
 
 /// Runs everything the rig file describes.
 pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
@@ -43,9 +46,16 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
     let out_dir = options.out_dir.clone();
     let mut trials = Vec::new();
     let mut known_names = Vec::new();
+    let images: Images = Arc::default();
     if let Some(section) = &rig.multirx {
         for &mode in &section.modes {
             let limits = mode_limits(&rig, mode)?;
+            if let DeviceSetup::Board(board) = &section.device.setup
+                && board.flash
+            {
+                known_names.extend(flash_measurements(mode).into_iter().map(|m| m.name));
+                trials.push(flash_trial(&rig, &phases, &images, mode, board.clone()));
+            }
             for scenario in multirx::scenarios() {
                 let mut declared = (scenario.measurements)(&limits);
                 declared.extend(multirx::session_measurements(&limits, scenario.name));
@@ -88,7 +98,7 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
     let record = RunRecord {
         tool: ToolIdentity::this_build(git_commit()),
         rig: RigIdentity::of_file(rig.rig.name.clone(), &rig.path)?,
-        devices: devices(&rig),
+        devices: devices(&rig, &images.lock().unwrap()),
         started,
         ended: now_rfc3339(),
         outcome: RunOutcome::from_phases(&phases),
@@ -179,6 +189,86 @@ fn run_scenario(
         }
     }
     record
+}
+
+/// The SAMD21G18A: 256 KiB flash, 32 KiB RAM.
+const CHIP_FLASH: f64 = 256.0 * 1024.0;
+const CHIP_RAM: f64 = 32.0 * 1024.0;
+
+fn flash_measurements(mode: Mode) -> Vec<Measurement> {
+    vec![
+        Measurement::new(format!("firmware.{}.flash_bytes", mode.as_str()), "B")
+            .describe("flash the firmware image takes with this mode's config")
+            .at_most(CHIP_FLASH),
+        Measurement::new(format!("firmware.{}.ram_bytes", mode.as_str()), "B")
+            .describe("static RAM (.data + .bss); the stack has the rest")
+            .at_most(CHIP_RAM),
+    ]
+}
+
+/// Built → flashed: the board gets the firmware with this mode's config.
+fn flash_trial(
+    rig: &Arc<RigFile>,
+    phases: &Phases,
+    images: &Images,
+    mode: Mode,
+    board: BoardSetup,
+) -> Trial {
+    let name = format!("multirx::{}::flash", mode.as_str());
+    let (rig, phases, images) = (rig.clone(), phases.clone(), images.clone());
+    Trial::test(name.clone(), move || {
+        let started = now_rfc3339();
+        let clock = Instant::now();
+        let mut ctx = PhaseContext::new(&rig, Path::new(""));
+        for m in flash_measurements(mode) {
+            ctx.declare(m);
+        }
+        let result = (|| -> Result<()> {
+            crate::strategy::multirx::load_config(&rig, mode)?;
+            let config = rig
+                .multirx
+                .as_ref()
+                .and_then(|m| m.config(mode))
+                .context("config")?;
+            ctx.log(format!(
+                "building {} with {}",
+                board.firmware.display(),
+                config.display()
+            ));
+            let image = firmware::build(&board.firmware, config)?;
+            ctx.record(
+                &format!("firmware.{}.flash_bytes", mode.as_str()),
+                image.flash_bytes as f64,
+            );
+            ctx.record(
+                &format!("firmware.{}.ram_bytes", mode.as_str()),
+                image.ram_bytes as f64,
+            );
+            ctx.log(format!(
+                "image {} sha256 {}",
+                image.elf.display(),
+                image.sha256
+            ));
+            let flashed = firmware::flash(&board, &image)?;
+            ctx.log(format!(
+                "flashed through {} in {:.1} s",
+                flashed.probe,
+                flashed.duration.as_secs_f64()
+            ));
+            images.lock().unwrap().push((mode, image));
+            Ok(())
+        })();
+        let (measurements, log, _) = ctx.into_parts();
+        let mut record = PhaseRecord::ran(
+            &name,
+            started,
+            clock.elapsed().as_secs_f64(),
+            measurements,
+            result.err().map(|e| format!("{e:#}")),
+        );
+        record.log = log;
+        conclude(&phases, record)
+    })
 }
 
 fn whole_run_measurements(l: &Limits) -> Vec<Measurement> {
@@ -276,40 +366,54 @@ fn conclude(phases: &Phases, record: PhaseRecord) -> Result<(), Failed> {
     verdict
 }
 
-fn devices(rig: &RigFile) -> Vec<DeviceIdentity> {
+fn devices(rig: &RigFile, images: &[(Mode, FirmwareImage)]) -> Vec<DeviceIdentity> {
     let Some(section) = &rig.multirx else {
         return Vec::new();
     };
-    let (kind, description, digest) = match &section.device.setup {
+    let port = Some(section.ports.fc.to_string());
+    match &section.device.setup {
         DeviceSetup::Emulated { program } => {
             let path = program.clone().or_else(|| {
                 std::env::current_exe()
                     .ok()
                     .map(|e| e.with_file_name("multirx-emu"))
             });
-            let digest = path.as_deref().and_then(|p| sha256_file(p).ok());
-            (
-                "emulated",
-                format!("multirx-emu (multirx-core {})", env!("CARGO_PKG_VERSION")),
-                digest,
-            )
+            vec![DeviceIdentity {
+                role: "multirx".into(),
+                kind: "emulated".into(),
+                description: format!("multirx-emu (multirx-core {})", env!("CARGO_PKG_VERSION")),
+                port,
+                firmware_sha256: path.as_deref().and_then(|p| sha256_file(p).ok()),
+            }]
         }
-        DeviceSetup::Board(board) => (
-            "board",
-            format!(
-                "MultiRX SAMD21 board, chip {}, probe {}",
-                board.chip, board.probe
-            ),
-            None,
-        ),
-    };
-    vec![DeviceIdentity {
-        role: "multirx".into(),
-        kind: kind.into(),
-        description,
-        port: Some(section.ports.fc.to_string()),
-        firmware_sha256: digest,
-    }]
+        DeviceSetup::Board(board) => {
+            let describe = |what: &str| {
+                format!(
+                    "MultiRX SAMD21 board, chip {}, probe {}, {what}",
+                    board.chip, board.probe
+                )
+            };
+            if images.is_empty() {
+                return vec![DeviceIdentity {
+                    role: "multirx".into(),
+                    kind: "board".into(),
+                    description: describe("firmware as found (not flashed by this run)"),
+                    port,
+                    firmware_sha256: None,
+                }];
+            }
+            images
+                .iter()
+                .map(|(mode, image)| DeviceIdentity {
+                    role: "multirx".into(),
+                    kind: "board".into(),
+                    description: describe(&format!("flashed for the {mode} suite")),
+                    port: port.clone(),
+                    firmware_sha256: Some(image.sha256.clone()),
+                })
+                .collect()
+        }
+    }
 }
 
 fn git_commit() -> Option<String> {

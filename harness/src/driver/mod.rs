@@ -3,6 +3,7 @@
 //! run the emulated device.
 
 pub mod fc;
+pub mod probe;
 pub mod process;
 pub mod pty;
 pub mod realtime;

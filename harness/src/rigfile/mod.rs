@@ -31,6 +31,8 @@ pub const DEFAULT_OUTPUT: &str = "rig-report";
 pub const DEFAULT_PYTHON: &str = "python3";
 /// Fixture folder used when the rig file names none, relative to the rig file.
 pub const DEFAULT_FIXTURES_DIR: &str = "../fixtures";
+/// Firmware crate of a board rig that names none, relative to the rig file.
+pub const DEFAULT_FIRMWARE_DIR: &str = "../firmware/samd21";
 /// Chip flashed when a board rig names none.
 pub const DEFAULT_CHIP: &str = "ATSAMD21G18A";
 /// Most receivers a MultiRX board has inputs for.
@@ -194,6 +196,8 @@ pub struct BoardSetup {
     pub probe: ProbeSelector,
     /// Chip name as probe-rs knows it.
     pub chip: String,
+    /// The firmware crate, built with each mode's config before flashing.
+    pub firmware: PathBuf,
     /// Whether to flash the firmware before the run (off by default so a
     /// bench run does not silently replace a certified image).
     pub flash: bool,
@@ -552,6 +556,7 @@ impl Checker<'_> {
                     ("probe", d.probe.is_some()),
                     ("chip", d.chip.is_some()),
                     ("flash", d.flash.is_some()),
+                    ("firmware", d.firmware.is_some()),
                 ] {
                     if set {
                         return Err(only_for(key, DeviceKind::Board));
@@ -584,10 +589,16 @@ impl Checker<'_> {
                         format!("empty; e.g. \"{DEFAULT_CHIP}\""),
                     ));
                 }
+                let firmware = self.resolve(
+                    d.firmware
+                        .as_deref()
+                        .unwrap_or(Path::new(DEFAULT_FIRMWARE_DIR)),
+                );
                 DeviceSetup::Board(BoardSetup {
                     probe,
                     chip,
                     flash: d.flash.unwrap_or(false),
+                    firmware,
                 })
             }
         };

@@ -58,6 +58,7 @@ pub(super) struct RawDevice {
     pub probe: Option<String>,
     pub chip: Option<String>,
     pub flash: Option<bool>,
+    pub firmware: Option<PathBuf>,
 }
 
 #[derive(Debug, Default, Deserialize)]

@@ -163,6 +163,7 @@ fn checked_in_bench_example_loads() {
             probe: ProbeSelector::Auto,
             chip: "ATSAMD21G18A".into(),
             flash: true,
+            firmware: std::fs::canonicalize(format!("{RIGS}/../firmware/samd21")).unwrap(),
         })
     );
     assert_eq!(m.ports.receivers.len(), 2);
@@ -388,7 +389,8 @@ fn board_probe_and_defaults() {
         DeviceSetup::Board(BoardSetup {
             probe: ProbeSelector::Auto,
             chip: DEFAULT_CHIP.into(),
-            flash: false
+            flash: false,
+            firmware: PathBuf::from("/r/firmware/samd21"),
         })
     );
     let m = board("probe = \"2E8A:000c:E66118\"")

@@ -1,4 +1,5 @@
 //! Strategies bring a rig from files on disk to devices running and wired
 //! (labgrid's vocabulary): build → (flash) → running → torn down.
 
+pub mod firmware;
 pub mod multirx;

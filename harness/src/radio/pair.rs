@@ -1,0 +1,129 @@
+//! A radio: two directions of one preset, paired.
+//!
+//! TDM presets keep the directions apart by their windows (slot A sends
+//! A→B). Burst presets (LoRa, DMD) share one half-duplex channel: a direction
+//! waits while the other is on air (ideal carrier sense, no collisions); when
+//! both are ready at once, the one that started least recently goes first,
+//! so a saturated direction cannot starve the other.
+
+use std::time::Duration;
+
+use super::error::ConfigError;
+use super::link::{Event, Link, LinkConfig, Slot, min_opt};
+use super::preset::Preset;
+
+/// A direction through a [`Radio`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Direction {
+    /// From side A's serial port to side B's (TDM slot A).
+    AToB,
+    /// From side B's serial port to side A's (TDM slot B).
+    BToA,
+}
+
+impl Direction {
+    fn index(self) -> usize {
+        match self {
+            Direction::AToB => 0,
+            Direction::BToA => 1,
+        }
+    }
+}
+
+/// Two [`Link`]s of one preset, scheduled together.
+#[derive(Debug, Clone)]
+pub struct Radio {
+    links: [Link; 2],
+    half_duplex: bool,
+}
+
+impl Radio {
+    /// A radio of `preset` with per-direction settings (asymmetric loss,
+    /// seeds, duty rules).
+    pub fn new(
+        preset: &Preset,
+        a_to_b: &LinkConfig,
+        b_to_a: &LinkConfig,
+    ) -> Result<Radio, ConfigError> {
+        Ok(Radio {
+            links: [
+                Link::new(preset, a_to_b, Slot::A)?,
+                Link::new(preset, b_to_a, Slot::B)?,
+            ],
+            half_duplex: preset.half_duplex(),
+        })
+    }
+
+    /// Side `from`'s serial port offers `bytes` at `now`.
+    pub fn handle_input(&mut self, now: Duration, from: Direction, bytes: &[u8]) {
+        self.advance(now);
+        self.links[from.index()].accept(now, bytes);
+        self.advance(now);
+    }
+
+    /// Runs everything due by `now`.
+    pub fn handle_timeout(&mut self, now: Duration) {
+        self.advance(now);
+    }
+
+    /// When the radio next needs [`Radio::handle_timeout`] or has output.
+    pub fn poll_timeout(&self) -> Option<Duration> {
+        let event = self.next().map(|(_, t, _)| t);
+        self.links
+            .iter()
+            .fold(event, |acc, l| min_opt(acc, l.next_delivery()))
+    }
+
+    /// Bytes of one packet that reached the far end of `direction` by `now`.
+    pub fn poll_output(&mut self, now: Duration, direction: Direction) -> Option<Vec<u8>> {
+        self.advance(now);
+        self.links[direction.index()].pop_delivery(now)
+    }
+
+    /// One direction, for its counters and duty share.
+    pub fn link(&self, direction: Direction) -> &Link {
+        &self.links[direction.index()]
+    }
+
+    /// One direction, to change its budget or trace it.
+    pub fn link_mut(&mut self, direction: Direction) -> &mut Link {
+        &mut self.links[direction.index()]
+    }
+
+    /// The channel is busy for direction `i` until the other's packet ends.
+    fn busy_for(&self, i: usize) -> Duration {
+        if self.half_duplex {
+            self.links[1 - i].on_air_until().unwrap_or(Duration::ZERO)
+        } else {
+            Duration::ZERO
+        }
+    }
+
+    /// The earliest event of either direction: ends before starts, then the
+    /// direction that started least recently.
+    fn next(&self) -> Option<(usize, Duration, Event)> {
+        let rank = |i: usize, t: Duration, e: Event| {
+            let starts = matches!(e, Event::TxStart(_));
+            (t, starts, self.links[i].last_start(), i)
+        };
+        (0..2)
+            .filter_map(|i| {
+                self.links[i]
+                    .next_event(self.busy_for(i))
+                    .map(|(t, e)| (i, t, e))
+            })
+            .min_by_key(|&(i, t, e)| rank(i, t, e))
+    }
+
+    fn advance(&mut self, now: Duration) {
+        while let Some((i, t, event)) = self.next() {
+            if t > now {
+                break;
+            }
+            self.links[i].fire(t, event);
+        }
+        for link in &mut self.links {
+            link.set_now(now);
+        }
+    }
+}
