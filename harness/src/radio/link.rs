@@ -213,14 +213,14 @@ impl Link {
 
     /// The sender's serial side offers `bytes` at `now`.
     pub fn handle_input(&mut self, now: Duration, bytes: &[u8]) {
-        self.advance(now, Duration::ZERO);
+        self.advance(now);
         self.accept(now, bytes);
-        self.advance(now, Duration::ZERO);
+        self.advance(now);
     }
 
     /// Runs everything due by `now`.
     pub fn handle_timeout(&mut self, now: Duration) {
-        self.advance(now, Duration::ZERO);
+        self.advance(now);
     }
 
     /// When the engine next needs [`Link::handle_timeout`] or has output.
@@ -231,7 +231,7 @@ impl Link {
 
     /// Bytes of one packet that reached the far serial port by `now`.
     pub fn poll_output(&mut self, now: Duration) -> Option<Vec<u8>> {
-        self.advance(now, Duration::ZERO);
+        self.advance(now);
         self.pop_delivery(now)
     }
 
@@ -300,8 +300,9 @@ impl Link {
         self.last_input = now;
     }
 
-    pub(crate) fn advance(&mut self, now: Duration, busy: Duration) {
-        while let Some((t, event)) = self.next_event(busy) {
+    /// Runs this direction's events due by `now`, alone on its channel.
+    fn advance(&mut self, now: Duration) {
+        while let Some((t, event)) = self.next_event(Duration::ZERO) {
             if t > now {
                 break;
             }

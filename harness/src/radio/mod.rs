@@ -1,7 +1,8 @@
 //! Line-of-sight radio models for the link emulator (issue 4): airtime,
 //! loss, duty cycle, and a sans-IO engine per direction.
 //!
-//! Contract, after quinn-proto and smoltcp: no IO and no clock in the model.
+//! Contract, after quinn-proto and smoltcp: no IO and no clock in the model
+//! (everything but [`emulator`]).
 //! Time is a [`Duration`](std::time::Duration) since an epoch the driver
 //! picks (the emulator: its start; a simulation: zero), passed to every call;
 //! it must not go backwards (earlier times are treated as the latest seen).
@@ -18,6 +19,8 @@
 //!   `poll_timeout()`, `handle_timeout(now)`, `poll_output(now)`, with
 //!   [`LinkStats`] for the evidence.
 //! - [`Radio`]: two directions of one preset, half duplex where the preset is.
+//! - [`RadioEmulator`]: the one IO part: a `Radio` between two pty pairs on
+//!   the real clock, for programs that open serial ports ([`emulator`]).
 //!
 //! A rig file carries a radio as a preset plus one [`LinkConfig`] per
 //! direction, e.g. the paper's blind drone on SiK:
@@ -38,6 +41,7 @@
 
 pub mod airtime;
 pub mod duty;
+pub mod emulator;
 mod error;
 pub mod link;
 pub mod loss;
@@ -46,6 +50,7 @@ pub mod preset;
 
 pub use airtime::{FskParams, LoraParams, Modulation};
 pub use duty::{DutyCycle, DutyTracker};
+pub use emulator::RadioEmulator;
 pub use error::ConfigError;
 pub use link::{AirPacket, Link, LinkConfig, LinkStats, Slot};
 pub use loss::{GilbertElliott, LinkBudget, LossModel, PathLoss};

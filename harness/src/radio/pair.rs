@@ -120,6 +120,11 @@ impl Radio {
             if t > now {
                 break;
             }
+            // Time moves for both: the other must not start in the past
+            // once this event frees the channel.
+            for link in &mut self.links {
+                link.set_now(t);
+            }
             self.links[i].fire(t, event);
         }
         for link in &mut self.links {

@@ -71,7 +71,9 @@ pub enum Access {
     /// Time-division (SiK): each side owns alternate transmit windows separated
     /// by silence; a packet is formed from what is buffered when the window
     /// allows and must end inside it. SiK's window yielding ("bonus" ticks) is
-    /// not modelled, so throughput is a lower bound when one side is idle.
+    /// not modelled, so throughput is a lower bound when one side is idle;
+    /// nor is `packet_get_next`'s short wait for a MAVLink frame to complete:
+    /// whatever is buffered leaves as soon as the window allows.
     Tdm(TdmParams),
     /// Packet on demand: a packet leaves when `max_payload` bytes are buffered
     /// or the serial line has been idle for `idle_ms`. Paired in a
@@ -299,6 +301,13 @@ impl Preset {
         Ok(())
     }
 
+    /// Path loss at which a reference packet is lost 1 % of the time with
+    /// 0 dBi antennas and no cable loss: the last "nominal" attenuation of an
+    /// attenuation sweep (the fitted Fig. 1 edge for the paper's presets).
+    pub fn nominal_edge_db(&self) -> f64 {
+        self.tx_power_dbm - self.sensitivity_dbm
+    }
+
     /// Whether the two directions of a pair share one channel in time.
     pub fn half_duplex(&self) -> bool {
         matches!(self.access, Access::Burst(_))
@@ -337,6 +346,9 @@ mod tests {
             p.validate().unwrap_or_else(|e| panic!("{}: {e}", p.name));
         }
         assert!((Preset::dmd_dl1().tx_power_dbm - 26.99).abs() < 0.01);
+        assert!((Preset::sik_64k().nominal_edge_db() - 84.0).abs() < 1e-9);
+        assert!((Preset::lora_sf7().nominal_edge_db() - 120.0).abs() < 1e-9);
+        assert!((Preset::dmd_dl1().nominal_edge_db() - 71.0).abs() < 1e-9);
         // Three full SiK packets (33 ms each) and their gaps fit a window.
         let sik = Preset::sik_64k();
         assert_eq!(sik.time_on_air(250), Duration::from_millis(33));

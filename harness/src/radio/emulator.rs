@@ -1,0 +1,192 @@
+//! The radio emulator: a [`Radio`] between two pty pairs, on the real clock.
+//!
+//! Side A's program opens [`RadioEmulator::a_path`], side B's opens
+//! [`RadioEmulator::b_path`]; bytes written on one side come out on the other
+//! as the model decides (airtime, loss, buffer drops, duty cycle). One thread
+//! runs the small loop the sans-IO contract asks for: read what is
+//! available → `handle_input(now)`, `handle_timeout(now)`, write what
+//! `poll_output(now)` hands over, sleep until the next deadline. A pty has no
+//! "readable" wake-up here, so input is polled every [`POLL`]: a byte's
+//! arrival time is known to within that, on top of host scheduling.
+
+use std::io::{Read, Write};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use serialport::{SerialPort, TTYPort};
+
+use super::link::LinkStats;
+use super::pair::{Direction, Radio};
+use crate::clock::Mono;
+use crate::driver::pty::PtyPair;
+
+/// Longest the loop sleeps without looking for input.
+pub const POLL: Duration = Duration::from_millis(1);
+
+struct Shared {
+    radio: Mutex<Radio>,
+    stop: AtomicBool,
+    /// Delivered bytes the far port would not take (nobody reading).
+    unwritten: AtomicU64,
+    epoch: Mono,
+}
+
+/// A running emulated radio between two pty paths.
+pub struct RadioEmulator {
+    a: PtyPair,
+    b: PtyPair,
+    shared: Arc<Shared>,
+    worker: Option<JoinHandle<()>>,
+}
+
+impl RadioEmulator {
+    /// Starts `radio` between two new pty pairs; `name` labels the thread and logs.
+    pub fn new(name: &str, radio: Radio) -> Result<RadioEmulator> {
+        let mut a = PtyPair::new()?;
+        let mut b = PtyPair::new()?;
+        let mut a_master = a.take_master()?;
+        let mut b_master = b.take_master()?;
+        for port in [&mut a_master, &mut b_master] {
+            // A reader that stopped must not stall the radio for long.
+            port.set_timeout(Duration::from_millis(20))?;
+        }
+        let shared = Arc::new(Shared {
+            radio: Mutex::new(radio),
+            stop: AtomicBool::new(false),
+            unwritten: AtomicU64::new(0),
+            epoch: Mono::now(),
+        });
+        let state = shared.clone();
+        let label = name.to_string();
+        let worker = std::thread::Builder::new()
+            .name(format!("radio-{name}"))
+            .spawn(move || run(&label, &state, &mut a_master, &mut b_master))
+            .context("cannot start the radio emulator thread")?;
+        Ok(RadioEmulator {
+            a,
+            b,
+            shared,
+            worker: Some(worker),
+        })
+    }
+
+    /// Side A's serial port path.
+    pub fn a_path(&self) -> &str {
+        self.a.path()
+    }
+
+    /// Side B's serial port path.
+    pub fn b_path(&self) -> &str {
+        self.b.path()
+    }
+
+    /// The model's time now: the emulator's epoch is its start.
+    pub fn now(&self) -> Duration {
+        Mono::now().since(self.shared.epoch)
+    }
+
+    /// Counters of one direction so far.
+    pub fn stats(&self, direction: Direction) -> LinkStats {
+        self.radio().link(direction).stats().clone()
+    }
+
+    /// Airtime share of one direction over its duty-cycle window, now.
+    pub fn duty_share(&self, direction: Direction) -> f64 {
+        let now = self.now();
+        self.radio().link(direction).duty().share(now)
+    }
+
+    /// Delivered bytes that no reader took (the far port was not being read).
+    pub fn unwritten(&self) -> u64 {
+        self.shared.unwritten.load(Ordering::Relaxed)
+    }
+
+    /// Stops the thread and returns the radio, with all its counters.
+    pub fn finish(mut self) -> Radio {
+        self.halt();
+        self.radio().clone()
+    }
+
+    fn radio(&self) -> MutexGuard<'_, Radio> {
+        // A panicked worker leaves the model as it was; its counters still count.
+        self.shared
+            .radio
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    fn halt(&mut self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+        if let Some(worker) = self.worker.take() {
+            let _ = worker.join();
+        }
+    }
+}
+
+impl Drop for RadioEmulator {
+    fn drop(&mut self) {
+        self.halt();
+    }
+}
+
+fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
+    // Airtime is the point of this thread: ask for the CPU when it is due.
+    crate::driver::realtime::request("radio-emulator");
+    let mut buf = vec![0u8; 4096];
+    while !shared.stop.load(Ordering::Relaxed) {
+        let next = {
+            let mut radio = shared
+                .radio
+                .lock()
+                .unwrap_or_else(|poisoned| poisoned.into_inner());
+            let now = Mono::now().since(shared.epoch);
+            for (port, from) in [(&mut *a, Direction::AToB), (&mut *b, Direction::BToA)] {
+                match read_available(port, &mut buf) {
+                    Ok(0) => {}
+                    Ok(n) => radio.handle_input(now, from, &buf[..n]),
+                    Err(e) => {
+                        tracing::debug!(radio = name, error = %e, "radio emulator port closed");
+                        return;
+                    }
+                }
+            }
+            radio.handle_timeout(now);
+            for (port, to) in [(&mut *b, Direction::AToB), (&mut *a, Direction::BToA)] {
+                while let Some(bytes) = radio.poll_output(now, to) {
+                    if port.write_all(&bytes).is_err() {
+                        shared
+                            .unwritten
+                            .fetch_add(bytes.len() as u64, Ordering::Relaxed);
+                    }
+                }
+            }
+            radio.poll_timeout()
+        };
+        let now = Mono::now().since(shared.epoch);
+        let wait = next.map_or(POLL, |t| t.saturating_sub(now).min(POLL));
+        if !wait.is_zero() {
+            std::thread::sleep(wait);
+        }
+    }
+    let unwritten = shared.unwritten.load(Ordering::Relaxed);
+    if unwritten > 0 {
+        tracing::warn!(
+            radio = name,
+            unwritten,
+            "radio emulator delivered bytes nobody read"
+        );
+    }
+}
+
+/// Reads what the port has without blocking.
+fn read_available(port: &mut TTYPort, buf: &mut [u8]) -> std::io::Result<usize> {
+    let ready = port.bytes_to_read().map_err(std::io::Error::from)? as usize;
+    if ready == 0 {
+        return Ok(0);
+    }
+    let n = ready.min(buf.len());
+    port.read(&mut buf[..n])
+}
