@@ -10,8 +10,20 @@
 //!   in bytes per second, priority traffic first, newest periodic sample replaces older.
 //! - [`quality`]: the link-quality engine ([`quality::LinkQuality`]): reports what this side
 //!   hears in `LINK_QUALITY` (id 15) and tracks what the other side reports.
-//! - [`dialect`]: the generated MavLora dialect, `common.xml` plus `LINK_QUALITY` (15) and
-//!   `MAVLORA_TELEMETRY` (16).
+//! - [`bridge`]: the companion computer's engine ([`bridge::Bridge`]): flight controller ↔
+//!   radio, stream-rate configuration (again after a reboot), filter and scheduler, compact
+//!   telemetry, mission relay, link quality.
+//! - [`router`]: the ground station's engine ([`router::Router`]): radio ↔ ground stations,
+//!   compact telemetry expanded back into standard messages.
+//! - [`compact`]: [`compact::Compactor`] and [`compact::Expander`], with their precision.
+//! - [`mission`]: the mission relay with radio round-trip-time timeouts.
+//! - [`signing`]: MAVLink 2 signing of the radio link, replay rejection.
+//! - [`sim`]: a deterministic virtual-clock world (PX4-like flight controller, ground
+//!   station, lossy radio) for tests and benchmarks.
+//! - `io` (feature `cli`): the binaries' serial, UDP and `.tlog` driver — the only code here
+//!   that does IO or reads a clock.
+//! - [`dialect`]: the generated MavLora dialect, `common.xml` plus `LINK_QUALITY` (15),
+//!   `MAVLORA_TELEMETRY` (16), `MAVLORA_POSITION_BATCH` (17) and `MAVLORA_STATUS` (18).
 //!
 //! # Contract
 //! The engines do no IO and read no clock: callers pass bytes and the current [`Instant`] in
@@ -23,9 +35,17 @@
 
 pub use mavlora_dialect as dialect;
 
+pub mod bridge;
+pub mod compact;
 pub mod filter;
+#[cfg(feature = "cli")]
+pub mod io;
+pub mod mission;
 pub mod quality;
+pub mod router;
 pub mod schedule;
+pub mod signing;
+pub mod sim;
 pub mod time;
 pub mod wire;
 

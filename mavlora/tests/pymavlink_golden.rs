@@ -134,6 +134,11 @@ fn pymavlink_signature_verifies_with_the_mavlink_crate() {
     // and a wrong key does not verify
     raw.calculate_signature(&[0u8; 32], &mut sig);
     assert_ne!(&sig, raw.signature_value());
+    // our link verifier accepts pymavlink's signature, and only once
+    let mut signer = mavlora::signing::LinkSigner::new(mavlora::signing::SigningKey(key), 9, 0);
+    let now = mavlora::Instant::ZERO;
+    assert!(signer.verify(signed, now).is_ok());
+    assert!(signer.verify(signed, now).is_err());
 
     let MavMessage::HEARTBEAT(hb) = signed.decode().unwrap() else {
         panic!()

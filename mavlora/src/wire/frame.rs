@@ -311,6 +311,25 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
 }
 
+impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
+    /// Sets the sequence number (the checksum must be filled in again afterwards).
+    pub fn set_sequence(&mut self, sequence: u8) {
+        let at = if self.is_v1() {
+            field::v1::SEQ
+        } else {
+            field::v2::SEQ
+        };
+        self.buffer.as_mut()[at] = sequence;
+    }
+
+    /// Recomputes and stores the checksum with the message's CRC_EXTRA.
+    pub fn fill_checksum(&mut self, crc_extra: u8) {
+        let crc = self.compute_checksum(crc_extra);
+        let at = self.header_len() + self.payload_len();
+        self.buffer.as_mut()[at..at + CHECKSUM_LEN].copy_from_slice(&crc.to_le_bytes());
+    }
+}
+
 /// Serialises `message` into one frame, through the `mavlink` crate's own encoder.
 pub fn encode<M: Message>(version: MavlinkVersion, header: MavHeader, message: &M) -> OwnedFrame {
     let bytes = match version {
@@ -405,6 +424,17 @@ mod tests {
         assert_eq!(frame.incompat_flags(), 0);
         assert!(frame.crc_matches(HEARTBEAT_DATA::EXTRA_CRC));
         assert_eq!(frame.decode::<MavMessage>().unwrap(), msg);
+    }
+
+    #[test]
+    fn resequenced_frame_checks_and_keeps_its_payload() {
+        let mut frame = Frame::new_checked(heartbeat_v2()).unwrap();
+        frame.set_sequence(200);
+        assert!(!frame.crc_matches(HEARTBEAT_DATA::EXTRA_CRC));
+        frame.fill_checksum(HEARTBEAT_DATA::EXTRA_CRC);
+        assert!(frame.crc_matches(HEARTBEAT_DATA::EXTRA_CRC));
+        assert_eq!(frame.sequence(), 200);
+        assert_eq!(frame.payload(), &HEARTBEAT_V2[10..19]);
     }
 
     #[test]

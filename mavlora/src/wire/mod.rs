@@ -6,6 +6,7 @@
 mod frame;
 pub mod known;
 mod reader;
+mod resequence;
 mod sender;
 mod stats;
 
@@ -13,5 +14,6 @@ pub use frame::{
     Frame, FrameError, IFLAG_SIGNED, MAX_FRAME_LEN, OwnedFrame, STX_V1, STX_V2, encode,
 };
 pub use reader::{CrcExtraFn, FrameReader, Integrity, Received};
+pub use resequence::Resequencer;
 pub use sender::Sender;
 pub use stats::{ReaderStats, StreamCounters, StreamId};

@@ -25,6 +25,33 @@ impl Sender {
         }
     }
 
+    /// Our system id.
+    pub fn system(&self) -> u8 {
+        self.system
+    }
+
+    /// Our component id.
+    pub fn component(&self) -> u8 {
+        self.component
+    }
+
+    /// Changes our system id (learned after start, e.g. from the flight controller).
+    pub fn set_system(&mut self, system: u8) {
+        self.system = system;
+    }
+
+    /// Continues another sender's sequence (regenerated or resequenced streams).
+    pub fn set_next_sequence(&mut self, sequence: u8) {
+        self.next_sequence = sequence;
+    }
+
+    /// The sequence number the next frame gets, and advances it.
+    pub fn take_sequence(&mut self) -> u8 {
+        let seq = self.next_sequence;
+        self.next_sequence = seq.wrapping_add(1);
+        seq
+    }
+
     /// Frames `message` with the next sequence number.
     pub fn frame<M: Message>(&mut self, message: &M) -> OwnedFrame {
         let header = MavHeader {

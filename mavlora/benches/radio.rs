@@ -1,0 +1,157 @@
+//! `cargo bench -p mavlora --bench radio`: prints
+//! 1. frames per second through the bridge's path (reader → filter → scheduler → radio) on
+//!    one core, against a baseline measured in the same run (the frame reader alone: the
+//!    least any MAVLink forwarder must do);
+//! 2. air→ground bytes per second for a simulated PX4 on its "Normal" profile with: no
+//!    filtering, stream limiting only, limiting + filtering, compact telemetry.
+
+use std::hint::black_box;
+use std::time::{Duration, Instant as WallInstant};
+
+use mavlora::Instant;
+use mavlora::bridge::{Bridge, BridgeConfig};
+use mavlora::compact::CompactConfig;
+use mavlora::filter::Profile;
+use mavlora::router::RouterConfig;
+use mavlora::schedule::SchedulerConfig;
+use mavlora::sim::{LinkConfig, PX4_NORMAL, Px4Fc, World};
+use mavlora::wire::FrameReader;
+
+const PROFILES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles/");
+
+fn read(name: &str) -> String {
+    std::fs::read_to_string(format!("{PROFILES}{name}")).unwrap()
+}
+
+/// 60 s of a PX4 on the Normal profile at full rate, as (time, frame bytes).
+fn px4_capture() -> Vec<(Instant, Vec<u8>)> {
+    let mut fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, 1);
+    let mut out = Vec::new();
+    let mut now = Instant::ZERO;
+    while now < Instant::from_millis(60_000) {
+        fc.handle_timeout(now);
+        while let Some(f) = fc.poll_transmit() {
+            out.push((now, f.into_inner()));
+        }
+        now = fc
+            .poll_timeout()
+            .unwrap()
+            .max(now + Duration::from_micros(1));
+    }
+    out
+}
+
+fn wide() -> SchedulerConfig {
+    SchedulerConfig {
+        rate_bytes_per_s: 1_000_000,
+        burst_bytes: 100_000,
+        max_queued_bytes: 1_000_000,
+    }
+}
+
+/// Frames per second over `rounds` replays of the capture, shifted in time each round.
+fn throughput(
+    capture: &[(Instant, Vec<u8>)],
+    rounds: u64,
+    mut feed: impl FnMut(Instant, &[u8]),
+) -> f64 {
+    let start = WallInstant::now();
+    for r in 0..rounds {
+        let shift = Duration::from_secs(60 * r);
+        for (t, bytes) in capture {
+            feed(*t + shift, bytes);
+        }
+    }
+    (capture.len() as u64 * rounds) as f64 / start.elapsed().as_secs_f64()
+}
+
+fn bridge_path(profile: &str, compact: bool) -> impl FnMut(Instant, &[u8]) {
+    let mut config = BridgeConfig::new(Profile::parse(profile, "bench").unwrap(), wide());
+    config.compact = compact.then(CompactConfig::default);
+    let mut bridge = Bridge::new(config, Instant::ZERO).unwrap();
+    move |now, bytes| {
+        bridge.handle_fc_bytes(bytes, now);
+        bridge.handle_timeout(now);
+        while let Some(f) = bridge.poll_radio_transmit(now, usize::MAX) {
+            black_box(f);
+        }
+        while let Some(f) = bridge.poll_fc_transmit(now) {
+            black_box(f);
+        }
+    }
+}
+
+fn radio_rate(profile: &str, compact: bool) -> f64 {
+    let fast = LinkConfig {
+        latency: Duration::from_millis(1),
+        bytes_per_s: 1_000_000,
+        loss: 0.0,
+    };
+    let mut b = BridgeConfig::new(Profile::parse(profile, "bench").unwrap(), wide());
+    b.compact = compact.then(CompactConfig::default);
+    let mut w = World::relay(b, RouterConfig::new(wide()), PX4_NORMAL, fast, fast, 3);
+    w.run_until(Instant::from_millis(10_000));
+    let before: u64 = w.up_bytes_by_id.values().sum();
+    w.run_until(Instant::from_millis(130_000));
+    let after: u64 = w.up_bytes_by_id.values().sum();
+    (after - before) as f64 / 120.0
+}
+
+fn main() {
+    let capture = px4_capture();
+    let bytes: usize = capture.iter().map(|(_, b)| b.len()).sum();
+    println!(
+        "capture: {} frames, {} bytes, 60 s of PX4 Normal at full rate ({:.0} B/s)",
+        capture.len(),
+        bytes,
+        bytes as f64 / 60.0
+    );
+    let rounds = 400;
+    let mut reader = FrameReader::new();
+    let baseline = throughput(&capture, rounds, |_, b| {
+        reader.push(b);
+        while let Some(f) = reader.next_frame() {
+            black_box(f);
+        }
+    });
+    let normal = read("px4-normal.toml");
+    let filtered = throughput(&capture, rounds, bridge_path(&normal, false));
+    let compact = throughput(
+        &capture,
+        rounds,
+        bridge_path(&read("px4-compact.toml"), true),
+    );
+    println!("frames/s on one core (higher is better):");
+    println!("  baseline, frame reader only     {baseline:>12.0}");
+    println!(
+        "  bridge, px4-normal.toml          {filtered:>12.0}  ({:.2} x baseline)",
+        filtered / baseline
+    );
+    println!(
+        "  bridge, px4-compact + compact    {compact:>12.0}  ({:.2} x baseline)",
+        compact / baseline
+    );
+
+    let stream_only: String = normal
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("radio"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    println!("air->ground B/s, simulated PX4 Normal, 120 s after a 10 s start:");
+    println!(
+        "  no filtering                     {:>8.1}",
+        radio_rate("", false)
+    );
+    println!(
+        "  stream limiting                  {:>8.1}",
+        radio_rate(&stream_only, false)
+    );
+    println!(
+        "  limiting + filtering             {:>8.1}",
+        radio_rate(&normal, false)
+    );
+    println!(
+        "  compact telemetry                {:>8.1}",
+        radio_rate(&read("px4-compact.toml"), true)
+    );
+}

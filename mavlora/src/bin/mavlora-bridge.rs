@@ -1,0 +1,224 @@
+//! `mavlora-bridge`: runs on the companion computer between the flight controller's serial
+//! port and the radio's. See the crate README for command lines.
+//!
+//! Exit codes: 0 after SIGINT/SIGTERM, 1 on a configuration or setup error, 2 on bad usage.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use serde::Deserialize;
+use tracing::{error, info};
+
+use mavlora::bridge::{Bridge, BridgeConfig};
+use mavlora::compact::CompactConfig;
+use mavlora::filter::Profile;
+use mavlora::io::{
+    Clock, Event, SerialEvent, SerialLink, init_logging, load_config, on_signal, signing_epoch_now,
+};
+use mavlora::schedule::SchedulerConfig;
+use mavlora::signing::{SigningConfig, SigningKey};
+
+/// MavLora bridge: flight controller serial port <-> radio serial port.
+#[derive(Parser, Debug)]
+#[command(version)]
+struct Args {
+    /// TOML file with any of the options below (flags win).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Flight controller serial device (or pty path).
+    #[arg(long)]
+    fc: Option<String>,
+    /// Flight controller baud rate [default: 921600].
+    #[arg(long)]
+    fc_baud: Option<u32>,
+    /// Radio serial device (or pty path).
+    #[arg(long)]
+    radio: Option<String>,
+    /// Radio baud rate [default: 57600].
+    #[arg(long)]
+    radio_baud: Option<u32>,
+    /// Profile file (stream rates and radio filter), e.g. mavlora/profiles/px4-normal.toml.
+    #[arg(long)]
+    profile: Option<PathBuf>,
+    /// Radio budget in bytes per second [default: 683, a LoRa SF7 channel].
+    #[arg(long)]
+    rate: Option<u32>,
+    /// Radio burst in bytes [default: 600].
+    #[arg(long)]
+    burst: Option<u32>,
+    /// Replace periodic telemetry by compact frames (the router expands them).
+    #[arg(long)]
+    compact: bool,
+    /// Vehicle system id, until the flight controller's heartbeat tells [default: 1].
+    #[arg(long)]
+    system_id: Option<u8>,
+    /// Seconds between LINK_QUALITY reports [default: 5].
+    #[arg(long)]
+    link_quality_period: Option<f64>,
+    /// Seconds between status lines [default: 5].
+    #[arg(long)]
+    status_interval: Option<f64>,
+    /// MAVLink 2 signing key file (64 hex characters or 32 bytes) for the radio link: our
+    /// radio frames are signed, unsigned or replayed ones from the radio are dropped.
+    #[arg(long)]
+    key: Option<PathBuf>,
+}
+
+#[derive(Deserialize, Default, Debug)]
+#[serde(deny_unknown_fields)]
+struct FileConfig {
+    fc: Option<String>,
+    fc_baud: Option<u32>,
+    radio: Option<String>,
+    radio_baud: Option<u32>,
+    profile: Option<PathBuf>,
+    rate: Option<u32>,
+    burst: Option<u32>,
+    compact: Option<bool>,
+    system_id: Option<u8>,
+    link_quality_period: Option<f64>,
+    status_interval: Option<f64>,
+    key: Option<PathBuf>,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    init_logging();
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            error!("{e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn run(args: Args) -> Result<()> {
+    let file: FileConfig = load_config(args.config.as_deref())?;
+    let fc_path = args
+        .fc
+        .or(file.fc)
+        .context("no flight-controller port: --fc or `fc`")?;
+    let radio_path = args
+        .radio
+        .or(file.radio)
+        .context("no radio port: --radio or `radio`")?;
+    let profile = match args.profile.or(file.profile) {
+        Some(p) => Profile::load(&p)?,
+        None => Profile::parse("", "(no profile: everything passes)")?,
+    };
+    let rate = args.rate.or(file.rate).unwrap_or(683);
+    let burst = args.burst.or(file.burst).unwrap_or(600);
+    let mut config = BridgeConfig::new(
+        profile,
+        SchedulerConfig {
+            rate_bytes_per_s: rate,
+            burst_bytes: burst,
+            max_queued_bytes: (rate as usize * 4).max(4096),
+        },
+    );
+    if args.compact || file.compact.unwrap_or(false) {
+        config.compact = Some(CompactConfig::default());
+    }
+    if let Some(id) = args.system_id.or(file.system_id) {
+        config.system_id = id;
+    }
+    if let Some(p) = args.link_quality_period.or(file.link_quality_period) {
+        config.quality.period = Duration::from_secs_f64(p);
+    }
+    if let Some(path) = args.key.or(file.key) {
+        config.signing = Some(SigningConfig {
+            key: SigningKey::load(&path)?,
+            link_id: 1,
+            epoch: signing_epoch_now(),
+        });
+        info!(key = %path.display(), "radio link signing on");
+    }
+    let status_every =
+        Duration::from_secs_f64(args.status_interval.or(file.status_interval).unwrap_or(5.0));
+
+    let (tx, rx) = mpsc::channel();
+    on_signal(tx.clone())?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let fc_baud = args.fc_baud.or(file.fc_baud).unwrap_or(921_600);
+    let radio_baud = args.radio_baud.or(file.radio_baud).unwrap_or(57_600);
+    let mut fc = SerialLink::spawn("fc", fc_path, fc_baud, tx.clone(), stop.clone());
+    let mut radio = SerialLink::spawn("radio", radio_path, radio_baud, tx, stop.clone());
+    let clock = Clock::start();
+    let compact = config.compact.is_some();
+    let mut bridge = Bridge::new(config, clock.now())?;
+    info!(rate, burst, compact, "bridge running");
+    let mut next_status = clock.now() + status_every;
+    loop {
+        let now = clock.now();
+        let deadline = bridge
+            .poll_timeout(now)
+            .unwrap_or(now + Duration::from_secs(1))
+            .min(next_status);
+        match rx.recv_timeout(clock.until(deadline)) {
+            Ok(Event::Serial("fc", SerialEvent::Bytes(b))) => {
+                bridge.handle_fc_bytes(&b, clock.now());
+            }
+            Ok(Event::Serial("fc", SerialEvent::Closed)) => bridge.fc_port_closed(),
+            Ok(Event::Serial(_, SerialEvent::Closed)) => bridge.radio_port_closed(),
+            Ok(Event::Serial(_, SerialEvent::Bytes(b))) => {
+                bridge.handle_radio_bytes(&b, clock.now());
+            }
+            Ok(Event::Serial(..) | Event::Udp(..)) | Err(RecvTimeoutError::Timeout) => {}
+            Ok(Event::Stop) => {
+                info!("signal received, shutting down");
+                break;
+            }
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+        let now = clock.now();
+        bridge.handle_timeout(now);
+        while let Some(f) = bridge.poll_fc_transmit(now) {
+            fc.write(f.as_bytes());
+        }
+        while let Some(f) = bridge.poll_radio_transmit(now, usize::MAX) {
+            radio.write(f.as_bytes());
+        }
+        if now >= next_status {
+            status(&bridge, &fc, &radio);
+            next_status = now + status_every;
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    status(&bridge, &fc, &radio);
+    Ok(())
+}
+
+fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink) {
+    let s = bridge.stats();
+    let peer_loss = bridge.quality().peer().and_then(|p| p.loss_ratio);
+    info!(
+        fc_rx = s.fc_reader.frames(),
+        fc_tx = s.to_fc_frames,
+        fc_opens = fc.opens.load(Ordering::Relaxed),
+        radio_rx = s.radio_reader.frames(),
+        radio_lost = s.radio_reader.lost,
+        radio_bad_crc = s.radio_reader.bad_crc,
+        radio_tx = s.scheduler.sent_frames,
+        radio_tx_bytes = s.scheduler.sent_bytes,
+        radio_opens = radio.opens.load(Ordering::Relaxed),
+        filtered = s.filter.filtered,
+        rate_limited = s.filter.rate_limited,
+        replaced = s.scheduler.replaced,
+        compact_batches = s.compact.batches,
+        config_acks = s.config_acks,
+        fc_reboots = s.fc_reboots,
+        missions = s.mission.completed,
+        rejected_unsigned = s.signing.unsigned,
+        rejected_bad_signature = s.signing.bad_signature,
+        rejected_replayed = s.signing.replayed,
+        peer_loss = ?peer_loss,
+        "status"
+    );
+}

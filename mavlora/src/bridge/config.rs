@@ -1,0 +1,65 @@
+//! Bridge settings.
+
+use std::time::Duration;
+
+use crate::compact::CompactConfig;
+use crate::filter::Profile;
+use crate::mission::MissionConfig;
+use crate::quality::LinkQualityConfig;
+use crate::schedule::SchedulerConfig;
+use crate::signing::SigningConfig;
+
+/// Everything a [`Bridge`](super::Bridge) needs to start.
+#[derive(Debug, Clone)]
+pub struct BridgeConfig {
+    /// Stream rates for the flight controller and radio filter rules.
+    pub profile: Profile,
+    /// The radio's byte budget.
+    pub scheduler: SchedulerConfig,
+    /// Link-quality reports.
+    pub quality: LinkQualityConfig,
+    /// Compact telemetry instead of the standard periodic messages; `None` forwards them
+    /// (filtered and limited by the profile).
+    pub compact: Option<CompactConfig>,
+    /// Mission relay timeouts.
+    pub mission: MissionConfig,
+    /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
+    pub signing: Option<SigningConfig>,
+    /// Our system id: the vehicle's (the companion computer is part of the vehicle).
+    pub system_id: u8,
+    /// Our component id (191: `MAV_COMP_ID_ONBOARD_COMPUTER`).
+    pub component_id: u8,
+    /// The flight controller's heartbeat missing this long, then back, counts as a reboot.
+    pub fc_silence: Duration,
+    /// Stream-rate requests not all acknowledged after this are sent again (at most
+    /// `config_attempts` times in all).
+    pub config_retry: Duration,
+    /// See `config_retry`.
+    pub config_attempts: u32,
+    /// Ground-station heartbeats are regenerated towards the flight controller at this period…
+    pub gcs_heartbeat_period: Duration,
+    /// …for this long after the last one heard from the radio (the router sends them sparsely:
+    /// PX4 declares data-link loss after `COM_DL_LOSS_T`, 10 s by default).
+    pub gcs_heartbeat_hold: Duration,
+}
+
+impl BridgeConfig {
+    /// Defaults around a profile and a radio budget.
+    pub fn new(profile: Profile, scheduler: SchedulerConfig) -> Self {
+        Self {
+            profile,
+            scheduler,
+            quality: LinkQualityConfig::default(),
+            compact: None,
+            mission: MissionConfig::default(),
+            signing: None,
+            system_id: 1,
+            component_id: 191,
+            fc_silence: Duration::from_secs(3),
+            config_retry: Duration::from_secs(2),
+            config_attempts: 3,
+            gcs_heartbeat_period: Duration::from_secs(1),
+            gcs_heartbeat_hold: Duration::from_secs(7),
+        }
+    }
+}

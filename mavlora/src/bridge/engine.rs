@@ -1,0 +1,419 @@
+//! The bridge state machine.
+
+use std::collections::VecDeque;
+
+use mavlink::{MavlinkVersion, Message as _};
+use tracing::{debug, info};
+
+use super::config::BridgeConfig;
+use super::fc_watch::{FcEvent, FcWatch};
+use super::gcs_heartbeat::GcsHeartbeat;
+use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
+use crate::dialect::{MavCmd, MavMessage, MavType};
+use crate::filter::{FilterStats, RadioFilter, Verdict, set_message_interval_requests};
+use crate::mission::{MissionRelay, MissionStats};
+use crate::quality::LinkQuality;
+use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
+use crate::signing::{LinkSigner, SigningStats};
+use crate::time::Instant;
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Resequencer, Sender};
+
+/// Counters of one bridge, for the status line and tests.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BridgeStats {
+    /// What the flight-controller side reader saw.
+    pub fc_reader: ReaderStats,
+    /// What the radio side reader saw.
+    pub radio_reader: ReaderStats,
+    /// Radio filter outcomes for flight-controller frames.
+    pub filter: FilterStats,
+    /// Radio budget scheduler.
+    pub scheduler: SchedulerStats,
+    /// Compact telemetry.
+    pub compact: CompactStats,
+    /// Mission relay.
+    pub mission: MissionStats,
+    /// Radio link signing (all zero when signing is off).
+    pub signing: SigningStats,
+    /// Frames written to the flight controller.
+    pub to_fc_frames: u64,
+    /// Bytes written to the flight controller.
+    pub to_fc_bytes: u64,
+    /// `SET_MESSAGE_INTERVAL` commands sent (retries included).
+    pub config_commands: u64,
+    /// `COMMAND_ACK`s for them.
+    pub config_acks: u64,
+    /// Flight-controller reboots detected.
+    pub fc_reboots: u64,
+    /// Ground heartbeats regenerated towards the flight controller.
+    pub gcs_heartbeats_regenerated: u64,
+    /// `LINK_QUALITY` reports sent to the radio.
+    pub link_quality_sent: u64,
+    /// `LINK_QUALITY` reports received from the radio.
+    pub link_quality_received: u64,
+}
+
+#[derive(Debug)]
+struct ConfigState {
+    pending: Vec<MavMessage>,
+    expected_acks: u64,
+    acks: u64,
+    attempts: u32,
+    next_retry: Option<Instant>,
+}
+
+/// Sans-IO bridge engine. See the [module](super) doc for the call pattern.
+#[derive(Debug)]
+pub struct Bridge {
+    config: BridgeConfig,
+    fc_reader: FrameReader,
+    radio_reader: FrameReader,
+    filter: RadioFilter,
+    scheduler: LinkScheduler,
+    quality: LinkQuality,
+    compactor: Option<Compactor>,
+    mission: MissionRelay,
+    watch: FcWatch,
+    gcs_heartbeat: GcsHeartbeat,
+    /// Frames we originate on the radio link (reports, compact telemetry, mission).
+    radio_sender: Sender,
+    /// Frames we originate on the wire (configuration, mission upload).
+    fc_sender: Sender,
+    to_fc: VecDeque<OwnedFrame>,
+    /// Renumbers what leaves on the radio, so the router counts radio loss only.
+    radio_sequence: Resequencer,
+    signer: Option<LinkSigner>,
+    config_state: ConfigState,
+    stats: BridgeStats,
+}
+
+impl Bridge {
+    /// A bridge started at `now`. Nothing is sent to the flight controller before its first
+    /// heartbeat: the configuration needs its ids as target.
+    pub fn new(config: BridgeConfig, now: Instant) -> Result<Self, ScheduleError> {
+        let scheduler = LinkScheduler::new(config.scheduler, now)?;
+        let sys = config.system_id;
+        let comp = config.component_id;
+        Ok(Self {
+            fc_reader: FrameReader::new(),
+            radio_reader: FrameReader::new(),
+            filter: RadioFilter::new(config.profile.clone()),
+            scheduler,
+            quality: LinkQuality::new(config.quality, now),
+            compactor: config.compact.map(Compactor::new),
+            mission: MissionRelay::new(config.mission),
+            watch: FcWatch::new(config.fc_silence),
+            gcs_heartbeat: GcsHeartbeat::new(
+                config.gcs_heartbeat_period,
+                config.gcs_heartbeat_hold,
+            ),
+            radio_sender: Sender::new(sys, comp, MavlinkVersion::V2),
+            fc_sender: Sender::new(sys, comp, MavlinkVersion::V2),
+            to_fc: VecDeque::new(),
+            radio_sequence: Resequencer::new(),
+            signer: config.signing.as_ref().map(|s| s.signer()),
+            config_state: ConfigState {
+                pending: Vec::new(),
+                expected_acks: 0,
+                acks: 0,
+                attempts: 0,
+                next_retry: None,
+            },
+            stats: BridgeStats::default(),
+            config,
+        })
+    }
+
+    /// Counters as of now.
+    pub fn stats(&self) -> BridgeStats {
+        BridgeStats {
+            fc_reader: self.fc_reader.stats().clone(),
+            radio_reader: self.radio_reader.stats().clone(),
+            filter: self.filter.stats(),
+            scheduler: self.scheduler.stats(),
+            compact: self
+                .compactor
+                .as_ref()
+                .map(|c| c.stats())
+                .unwrap_or_default(),
+            mission: self.mission.stats(),
+            signing: self.signer.as_ref().map(|s| s.stats()).unwrap_or_default(),
+            ..self.stats.clone()
+        }
+    }
+
+    /// The link-quality engine (the peer's latest report, its state).
+    pub fn quality(&self) -> &LinkQuality {
+        &self.quality
+    }
+
+    /// The mission relay's radio round-trip estimate.
+    pub fn mission_rtt(&self) -> &crate::mission::RttEstimator {
+        self.mission.rtt()
+    }
+
+    /// The flight controller's (system, component), once its heartbeat was seen.
+    pub fn fc(&self) -> Option<(u8, u8)> {
+        self.watch.fc()
+    }
+
+    /// Bytes read from the flight controller's serial port.
+    pub fn handle_fc_bytes(&mut self, bytes: &[u8], now: Instant) {
+        self.fc_reader.push(bytes);
+        while let Some(rx) = self.fc_reader.next_frame() {
+            self.fc_frame(rx.frame, now);
+        }
+    }
+
+    /// The flight controller's port was closed (a reopened one starts a new byte stream).
+    pub fn fc_port_closed(&mut self) {
+        self.fc_reader.finish();
+        while let Some(rx) = self.fc_reader.next_frame() {
+            debug!(msgid = rx.frame.message_id(), "frame completed at close");
+        }
+    }
+
+    fn fc_frame(&mut self, frame: OwnedFrame, now: Instant) {
+        let id = frame.message_id();
+        let wants_decode = self.watch.wants(&frame)
+            || (self.compactor.is_some() && REPLACED_IDS.contains(&id))
+            || matches!(id, 40 | 47 | 51 | 77);
+        let msg = if wants_decode {
+            frame.decode::<MavMessage>().ok()
+        } else {
+            None
+        };
+        match self.watch.observe(&frame, msg.as_ref(), now) {
+            Some(FcEvent::Appeared) => {
+                info!(
+                    system = frame.system_id(),
+                    component = frame.component_id(),
+                    "flight controller found, configuring stream rates"
+                );
+                self.radio_sender.set_system(frame.system_id());
+                self.fc_sender.set_system(frame.system_id());
+                self.start_config(now);
+            }
+            Some(FcEvent::Rebooted) => {
+                info!("flight controller rebooted, configuring stream rates again");
+                self.stats.fc_reboots += 1;
+                self.start_config(now);
+            }
+            None => {}
+        }
+        if let Some(msg) = &msg {
+            if self.addressed_to_us(msg) {
+                if let MavMessage::COMMAND_ACK(ack) = msg
+                    && ack.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
+                {
+                    self.stats.config_acks += 1;
+                    self.config_state.acks += 1;
+                    return;
+                }
+                if self.mission.handle_fc(msg, now) {
+                    return;
+                }
+            }
+            // COMMAND_ACK has no target in our dialect (extension fields are not generated):
+            // acks for SET_MESSAGE_INTERVAL are ours while we wait for some.
+            if let MavMessage::COMMAND_ACK(ack) = msg
+                && ack.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
+                && self.config_state.acks < self.config_state.expected_acks
+            {
+                self.stats.config_acks += 1;
+                self.config_state.acks += 1;
+                return;
+            }
+            if let Some(compactor) = &mut self.compactor
+                && self.watch.is_fc(&frame)
+                && compactor.observe(msg, now)
+            {
+                return;
+            }
+        }
+        if self.filter.check(&frame, now) == Verdict::Pass {
+            self.scheduler.push(frame, Class::of(id), now);
+        }
+    }
+
+    fn addressed_to_us(&self, msg: &MavMessage) -> bool {
+        let us = (self.radio_sender.system(), self.config.component_id);
+        msg.target_system_id().is_some_and(|s| s == us.0)
+            && msg.target_component_id().is_some_and(|c| c == us.1)
+    }
+
+    fn start_config(&mut self, now: Instant) {
+        let Some((sys, comp)) = self.watch.fc() else {
+            return;
+        };
+        let pending = set_message_interval_requests(&self.config.profile, sys, comp);
+        self.config_state = ConfigState {
+            expected_acks: pending.len() as u64,
+            pending,
+            acks: 0,
+            attempts: 0,
+            next_retry: Some(now),
+        };
+        self.config_tick(now);
+    }
+
+    fn config_tick(&mut self, now: Instant) {
+        let st = &mut self.config_state;
+        let Some(due) = st.next_retry else {
+            return;
+        };
+        if now < due {
+            return;
+        }
+        if st.acks >= st.expected_acks || st.attempts >= self.config.config_attempts {
+            st.next_retry = None;
+            return;
+        }
+        st.attempts += 1;
+        // Acks do not say which message they answer: a retry resends all and recounts.
+        st.acks = 0;
+        st.next_retry = Some(now + self.config.config_retry);
+        for msg in st.pending.clone() {
+            let frame = self.fc_sender.frame(&msg);
+            self.stats.config_commands += 1;
+            self.to_fc.push_back(frame);
+        }
+    }
+
+    /// The radio's port was closed (a reopened one starts a new byte stream).
+    pub fn radio_port_closed(&mut self) {
+        self.radio_reader.finish();
+        while let Some(rx) = self.radio_reader.next_frame() {
+            debug!(msgid = rx.frame.message_id(), "frame completed at close");
+        }
+    }
+
+    /// Bytes read from the radio's serial port.
+    pub fn handle_radio_bytes(&mut self, bytes: &[u8], now: Instant) {
+        self.radio_reader.push(bytes);
+        while let Some(rx) = self.radio_reader.next_frame() {
+            self.radio_frame(rx.frame, now);
+        }
+    }
+
+    fn radio_frame(&mut self, frame: OwnedFrame, now: Instant) {
+        let frame = match &mut self.signer {
+            None => frame,
+            Some(signer) => match signer.verify(&frame, now) {
+                Ok(plain) => plain,
+                Err(why) => {
+                    debug!(?why, msgid = frame.message_id(), "radio frame rejected");
+                    return;
+                }
+            },
+        };
+        self.quality.handle_frame(&frame, now);
+        let id = frame.message_id();
+        match id {
+            // LINK_QUALITY is for us; the flight controller does not know id 15.
+            15 => {
+                self.stats.link_quality_received += 1;
+                return;
+            }
+            0 | 44 | 73 => {
+                let Ok(msg) = frame.decode::<MavMessage>() else {
+                    self.forward_to_fc(frame);
+                    return;
+                };
+                if let MavMessage::HEARTBEAT(hb) = &msg
+                    && hb.mavtype == MavType::MAV_TYPE_GCS
+                {
+                    self.gcs_heartbeat.heard(&frame, hb.clone(), now);
+                }
+                let from = (frame.system_id(), frame.component_id());
+                // Uploads addressed to this vehicle are relayed; others pass through.
+                let for_vehicle = msg.target_system_id() == Some(self.radio_sender.system());
+                if id != 0 && for_vehicle && self.mission.handle_radio(from, &msg, now) {
+                    return;
+                }
+            }
+            _ => {}
+        }
+        self.forward_to_fc(frame);
+    }
+
+    fn forward_to_fc(&mut self, frame: OwnedFrame) {
+        self.to_fc.push_back(frame);
+    }
+
+    /// Does what is due at `now`: link-quality reports, compact telemetry, regenerated ground
+    /// heartbeats, configuration retries, mission timeouts.
+    pub fn handle_timeout(&mut self, now: Instant) {
+        if let Some(report) = self.quality.poll_report(now, self.radio_reader.stats()) {
+            let frame = self.radio_sender.frame(&MavMessage::LINK_QUALITY(report));
+            self.stats.link_quality_sent += 1;
+            self.scheduler.push(frame, Class::Periodic, now);
+        }
+        if let Some(compactor) = &mut self.compactor {
+            while let Some(msg) = compactor.poll(now) {
+                let frame = self.radio_sender.frame(&msg);
+                self.scheduler.push(frame, Class::Periodic, now);
+            }
+        }
+        while let Some(frame) = self.gcs_heartbeat.poll(now) {
+            self.stats.gcs_heartbeats_regenerated += 1;
+            self.to_fc.push_back(frame);
+        }
+        self.config_tick(now);
+        self.mission.handle_timeout(now);
+        self.drain_mission(now);
+    }
+
+    fn drain_mission(&mut self, now: Instant) {
+        while let Some(msg) = self.mission.poll_radio() {
+            let frame = self.radio_sender.frame(&msg);
+            self.scheduler.push(frame, Class::Priority, now);
+        }
+        let fc = self.watch.fc().unwrap_or((self.radio_sender.system(), 1));
+        while let Some(msg) = self.mission.poll_fc(fc) {
+            let frame = self.fc_sender.frame(&msg);
+            self.to_fc.push_back(frame);
+        }
+    }
+
+    /// The next frame for the flight controller (the wire is not budgeted).
+    pub fn poll_fc_transmit(&mut self, now: Instant) -> Option<OwnedFrame> {
+        self.drain_mission(now);
+        let frame = self.to_fc.pop_front()?;
+        self.stats.to_fc_frames += 1;
+        self.stats.to_fc_bytes += frame.as_bytes().len() as u64;
+        Some(frame)
+    }
+
+    /// The next frame for the radio if the budget allows at `now` and it fits `room` bytes.
+    pub fn poll_radio_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
+        self.drain_mission(now);
+        loop {
+            let mut frame = self.scheduler.poll_transmit(now, room)?;
+            self.radio_sequence.apply(&mut frame);
+            let Some(signer) = &mut self.signer else {
+                return Some(frame);
+            };
+            // a frame that cannot be signed would be rejected by the router anyway
+            if let Some(signed) = signer.sign(&frame, now) {
+                return Some(signed);
+            }
+        }
+    }
+
+    /// When the engine next needs [`handle_timeout`](Self::handle_timeout) or can send.
+    pub fn poll_timeout(&mut self, now: Instant) -> Option<Instant> {
+        [
+            Some(self.quality.poll_timeout()),
+            self.scheduler.poll_timeout(now),
+            self.compactor.as_ref().and_then(|c| c.poll_timeout()),
+            self.gcs_heartbeat.poll_timeout(),
+            self.config_state.next_retry,
+            self.mission.poll_timeout(),
+            (!self.to_fc.is_empty()).then_some(now),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+    }
+}

@@ -1,0 +1,269 @@
+use std::time::Duration;
+
+use mavlink::MavlinkVersion;
+
+use super::*;
+use crate::compact::CompactConfig;
+use crate::dialect::{
+    ATTITUDE_DATA, COMMAND_ACK_DATA, COMMAND_LONG_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
+    LINK_QUALITY_DATA, MavAutopilot, MavCmd, MavMessage, MavResult, MavType,
+};
+use crate::filter::Profile;
+use crate::schedule::SchedulerConfig;
+use crate::time::Instant;
+use crate::wire::{FrameReader, OwnedFrame, Sender};
+
+const PROFILE: &str = r#"
+[messages.ATTITUDE]
+stream_hz = 0
+radio = "drop"
+[messages.GLOBAL_POSITION_INT]
+stream_hz = 3
+radio = 3
+"#;
+
+fn config() -> BridgeConfig {
+    BridgeConfig::new(
+        Profile::parse(PROFILE, "test").unwrap(),
+        SchedulerConfig {
+            rate_bytes_per_s: 1000,
+            burst_bytes: 300,
+            max_queued_bytes: 4000,
+        },
+    )
+}
+
+fn ms(n: u64) -> Instant {
+    Instant::from_millis(n)
+}
+
+fn fc_heartbeat(s: &mut Sender) -> OwnedFrame {
+    s.frame(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_QUADROTOR,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+        ..HEARTBEAT_DATA::default()
+    }))
+}
+
+/// Every frame the bridge wants to write to the flight controller, decoded.
+fn to_fc(b: &mut Bridge, now: Instant) -> Vec<MavMessage> {
+    std::iter::from_fn(|| b.poll_fc_transmit(now))
+        .map(|f| f.decode::<MavMessage>().unwrap())
+        .collect()
+}
+
+fn to_radio(b: &mut Bridge, now: Instant) -> Vec<OwnedFrame> {
+    b.handle_timeout(now);
+    std::iter::from_fn(|| b.poll_radio_transmit(now, usize::MAX)).collect()
+}
+
+fn intervals(msgs: &[MavMessage]) -> Vec<(f32, f32)> {
+    msgs.iter()
+        .filter_map(|m| match m {
+            MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
+                Some((c.param1, c.param2))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+fn ack() -> MavMessage {
+    MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+        result: MavResult::MAV_RESULT_ACCEPTED,
+    })
+}
+
+#[test]
+fn configures_stream_rates_on_first_heartbeat_and_consumes_acks() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    assert!(
+        to_fc(&mut b, ms(0)).is_empty(),
+        "nothing before the FC is seen"
+    );
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(100));
+    let sent = to_fc(&mut b, ms(100));
+    assert_eq!(intervals(&sent), vec![(30.0, -1.0), (33.0, 333_333.0)]);
+    for msg in &sent {
+        let MavMessage::COMMAND_LONG(c) = msg else {
+            panic!()
+        };
+        assert_eq!((c.target_system, c.target_component), (1, 1));
+    }
+    b.handle_fc_bytes(fc.frame(&ack()).as_bytes(), ms(150));
+    b.handle_fc_bytes(fc.frame(&ack()).as_bytes(), ms(160));
+    // acks are ours, not the ground's; fully acked means no retry
+    let radio = to_radio(&mut b, ms(3000));
+    assert!(radio.iter().all(|f| f.message_id() != 77));
+    assert!(to_fc(&mut b, ms(3000)).is_empty());
+    assert_eq!(b.stats().config_acks, 2);
+}
+
+#[test]
+fn unacknowledged_configuration_is_retried_then_given_up() {
+    let mut c = config();
+    c.config_attempts = 3;
+    let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let mut sends = 0;
+    let mut now = ms(0);
+    while now < ms(20_000) {
+        // heartbeats keep coming: no reboot
+        b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), now);
+        b.handle_timeout(now);
+        sends += intervals(&to_fc(&mut b, now)).len();
+        now = now + Duration::from_millis(500);
+    }
+    assert_eq!(sends, 3 * 2);
+}
+
+#[test]
+fn reboot_by_silence_and_by_uptime_going_back_reconfigures() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(0));
+    assert_eq!(intervals(&to_fc(&mut b, ms(0))).len(), 2);
+    // regular heartbeats: nothing new
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(1000));
+    assert!(intervals(&to_fc(&mut b, ms(1000))).is_empty());
+    // 5 s of silence, then a heartbeat: rebooted
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(6000));
+    assert_eq!(intervals(&to_fc(&mut b, ms(6000))).len(), 2);
+    assert_eq!(b.stats().fc_reboots, 1);
+    // a fast reboot: uptime goes from 60 s back to 2 s while heartbeats never stopped
+    let att = |t| {
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms: t,
+            ..Default::default()
+        })
+    };
+    b.handle_fc_bytes(fc.frame(&att(60_000)).as_bytes(), ms(6100));
+    b.handle_fc_bytes(fc.frame(&att(2_000)).as_bytes(), ms(6200));
+    assert_eq!(intervals(&to_fc(&mut b, ms(6200))).len(), 2);
+    assert_eq!(b.stats().fc_reboots, 2);
+}
+
+#[test]
+fn telemetry_is_filtered_limited_and_commands_go_first() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
+    for k in 0..50u64 {
+        let now = ms(k * 20);
+        b.handle_fc_bytes(
+            fc.frame(&MavMessage::ATTITUDE(Default::default()))
+                .as_bytes(),
+            now,
+        );
+        b.handle_fc_bytes(fc.frame(&pos).as_bytes(), now);
+    }
+    let s = b.stats();
+    assert_eq!(s.filter.filtered, 50);
+    assert_eq!(s.filter.passed, 3);
+    // a command queued behind periodic frames leaves first
+    b.handle_fc_bytes(
+        fc.frame(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA::default()))
+            .as_bytes(),
+        ms(1000),
+    );
+    let out = to_radio(&mut b, ms(1000));
+    assert_eq!(out.first().map(|f| f.message_id()), Some(76));
+}
+
+#[test]
+fn radio_traffic_reaches_the_fc_and_link_quality_goes_both_ways() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    let cmd = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA::default());
+    let lq = MavMessage::LINK_QUALITY(LINK_QUALITY_DATA::default());
+    b.handle_radio_bytes(ground.frame(&cmd).as_bytes(), ms(10));
+    b.handle_radio_bytes(ground.frame(&lq).as_bytes(), ms(20));
+    let fc = to_fc(&mut b, ms(20));
+    assert_eq!(fc.len(), 1, "the command, not the report: {fc:?}");
+    assert!(b.quality().peer().is_some());
+    // our own report leaves every period (5 s by default)
+    let out = to_radio(&mut b, ms(5000));
+    assert!(out.iter().any(|f| f.message_id() == 15));
+    let mut r = FrameReader::new();
+    r.push(out[0].as_bytes());
+    let MavMessage::LINK_QUALITY(report) = r.next_frame().unwrap().frame.decode().unwrap() else {
+        panic!()
+    };
+    assert_eq!(report.rx_packets, 2);
+}
+
+#[test]
+fn ground_heartbeat_is_regenerated_while_the_ground_is_heard() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        ..Default::default()
+    });
+    b.handle_radio_bytes(ground.frame(&hb).as_bytes(), ms(0));
+    let mut heartbeats = 0;
+    let mut seqs = Vec::new();
+    for t in (0..20_000).step_by(100) {
+        b.handle_timeout(ms(t));
+        while let Some(f) = b.poll_fc_transmit(ms(t)) {
+            if f.message_id() == 0 {
+                heartbeats += 1;
+                seqs.push(f.sequence());
+            }
+        }
+    }
+    // the original plus one per second for the 7 s hold
+    assert_eq!(heartbeats, 1 + 7);
+    assert!(
+        seqs.windows(2).all(|w| w[1] == w[0].wrapping_add(1)),
+        "{seqs:?}"
+    );
+}
+
+#[test]
+fn compact_mode_replaces_position_and_heartbeat() {
+    let mut c = config();
+    c.compact = Some(CompactConfig::default());
+    let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
+    let mut ids = Vec::new();
+    for k in 0..50u64 {
+        let now = ms(k * 200);
+        if k % 5 == 0 {
+            b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), now);
+        }
+        b.handle_fc_bytes(fc.frame(&pos).as_bytes(), now);
+        ids.extend(to_radio(&mut b, now).iter().map(|f| f.message_id()));
+    }
+    assert!(!ids.contains(&0) && !ids.contains(&33), "{ids:?}");
+    let batches = ids.iter().filter(|&&i| i == 17).count();
+    assert!((9..=11).contains(&batches), "{ids:?}");
+    assert!(ids.contains(&18));
+}
+
+#[test]
+fn a_silent_reboot_seen_first_in_the_uptime_counts_once() {
+    // Regression: after a 4 s reboot an ATTITUDE arrived before the HEARTBEAT; both the
+    // uptime and the silence rule fired, and the configuration went out twice.
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let att = |t| {
+        MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms: t,
+            ..Default::default()
+        })
+    };
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(0));
+    b.handle_fc_bytes(fc.frame(&att(30_000)).as_bytes(), ms(100));
+    to_fc(&mut b, ms(100));
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    b.handle_fc_bytes(fc.frame(&att(5)).as_bytes(), ms(4100));
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(4150));
+    assert_eq!(intervals(&to_fc(&mut b, ms(4150))).len(), 2);
+    assert_eq!(b.stats().fc_reboots, 1);
+}

@@ -1,0 +1,285 @@
+//! Bridge side: periodic flight-controller messages in, compact frames out.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use crate::dialect::{
+    GLOBAL_POSITION_INT_DATA, MAVLORA_POSITION_BATCH_DATA, MAVLORA_STATUS_DATA, MavMessage,
+};
+use crate::time::Instant;
+
+/// Message ids the compactor replaces on the radio: HEARTBEAT (of the autopilot), SYS_STATUS,
+/// GPS_RAW_INT, GLOBAL_POSITION_INT, MISSION_CURRENT, VFR_HUD.
+pub const REPLACED_IDS: [u32; 6] = [0, 1, 24, 33, 42, 74];
+
+/// Settings of a [`Compactor`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CompactConfig {
+    /// Position samples per second (the paper's need: 3 Hz, ≤ 3.4 m between updates at 10 m/s).
+    pub sample_hz: f64,
+    /// Samples per batch frame: a full batch is sent at once.
+    pub batch_samples: usize,
+    /// A batch that is not full is sent this long after its first sample (bounds latency).
+    pub batch_period: Duration,
+    /// A status frame goes at least this often, and immediately on a change of mode, arming,
+    /// state, fix type or mission item.
+    pub status_period: Duration,
+}
+
+impl Default for CompactConfig {
+    fn default() -> Self {
+        Self {
+            sample_hz: 3.0,
+            batch_samples: 3,
+            batch_period: Duration::from_secs(1),
+            status_period: Duration::from_secs(10),
+        }
+    }
+}
+
+/// Counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CompactStats {
+    /// Standard messages taken in (and so kept off the radio).
+    pub absorbed: u64,
+    /// Position batches produced.
+    pub batches: u64,
+    /// Status frames produced.
+    pub statuses: u64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    time_boot_ms: u32,
+    lat: i32,
+    lon: i32,
+    rel_dm: i16,
+}
+
+/// Sans-IO compactor: feed it decoded flight-controller messages with
+/// [`observe`](Self::observe), take compact messages with [`poll`](Self::poll) and wake it at
+/// [`poll_timeout`](Self::poll_timeout).
+#[derive(Debug)]
+pub struct Compactor {
+    config: CompactConfig,
+    samples: Vec<Sample>,
+    batch_started: Option<Instant>,
+    next_sample_due: Option<Instant>,
+    newest: Option<GLOBAL_POSITION_INT_DATA>,
+    status: MAVLORA_STATUS_DATA,
+    heartbeat_seen: bool,
+    last_sent_status: Option<MAVLORA_STATUS_DATA>,
+    next_status: Option<Instant>,
+    last_sent: Option<Instant>,
+    out: VecDeque<MavMessage>,
+    stats: CompactStats,
+}
+
+impl Compactor {
+    /// A compactor with nothing observed.
+    pub fn new(config: CompactConfig) -> Self {
+        Self {
+            config,
+            samples: Vec::with_capacity(3),
+            batch_started: None,
+            next_sample_due: None,
+            newest: None,
+            status: MAVLORA_STATUS_DATA {
+                voltage_battery: u16::MAX,
+                mission_seq: u16::MAX,
+                satellites_visible: u8::MAX,
+                battery_remaining: -1,
+                ..MAVLORA_STATUS_DATA::default()
+            },
+            heartbeat_seen: false,
+            last_sent_status: None,
+            next_status: None,
+            last_sent: None,
+            out: VecDeque::new(),
+            stats: CompactStats::default(),
+        }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> CompactStats {
+        self.stats
+    }
+
+    /// Takes in one message from the flight controller's autopilot. Returns whether the
+    /// message is one the compact frames replace (the caller keeps it off the radio).
+    pub fn observe(&mut self, msg: &MavMessage, now: Instant) -> bool {
+        let s = &mut self.status;
+        match msg {
+            MavMessage::HEARTBEAT(hb) => {
+                s.mavtype = hb.mavtype;
+                s.autopilot = hb.autopilot;
+                s.base_mode = hb.base_mode;
+                s.custom_mode = hb.custom_mode;
+                s.system_status = hb.system_status;
+                self.heartbeat_seen = true;
+            }
+            MavMessage::SYS_STATUS(st) => {
+                s.voltage_battery = st.voltage_battery;
+                s.battery_remaining = st.battery_remaining;
+            }
+            MavMessage::GPS_RAW_INT(gps) => {
+                s.fix_type = gps.fix_type;
+                s.satellites_visible = gps.satellites_visible;
+            }
+            MavMessage::MISSION_CURRENT(mc) => s.mission_seq = mc.seq,
+            MavMessage::GLOBAL_POSITION_INT(pos) => {
+                s.alt_offset = round_div(i64::from(pos.alt) - i64::from(pos.relative_alt), 100)
+                    .clamp(i16::MIN.into(), i16::MAX.into()) as i16;
+                self.sample(pos, now);
+            }
+            MavMessage::VFR_HUD(_) => {}
+            _ => return false,
+        }
+        self.stats.absorbed += 1;
+        true
+    }
+
+    fn sample(&mut self, pos: &GLOBAL_POSITION_INT_DATA, now: Instant) {
+        let interval = Duration::from_secs_f64(1.0 / self.config.sample_hz);
+        let due = self.next_sample_due.unwrap_or(now);
+        if now < due {
+            return;
+        }
+        // Same catch-up rule as the radio filter: 5 Hz in gives 3 Hz out, not 2.5.
+        self.next_sample_due = Some((due + interval).max(now + interval / 2));
+        self.newest = Some(pos.clone());
+        let sample = Sample {
+            time_boot_ms: pos.time_boot_ms,
+            lat: pos.lat,
+            lon: pos.lon,
+            rel_dm: round_div(pos.relative_alt.into(), 100).clamp(i16::MIN.into(), i16::MAX.into())
+                as i16,
+        };
+        if let Some(first) = self.samples.first()
+            && !fits(first, &sample)
+        {
+            self.flush_batch();
+        }
+        if self.samples.is_empty() {
+            self.batch_started = Some(now);
+        }
+        self.samples.push(sample);
+        if self.samples.len() >= self.config.batch_samples.clamp(1, 3) {
+            self.flush_batch();
+        }
+    }
+
+    fn flush_batch(&mut self) {
+        let Some((first, rest)) = self.samples.split_first() else {
+            return;
+        };
+        let mut batch = MAVLORA_POSITION_BATCH_DATA {
+            time_boot_ms: first.time_boot_ms,
+            lat: first.lat,
+            lon: first.lon,
+            relative_alt: first.rel_dm,
+            count: self.samples.len() as u8,
+            hdg: u16::MAX,
+            ..MAVLORA_POSITION_BATCH_DATA::default()
+        };
+        for (i, s) in rest.iter().enumerate() {
+            // `fits` checked every narrowing below
+            batch.dlat[i] = (s.lat - first.lat) as i16;
+            batch.dlon[i] = (s.lon - first.lon) as i16;
+            batch.drelative_alt[i] = (s.rel_dm - first.rel_dm) as i8;
+            batch.dt[i] = round_div(
+                i64::from(s.time_boot_ms.wrapping_sub(first.time_boot_ms)),
+                10,
+            ) as u8;
+        }
+        if let Some(newest) = &self.newest {
+            batch.hdg = newest.hdg;
+            let speed = f64::from(newest.vx).hypot(f64::from(newest.vy));
+            batch.groundspeed = (speed / 10.0).round().clamp(0.0, 255.0) as u8;
+            batch.climb = (-f64::from(newest.vz) / 10.0).round().clamp(-127.0, 127.0) as i8;
+        }
+        self.samples.clear();
+        self.batch_started = None;
+        self.stats.batches += 1;
+        self.out
+            .push_back(MavMessage::MAVLORA_POSITION_BATCH(batch));
+    }
+
+    /// Whether the status changed in a way the ground must learn now.
+    fn status_changed(&self) -> bool {
+        let Some(last) = &self.last_sent_status else {
+            return true;
+        };
+        let s = &self.status;
+        s.base_mode != last.base_mode
+            || s.custom_mode != last.custom_mode
+            || s.system_status != last.system_status
+            || s.fix_type != last.fix_type
+            || s.mission_seq != last.mission_seq
+    }
+
+    /// The next compact message due at `now`, if any.
+    pub fn poll(&mut self, now: Instant) -> Option<MavMessage> {
+        if let Some(started) = self.batch_started
+            && now >= started + self.config.batch_period
+        {
+            self.flush_batch();
+        }
+        if self.heartbeat_seen {
+            let periodic = self.next_status.is_none_or(|t| now >= t);
+            // Keep-alive: the router makes a HEARTBEAT of every compact frame, so without
+            // position (no GPS on the bench) the status must go each batch period.
+            let silent = self
+                .last_sent
+                .is_none_or(|t| now >= t + self.config.batch_period);
+            if (periodic || silent || self.status_changed()) && self.out.is_empty() {
+                self.last_sent_status = Some(self.status.clone());
+                self.next_status = Some(now + self.config.status_period);
+                self.stats.statuses += 1;
+                self.out
+                    .push_back(MavMessage::MAVLORA_STATUS(self.status.clone()));
+            }
+        }
+        let msg = self.out.pop_front()?;
+        self.last_sent = Some(now);
+        Some(msg)
+    }
+
+    /// When [`poll`](Self::poll) next has something to give.
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        if !self.out.is_empty() {
+            return self.last_sent.or(Some(Instant::ZERO));
+        }
+        let batch = self.batch_started.map(|t| t + self.config.batch_period);
+        let status = self.heartbeat_seen.then(|| {
+            let keep_alive = self
+                .last_sent
+                .map_or(Instant::ZERO, |t| t + self.config.batch_period);
+            let periodic = self.next_status.unwrap_or(Instant::ZERO);
+            keep_alive.min(periodic)
+        });
+        [batch, status].into_iter().flatten().min()
+    }
+}
+
+/// Whether `s` can ride in the batch that starts with `first`.
+fn fits(first: &Sample, s: &Sample) -> bool {
+    let in_i16 = |d: i64| (i64::from(i16::MIN)..=i64::from(i16::MAX)).contains(&d);
+    in_i16(i64::from(s.lat) - i64::from(first.lat))
+        && in_i16(i64::from(s.lon) - i64::from(first.lon))
+        && (i16::from(i8::MIN)..=i16::from(i8::MAX))
+            .contains(&(s.rel_dm.saturating_sub(first.rel_dm)))
+        && round_div(
+            i64::from(s.time_boot_ms.wrapping_sub(first.time_boot_ms)),
+            10,
+        ) <= 255
+}
+
+/// `n / d` rounded to nearest, halves away from zero.
+pub(crate) fn round_div(n: i64, d: i64) -> i64 {
+    if n >= 0 {
+        (n + d / 2) / d
+    } else {
+        (n - d / 2) / d
+    }
+}

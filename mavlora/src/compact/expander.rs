@@ -1,0 +1,141 @@
+//! Router side: compact frames in, the standard messages an unmodified ground station
+//! expects out.
+
+use crate::dialect::{
+    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, HEARTBEAT_DATA, MAVLORA_POSITION_BATCH_DATA,
+    MAVLORA_STATUS_DATA, MISSION_CURRENT_DATA, MavMessage, MavSysStatusSensor, SYS_STATUS_DATA,
+    VFR_HUD_DATA,
+};
+
+/// Sans-IO expander: keeps the latest status so position batches can be expanded into full
+/// HEARTBEAT / SYS_STATUS / GPS_RAW_INT messages too.
+#[derive(Debug, Default)]
+pub struct Expander {
+    status: Option<MAVLORA_STATUS_DATA>,
+    newest: Option<GLOBAL_POSITION_INT_DATA>,
+    groundspeed_cm: u16,
+}
+
+impl Expander {
+    /// An expander that has seen nothing.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The standard messages `msg` stands for; empty for messages that are not compact.
+    pub fn expand(&mut self, msg: &MavMessage) -> Vec<MavMessage> {
+        match msg {
+            MavMessage::MAVLORA_POSITION_BATCH(batch) => self.batch(batch),
+            MavMessage::MAVLORA_STATUS(status) => {
+                self.status = Some(status.clone());
+                let mut out = self.status_messages();
+                out.push(MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA {
+                    seq: status.mission_seq,
+                }));
+                out
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    fn batch(&mut self, b: &MAVLORA_POSITION_BATCH_DATA) -> Vec<MavMessage> {
+        let offset = self.status.as_ref().map_or(0, |s| i32::from(s.alt_offset));
+        let speed_cm = i32::from(b.groundspeed) * 10;
+        let (vx, vy) = if b.hdg == u16::MAX {
+            (0, 0)
+        } else {
+            let rad = (f64::from(b.hdg) / 100.0).to_radians();
+            let v = f64::from(speed_cm);
+            (
+                (v * rad.cos()).round() as i16,
+                (v * rad.sin()).round() as i16,
+            )
+        };
+        let vz = -i16::from(b.climb) * 10;
+        let count = usize::from(b.count.clamp(1, 3));
+        let mut out = Vec::with_capacity(count + 4);
+        for i in 0..count {
+            let (dlat, dlon, drel, dt) = if i == 0 {
+                (0, 0, 0, 0)
+            } else {
+                (
+                    i32::from(b.dlat[i - 1]),
+                    i32::from(b.dlon[i - 1]),
+                    i32::from(b.drelative_alt[i - 1]),
+                    u32::from(b.dt[i - 1]) * 10,
+                )
+            };
+            let rel_dm = i32::from(b.relative_alt) + drel;
+            let pos = GLOBAL_POSITION_INT_DATA {
+                time_boot_ms: b.time_boot_ms.wrapping_add(dt),
+                lat: b.lat.wrapping_add(dlat),
+                lon: b.lon.wrapping_add(dlon),
+                alt: (rel_dm + offset) * 100,
+                relative_alt: rel_dm * 100,
+                vx,
+                vy,
+                vz,
+                hdg: b.hdg,
+            };
+            out.push(MavMessage::GLOBAL_POSITION_INT(pos.clone()));
+            self.newest = Some(pos);
+        }
+        self.groundspeed_cm = speed_cm as u16;
+        let newest = self.newest.clone().unwrap_or_default();
+        out.push(MavMessage::VFR_HUD(VFR_HUD_DATA {
+            airspeed: 0.0,
+            groundspeed: speed_cm as f32 / 100.0,
+            alt: newest.alt as f32 / 1000.0,
+            climb: f32::from(b.climb) / 10.0,
+            heading: if b.hdg == u16::MAX {
+                0
+            } else {
+                (b.hdg / 100) as i16
+            },
+            throttle: 0,
+        }));
+        out.extend(self.status_messages());
+        out
+    }
+
+    /// HEARTBEAT, SYS_STATUS and GPS_RAW_INT from the latest status and position (nothing
+    /// before the first status: a heartbeat with an unknown vehicle type would mislead).
+    fn status_messages(&self) -> Vec<MavMessage> {
+        let Some(s) = &self.status else {
+            return Vec::new();
+        };
+        let pos = self.newest.clone().unwrap_or_default();
+        vec![
+            MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: s.custom_mode,
+                mavtype: s.mavtype,
+                autopilot: s.autopilot,
+                base_mode: s.base_mode,
+                system_status: s.system_status,
+                mavlink_version: 3,
+            }),
+            MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+                onboard_control_sensors_present: MavSysStatusSensor::empty(),
+                onboard_control_sensors_enabled: MavSysStatusSensor::empty(),
+                onboard_control_sensors_health: MavSysStatusSensor::empty(),
+                load: 0,
+                voltage_battery: s.voltage_battery,
+                current_battery: -1,
+                battery_remaining: s.battery_remaining,
+                ..SYS_STATUS_DATA::default()
+            }),
+            MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
+                time_usec: u64::from(pos.time_boot_ms) * 1000,
+                lat: pos.lat,
+                lon: pos.lon,
+                alt: pos.alt,
+                eph: u16::MAX,
+                epv: u16::MAX,
+                vel: self.groundspeed_cm,
+                cog: pos.hdg,
+                fix_type: s.fix_type,
+                satellites_visible: s.satellites_visible,
+            }),
+        ]
+    }
+}

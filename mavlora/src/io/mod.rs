@@ -1,0 +1,56 @@
+//! The IO driver of the two binaries (feature `cli`): serial ports that reopen, a UDP
+//! endpoint that learns its peer, a `.tlog` writer, the wall clock. The engines never see
+//! any of it: this module turns IO into `handle_*_bytes(bytes, now)` calls.
+
+mod clock;
+mod serial;
+mod tlog;
+mod udp;
+
+pub use clock::{Clock, signing_epoch_now};
+pub use serial::{SerialEvent, SerialLink};
+pub use tlog::Tlog;
+pub use udp::UdpEndpoint;
+
+/// What the IO threads tell the main loop.
+#[derive(Debug)]
+pub enum Event {
+    /// Bytes from a serial port (by link name).
+    Serial(&'static str, SerialEvent),
+    /// A datagram from the ground-station side.
+    Udp(Vec<u8>, std::net::SocketAddr),
+    /// SIGINT or SIGTERM.
+    Stop,
+}
+
+/// Installs the SIGINT/SIGTERM handler: it sends [`Event::Stop`] to the main loop.
+pub fn on_signal(tx: std::sync::mpsc::Sender<Event>) -> anyhow::Result<()> {
+    ctrlc::set_handler(move || {
+        let _ = tx.send(Event::Stop);
+    })?;
+    Ok(())
+}
+
+/// `tracing` to stderr, level from `RUST_LOG` (default `info`).
+pub fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
+}
+
+/// Reads a binary's TOML config file (unknown keys are errors naming the file and line);
+/// the default when no file is given.
+pub fn load_config<T: serde::de::DeserializeOwned + Default>(
+    path: Option<&std::path::Path>,
+) -> anyhow::Result<T> {
+    use anyhow::Context as _;
+    let Some(path) = path else {
+        return Ok(T::default());
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading config {}", path.display()))?;
+    toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}

@@ -1,0 +1,77 @@
+//! The ground-station endpoint: a UDP socket that sends to a configured address until a
+//! ground station talks to it, then to whoever talked last (MAVProxy's `udpin` behaviour
+//! seen from the other side).
+
+use std::net::{SocketAddr, UdpSocket};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Sender;
+use std::thread;
+use std::time::Duration;
+
+use tracing::{info, warn};
+
+use super::Event;
+
+/// UDP endpoint towards ground stations.
+#[derive(Debug)]
+pub struct UdpEndpoint {
+    socket: UdpSocket,
+    peer: SocketAddr,
+}
+
+impl UdpEndpoint {
+    /// Binds `bind`, sends to `peer` until it learns another, and starts the reader thread.
+    pub fn spawn(
+        bind: SocketAddr,
+        peer: SocketAddr,
+        tx: Sender<Event>,
+        stop: Arc<AtomicBool>,
+    ) -> anyhow::Result<Self> {
+        let socket = UdpSocket::bind(bind)?;
+        socket.set_read_timeout(Some(Duration::from_millis(100)))?;
+        let reader = socket.try_clone()?;
+        info!(local = %socket.local_addr()?, %peer, "UDP endpoint");
+        thread::Builder::new().name("udp".into()).spawn(move || {
+            let mut buf = [0u8; 65_536];
+            while !stop.load(Ordering::Relaxed) {
+                match reader.recv_from(&mut buf) {
+                    Ok((n, from)) => {
+                        if tx.send(Event::Udp(buf[..n].to_vec(), from)).is_err() {
+                            return;
+                        }
+                    }
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                        ) => {}
+                    // ICMP port unreachable from an earlier send: nobody listens yet.
+                    Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
+                    Err(e) => warn!(error = %e, "UDP receive failed"),
+                }
+            }
+        })?;
+        Ok(Self { socket, peer })
+    }
+
+    /// The local address (useful when bound to port 0).
+    pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
+        self.socket.local_addr()
+    }
+
+    /// A datagram came from `from`: replies go there from now on.
+    pub fn learn(&mut self, from: SocketAddr) {
+        if from != self.peer {
+            info!(%from, "ground station address learned");
+            self.peer = from;
+        }
+    }
+
+    /// Sends one frame as one datagram (errors such as "nobody listening" are not fatal).
+    pub fn send(&self, bytes: &[u8]) {
+        if let Err(e) = self.socket.send_to(bytes, self.peer) {
+            tracing::debug!(error = %e, peer = %self.peer, "UDP send failed");
+        }
+    }
+}

@@ -1,0 +1,294 @@
+//! The router state machine.
+
+use std::collections::{HashMap, VecDeque};
+use std::time::Duration;
+
+use mavlink::{MavHeader, MavlinkVersion};
+
+use crate::compact::Expander;
+use crate::dialect::MavMessage;
+use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
+use crate::mission::DuplicateSuppressor;
+use crate::quality::{LinkQuality, LinkQualityConfig};
+use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
+use crate::signing::{LinkSigner, SigningConfig, SigningStats};
+use crate::time::Instant;
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Resequencer, Sender, encode, known};
+
+/// Router settings.
+#[derive(Debug, Clone)]
+pub struct RouterConfig {
+    /// The ground→air radio byte budget.
+    pub scheduler: SchedulerConfig,
+    /// Link-quality reports.
+    pub quality: LinkQualityConfig,
+    /// Our system id (reports we originate).
+    pub system_id: u8,
+    /// Our component id.
+    pub component_id: u8,
+    /// Component id the expanded standard messages claim (the vehicle's autopilot).
+    pub autopilot_component: u8,
+    /// At most one ground heartbeat per sender per this period goes over the radio; the
+    /// bridge regenerates them at 1 Hz for the flight controller.
+    pub gcs_heartbeat_period: Duration,
+    /// Initial radio round trip for the mission duplicate suppressor.
+    pub initial_rtt: Duration,
+    /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
+    pub signing: Option<SigningConfig>,
+}
+
+impl RouterConfig {
+    /// Defaults around a radio budget.
+    pub fn new(scheduler: SchedulerConfig) -> Self {
+        Self {
+            scheduler,
+            quality: LinkQualityConfig::default(),
+            system_id: 255,
+            component_id: 191,
+            autopilot_component: 1,
+            gcs_heartbeat_period: Duration::from_secs(5),
+            initial_rtt: Duration::from_millis(1500),
+            signing: None,
+        }
+    }
+}
+
+/// Router counters.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RouterStats {
+    /// What the radio side reader saw.
+    pub radio_reader: ReaderStats,
+    /// What the ground-station side reader saw.
+    pub gcs_reader: ReaderStats,
+    /// Ground→radio filter (heartbeat thinning).
+    pub filter: FilterStats,
+    /// Radio budget scheduler.
+    pub scheduler: SchedulerStats,
+    /// Compact frames expanded.
+    pub expanded_frames: u64,
+    /// Standard messages produced by expansion.
+    pub expanded_messages: u64,
+    /// Frames sent to the ground station.
+    pub to_gcs_frames: u64,
+    /// Bytes sent to the ground station.
+    pub to_gcs_bytes: u64,
+    /// Ground mission retransmissions dropped within one radio round trip.
+    pub mission_duplicates: u64,
+    /// `LINK_QUALITY` reports sent to the radio.
+    pub link_quality_sent: u64,
+    /// Radio link signing (all zero when signing is off).
+    pub signing: SigningStats,
+}
+
+/// Sans-IO router engine.
+#[derive(Debug)]
+pub struct Router {
+    config: RouterConfig,
+    radio_reader: FrameReader,
+    gcs_reader: FrameReader,
+    quality: LinkQuality,
+    scheduler: LinkScheduler,
+    heartbeat_filter: RadioFilter,
+    expander: Expander,
+    dedup: DuplicateSuppressor,
+    sender: Sender,
+    /// Streams towards the ground station that we renumber, by (system, component).
+    resequenced: HashMap<(u8, u8), u8>,
+    to_gcs: VecDeque<OwnedFrame>,
+    /// Renumbers what leaves on the radio (thinned heartbeats must not read as loss).
+    radio_sequence: Resequencer,
+    signer: Option<LinkSigner>,
+    stats: RouterStats,
+}
+
+impl Router {
+    /// A router started at `now`.
+    pub fn new(config: RouterConfig, now: Instant) -> Result<Self, ScheduleError> {
+        let hz = 1.0 / config.gcs_heartbeat_period.as_secs_f64().max(1e-3);
+        let profile = Profile::parse(&format!("[messages.HEARTBEAT]\nradio = {hz}\n"), "router")
+            .expect("a positive rate is a valid profile");
+        Ok(Self {
+            radio_reader: FrameReader::new(),
+            gcs_reader: FrameReader::new(),
+            quality: LinkQuality::new(config.quality, now),
+            scheduler: LinkScheduler::new(config.scheduler, now)?,
+            heartbeat_filter: RadioFilter::new(profile),
+            expander: Expander::new(),
+            dedup: DuplicateSuppressor::new(
+                config.initial_rtt,
+                Duration::from_millis(300),
+                Duration::from_secs(8),
+            ),
+            sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
+            resequenced: HashMap::new(),
+            to_gcs: VecDeque::new(),
+            radio_sequence: Resequencer::new(),
+            signer: config.signing.as_ref().map(|s| s.signer()),
+            stats: RouterStats::default(),
+            config,
+        })
+    }
+
+    /// Counters as of now.
+    pub fn stats(&self) -> RouterStats {
+        RouterStats {
+            radio_reader: self.radio_reader.stats().clone(),
+            gcs_reader: self.gcs_reader.stats().clone(),
+            filter: self.heartbeat_filter.stats(),
+            scheduler: self.scheduler.stats(),
+            mission_duplicates: self.dedup.suppressed(),
+            signing: self.signer.as_ref().map(|s| s.stats()).unwrap_or_default(),
+            ..self.stats.clone()
+        }
+    }
+
+    /// The link-quality engine.
+    pub fn quality(&self) -> &LinkQuality {
+        &self.quality
+    }
+
+    /// The radio's serial port was closed.
+    pub fn radio_port_closed(&mut self) {
+        self.radio_reader.finish();
+        while self.radio_reader.next_frame().is_some() {}
+    }
+
+    /// Bytes from a ground station (one UDP datagram, or a stream chunk).
+    pub fn handle_gcs_bytes(&mut self, bytes: &[u8], now: Instant) {
+        self.gcs_reader.push(bytes);
+        while let Some(rx) = self.gcs_reader.next_frame() {
+            let frame = rx.frame;
+            let id = frame.message_id();
+            if id == 0 {
+                if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
+                    continue;
+                }
+            } else if matches!(id, 44 | 73)
+                && let Ok(msg) = frame.decode::<MavMessage>()
+                && !self.dedup.from_ground(&msg, now)
+            {
+                continue;
+            }
+            self.scheduler.push(frame, Class::of(id), now);
+        }
+    }
+
+    /// Bytes from the radio's serial port.
+    pub fn handle_radio_bytes(&mut self, bytes: &[u8], now: Instant) {
+        self.radio_reader.push(bytes);
+        while let Some(rx) = self.radio_reader.next_frame() {
+            let frame = match &mut self.signer {
+                None => rx.frame,
+                Some(signer) => match signer.verify(&rx.frame, now) {
+                    Ok(plain) => plain,
+                    Err(why) => {
+                        tracing::debug!(
+                            ?why,
+                            msgid = rx.frame.message_id(),
+                            "radio frame rejected"
+                        );
+                        continue;
+                    }
+                },
+            };
+            self.quality.handle_frame(&frame, now);
+            match frame.message_id() {
+                17 | 18 => {
+                    if let Ok(msg) = frame.decode::<MavMessage>() {
+                        self.expand(frame.system_id(), &msg);
+                    }
+                }
+                40 | 51 => {
+                    if let Ok(msg) = frame.decode::<MavMessage>() {
+                        self.dedup.from_radio(&msg, now);
+                    }
+                    self.push_gcs(frame);
+                }
+                _ => self.push_gcs(frame),
+            }
+        }
+    }
+
+    fn expand(&mut self, system: u8, msg: &MavMessage) {
+        self.stats.expanded_frames += 1;
+        let component = self.config.autopilot_component;
+        for out in self.expander.expand(msg) {
+            let seq = self.next_sequence((system, component));
+            let header = MavHeader {
+                system_id: system.into(),
+                component_id: component,
+                sequence: seq,
+            };
+            self.stats.expanded_messages += 1;
+            self.enqueue_gcs(encode(MavlinkVersion::V2, header, &out));
+        }
+    }
+
+    fn next_sequence(&mut self, stream: (u8, u8)) -> u8 {
+        let seq = self.resequenced.entry(stream).or_insert(0);
+        let now = *seq;
+        *seq = seq.wrapping_add(1);
+        now
+    }
+
+    /// Forwards a radio frame, renumbering it if its stream is one we also synthesise into.
+    fn push_gcs(&mut self, mut frame: OwnedFrame) {
+        let stream = (frame.system_id(), frame.component_id());
+        if self.resequenced.contains_key(&stream)
+            && !frame.is_signed()
+            && let Some(extra) = known::crc_extra(frame.message_id())
+        {
+            let seq = self.next_sequence(stream);
+            frame.set_sequence(seq);
+            frame.fill_checksum(extra);
+        }
+        self.enqueue_gcs(frame);
+    }
+
+    fn enqueue_gcs(&mut self, frame: OwnedFrame) {
+        self.stats.to_gcs_frames += 1;
+        self.stats.to_gcs_bytes += frame.as_bytes().len() as u64;
+        self.to_gcs.push_back(frame);
+    }
+
+    /// Does what is due at `now` (our link-quality report, also shown to the ground station).
+    pub fn handle_timeout(&mut self, now: Instant) {
+        if let Some(report) = self.quality.poll_report(now, self.radio_reader.stats()) {
+            let frame = self.sender.frame(&MavMessage::LINK_QUALITY(report));
+            self.stats.link_quality_sent += 1;
+            self.enqueue_gcs(frame.clone());
+            self.scheduler.push(frame, Class::Periodic, now);
+        }
+    }
+
+    /// The next frame for the ground station.
+    pub fn poll_gcs_transmit(&mut self) -> Option<OwnedFrame> {
+        self.to_gcs.pop_front()
+    }
+
+    /// The next frame for the radio if the budget allows at `now` and it fits `room` bytes.
+    pub fn poll_radio_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
+        loop {
+            let mut frame = self.scheduler.poll_transmit(now, room)?;
+            self.radio_sequence.apply(&mut frame);
+            let Some(signer) = &mut self.signer else {
+                return Some(frame);
+            };
+            if let Some(signed) = signer.sign(&frame, now) {
+                return Some(signed);
+            }
+        }
+    }
+
+    /// When the engine next needs attention.
+    pub fn poll_timeout(&mut self, now: Instant) -> Option<Instant> {
+        [
+            Some(self.quality.poll_timeout()),
+            self.scheduler.poll_timeout(now),
+            (!self.to_gcs.is_empty()).then_some(now),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+    }
+}

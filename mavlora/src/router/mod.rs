@@ -1,0 +1,14 @@
+//! The router engine (ground station): radio serial ↔ ground-station endpoints (UDP).
+//!
+//! [`Router`] is sans-IO like the bridge: bytes and `now` in from each side, frames and a
+//! deadline out. Towards the ground station it expands compact telemetry into standard
+//! messages (re-numbering the vehicle's stream so sequence-gap loss counters stay right);
+//! towards the radio it thins the ground's heartbeats, drops a ground station's premature
+//! mission retransmissions and budgets bytes with the same scheduler as the bridge.
+
+mod engine;
+
+pub use engine::{Router, RouterConfig, RouterStats};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,146 @@
+use mavlink::MavlinkVersion;
+
+use super::*;
+use crate::compact::{CompactConfig, Compactor};
+use crate::dialect::{
+    COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavAutopilot,
+    MavMessage, MavType,
+};
+use crate::schedule::SchedulerConfig;
+use crate::time::Instant;
+use crate::wire::{FrameReader, OwnedFrame, Sender, known};
+
+fn router() -> Router {
+    Router::new(
+        RouterConfig::new(SchedulerConfig {
+            rate_bytes_per_s: 1000,
+            burst_bytes: 300,
+            max_queued_bytes: 4000,
+        }),
+        Instant::ZERO,
+    )
+    .unwrap()
+}
+
+fn ms(n: u64) -> Instant {
+    Instant::from_millis(n)
+}
+
+fn gcs_out(r: &mut Router) -> Vec<OwnedFrame> {
+    std::iter::from_fn(|| r.poll_gcs_transmit()).collect()
+}
+
+#[test]
+fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
+    let mut c = Compactor::new(CompactConfig::default());
+    let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_QUADROTOR,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+        ..Default::default()
+    });
+    c.observe(&hb, ms(0));
+    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
+    let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
+    let mut radio = Vec::new();
+    for k in 0..3 {
+        c.observe(&pos, ms(k * 340));
+        while let Some(m) = c.poll(ms(k * 340)) {
+            radio.extend_from_slice(bridge.frame(&m).as_bytes());
+        }
+    }
+    // a frame the autopilot sent itself, forwarded through the bridge, with its own sequence
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    fc.set_next_sequence(77);
+    let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA::default());
+    radio.extend_from_slice(fc.frame(&ack).as_bytes());
+
+    let mut r = router();
+    r.handle_radio_bytes(&radio, ms(1000));
+    let out = gcs_out(&mut r);
+    let mut reader = FrameReader::new();
+    for f in &out {
+        reader.push(f.as_bytes());
+    }
+    let frames: Vec<_> = std::iter::from_fn(|| reader.next_frame()).collect();
+    assert_eq!(frames.len(), out.len(), "every frame checks");
+    let ids: Vec<u32> = frames.iter().map(|f| f.frame.message_id()).collect();
+    assert_eq!(ids.iter().filter(|&&i| i == 33).count(), 3, "{ids:?}");
+    for id in [0, 1, 24, 42, 74, 77] {
+        assert!(ids.contains(&id), "{id} missing from {ids:?}");
+    }
+    assert!(
+        frames
+            .iter()
+            .all(|f| (f.frame.system_id(), f.frame.component_id()) == (1, 1))
+    );
+    assert_eq!(reader.stats().lost, 0, "renumbered stream has no gaps");
+    assert_eq!(r.stats().expanded_frames, 2);
+}
+
+#[test]
+fn ground_heartbeats_are_thinned_towards_the_radio() {
+    let mut r = router();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_GCS,
+        ..Default::default()
+    });
+    let mut sent = 0;
+    for t in 0..20 {
+        r.handle_gcs_bytes(gcs.frame(&hb).as_bytes(), ms(t * 1000));
+        while let Some(f) = r.poll_radio_transmit(ms(t * 1000), usize::MAX) {
+            sent += usize::from(f.message_id() == 0);
+        }
+    }
+    assert_eq!(sent, 4);
+    assert_eq!(r.stats().filter.rate_limited, 16);
+}
+
+#[test]
+fn premature_mission_retransmission_is_dropped() {
+    let mut r = router();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let count = MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+        count: 5,
+        target_system: 1,
+        target_component: 1,
+    });
+    r.handle_gcs_bytes(gcs.frame(&count).as_bytes(), ms(0));
+    r.handle_gcs_bytes(gcs.frame(&count).as_bytes(), ms(250));
+    let radio: Vec<_> = std::iter::from_fn(|| r.poll_radio_transmit(ms(300), usize::MAX)).collect();
+    assert_eq!(radio.len(), 1);
+    assert_eq!(r.stats().mission_duplicates, 1);
+    // after the timeout a retransmission is legitimate
+    r.handle_gcs_bytes(gcs.frame(&count).as_bytes(), ms(2000));
+    assert!(r.poll_radio_transmit(ms(2000), usize::MAX).is_some());
+    assert_eq!(known::message_name(44), Some("MISSION_COUNT"));
+}
+
+#[test]
+fn item_requested_again_by_the_vehicle_is_not_a_duplicate() {
+    use crate::dialect::{MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA};
+    let mut r = router();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
+    let item = MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+        seq: 3,
+        target_system: 1,
+        ..Default::default()
+    });
+    let again = MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
+        seq: 3,
+        target_system: 255,
+        target_component: 190,
+    });
+    r.handle_gcs_bytes(gcs.frame(&item).as_bytes(), ms(0));
+    // the ground's own early retry is dropped...
+    r.handle_gcs_bytes(gcs.frame(&item).as_bytes(), ms(100));
+    // ...but its answer to the vehicle's new request for item 3 goes
+    r.handle_radio_bytes(bridge.frame(&again).as_bytes(), ms(600));
+    r.handle_gcs_bytes(gcs.frame(&item).as_bytes(), ms(601));
+    let items = std::iter::from_fn(|| r.poll_radio_transmit(ms(700), usize::MAX))
+        .filter(|f| f.message_id() == 73)
+        .count();
+    assert_eq!(items, 2);
+    assert_eq!(r.stats().mission_duplicates, 1);
+}

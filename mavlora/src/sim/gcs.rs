@@ -1,0 +1,293 @@
+//! A ground station as the MAVLink mission protocol specifies it: heartbeats at 1 Hz, upload
+//! with a 1500 ms timeout and up to 5 retries of the last message sent.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use mavlink::MavlinkVersion;
+
+use crate::dialect::{
+    HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA, MISSION_COUNT_DATA,
+    MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA, MavAutopilot,
+    MavCmd, MavFrame, MavMessage, MavMissionResult, MavType,
+};
+use crate::time::Instant;
+use crate::wire::{FrameReader, OwnedFrame, Sender};
+
+/// A mission download in progress.
+#[derive(Debug)]
+struct Download {
+    count: Option<u16>,
+    items: Vec<MISSION_ITEM_INT_DATA>,
+    at: Instant,
+    retries: u32,
+}
+
+#[derive(Debug)]
+struct Upload {
+    items: Vec<MISSION_ITEM_INT_DATA>,
+    /// `None`: MISSION_COUNT was the last thing sent.
+    last: Option<u16>,
+    at: Instant,
+    retries: u32,
+}
+
+/// Simulated ground station (system 255, component 190) talking to vehicle 1/1.
+#[derive(Debug)]
+pub struct GcsMock {
+    sender: Sender,
+    reader: FrameReader,
+    out: VecDeque<OwnedFrame>,
+    next_heartbeat: Instant,
+    upload: Option<Upload>,
+    download: Option<Download>,
+    timeout: Duration,
+    /// Result of the last upload or clear, once finished.
+    pub result: Option<(MavMissionResult, Instant)>,
+    /// The last mission downloaded completely.
+    pub downloaded: Option<Vec<MISSION_ITEM_INT_DATA>>,
+    /// Items sent, retries included.
+    pub items_sent: u64,
+    /// Messages of each id received.
+    pub received: std::collections::BTreeMap<u32, u64>,
+}
+
+impl GcsMock {
+    /// A ground station started at `now`.
+    pub fn new(now: Instant) -> Self {
+        Self {
+            sender: Sender::new(255, 190, MavlinkVersion::V2),
+            reader: FrameReader::new(),
+            out: VecDeque::new(),
+            next_heartbeat: now,
+            upload: None,
+            download: None,
+            timeout: Duration::from_millis(1500),
+            result: None,
+            downloaded: None,
+            items_sent: 0,
+            received: Default::default(),
+        }
+    }
+
+    /// `n` distinct waypoints.
+    pub fn mission(n: u16) -> Vec<MISSION_ITEM_INT_DATA> {
+        (0..n)
+            .map(|seq| MISSION_ITEM_INT_DATA {
+                seq,
+                target_system: 1,
+                target_component: 1,
+                command: MavCmd::MAV_CMD_NAV_WAYPOINT,
+                frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                x: 553_700_000 + i32::from(seq) * 1000,
+                y: 103_900_000 - i32::from(seq) * 700,
+                z: 50.0 + f32::from(seq),
+                autocontinue: 1,
+                ..MISSION_ITEM_INT_DATA::default()
+            })
+            .collect()
+    }
+
+    /// Starts uploading `items` at `now`.
+    pub fn upload(&mut self, items: Vec<MISSION_ITEM_INT_DATA>, now: Instant) {
+        let count = items.len() as u16;
+        self.upload = Some(Upload {
+            items,
+            last: None,
+            at: now,
+            retries: 0,
+        });
+        self.result = None;
+        self.send(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+            count,
+            target_system: 1,
+            target_component: 1,
+        }));
+    }
+
+    /// Starts downloading the vehicle's mission at `now`.
+    pub fn download(&mut self, now: Instant) {
+        self.downloaded = None;
+        self.download = Some(Download {
+            count: None,
+            items: Vec::new(),
+            at: now,
+            retries: 0,
+        });
+        self.send(&MavMessage::MISSION_REQUEST_LIST(
+            MISSION_REQUEST_LIST_DATA {
+                target_system: 1,
+                target_component: 1,
+            },
+        ));
+    }
+
+    /// Clears the vehicle's mission (the ack lands in `result`).
+    pub fn clear(&mut self) {
+        self.result = None;
+        self.send(&MavMessage::MISSION_CLEAR_ALL(MISSION_CLEAR_ALL_DATA {
+            target_system: 1,
+            target_component: 1,
+        }));
+    }
+
+    fn request_item(&mut self, seq: u16) {
+        self.send(&MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
+            seq,
+            target_system: 1,
+            target_component: 1,
+        }));
+    }
+
+    fn download_step(&mut self, msg: &MavMessage, now: Instant) {
+        let Some(d) = &mut self.download else { return };
+        let next = match msg {
+            MavMessage::MISSION_COUNT(c) if c.target_system == 255 && d.count.is_none() => {
+                d.count = Some(c.count);
+                0
+            }
+            MavMessage::MISSION_ITEM_INT(i)
+                if i.target_system == 255 && usize::from(i.seq) == d.items.len() =>
+            {
+                d.items.push(i.clone());
+                d.items.len() as u16
+            }
+            _ => return,
+        };
+        d.at = now;
+        d.retries = 0;
+        if Some(next) == d.count {
+            let items = std::mem::take(&mut d.items);
+            self.download = None;
+            self.downloaded = Some(items);
+            self.send(&MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+                target_system: 1,
+                target_component: 1,
+                mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
+            }));
+        } else {
+            self.request_item(next);
+        }
+    }
+
+    fn send(&mut self, msg: &MavMessage) {
+        let frame = self.sender.frame(msg);
+        self.out.push_back(frame);
+    }
+
+    /// Bytes received from the vehicle side.
+    pub fn handle_bytes(&mut self, bytes: &[u8], now: Instant) {
+        self.reader.push(bytes);
+        while let Some(rx) = self.reader.next_frame() {
+            *self.received.entry(rx.frame.message_id()).or_default() += 1;
+            let Ok(msg) = rx.frame.decode::<MavMessage>() else {
+                continue;
+            };
+            self.handle(msg, now);
+        }
+    }
+
+    fn handle(&mut self, msg: MavMessage, now: Instant) {
+        self.download_step(&msg, now);
+        if self.upload.is_none()
+            && let MavMessage::MISSION_ACK(a) = &msg
+            && a.target_system == 255
+        {
+            self.result = Some((a.mavtype, now));
+        }
+        let Some(up) = &mut self.upload else { return };
+        match msg {
+            MavMessage::MISSION_REQUEST_INT(r) if r.target_system == 255 => {
+                let Some(item) = up.items.get(usize::from(r.seq)).cloned() else {
+                    return;
+                };
+                if up.last != Some(r.seq) {
+                    up.retries = 0;
+                }
+                up.last = Some(r.seq);
+                up.at = now;
+                self.items_sent += 1;
+                self.send(&MavMessage::MISSION_ITEM_INT(item));
+            }
+            MavMessage::MISSION_ACK(a) if a.target_system == 255 => {
+                self.upload = None;
+                self.result = Some((a.mavtype, now));
+            }
+            _ => {}
+        }
+    }
+
+    /// When something is next due.
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        if !self.out.is_empty() {
+            return Some(Instant::ZERO);
+        }
+        let retry = self
+            .upload
+            .as_ref()
+            .map(|u| u.at)
+            .or(self.download.as_ref().map(|d| d.at))
+            .map(|at| at + self.timeout);
+        Some(retry.map_or(self.next_heartbeat, |r| r.min(self.next_heartbeat)))
+    }
+
+    /// Heartbeats and upload retries due at `now`.
+    pub fn handle_timeout(&mut self, now: Instant) {
+        if now >= self.next_heartbeat {
+            self.next_heartbeat = self.next_heartbeat + Duration::from_secs(1);
+            self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                mavtype: MavType::MAV_TYPE_GCS,
+                autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+                mavlink_version: 3,
+                ..HEARTBEAT_DATA::default()
+            }));
+        }
+        if let Some(d) = &mut self.download
+            && now >= d.at + self.timeout
+        {
+            d.at = now;
+            d.retries += 1;
+            if d.retries > 5 {
+                self.download = None;
+            } else if d.count.is_none() {
+                self.send(&MavMessage::MISSION_REQUEST_LIST(
+                    MISSION_REQUEST_LIST_DATA {
+                        target_system: 1,
+                        target_component: 1,
+                    },
+                ));
+            } else {
+                let seq = d.items.len() as u16;
+                self.request_item(seq);
+            }
+        }
+        let Some(up) = &mut self.upload else { return };
+        if now < up.at + self.timeout {
+            return;
+        }
+        if up.retries >= 5 {
+            self.upload = None;
+            self.result = Some((MavMissionResult::MAV_MISSION_OPERATION_CANCELLED, now));
+            return;
+        }
+        up.retries += 1;
+        up.at = now;
+        let msg = match up.last {
+            None => MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                count: up.items.len() as u16,
+                target_system: 1,
+                target_component: 1,
+            }),
+            Some(seq) => {
+                self.items_sent += 1;
+                MavMessage::MISSION_ITEM_INT(up.items[usize::from(seq)].clone())
+            }
+        };
+        self.send(&msg);
+    }
+
+    /// The next frame the ground station sends.
+    pub fn poll_transmit(&mut self) -> Option<OwnedFrame> {
+        self.out.pop_front()
+    }
+}
