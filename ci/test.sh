@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every test: formatting and lints, the Rust workspace (unit, property,
 # scenario and end-to-end tests over real ptys), the Python fixtures, the
-# SAMD21 firmware build with its size, the core's benchmark, and finally the
+# SAMD21 firmware build with its size, the MultiRX core's and MavLora's
+# benchmarks, and finally the
 # full emulated rig suite.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,5 +22,7 @@ step "firmware build and size"
 bash ci/build-firmware.sh
 step "multirx-core benchmark"
 cargo bench --locked -q -p multirx-core --bench mux
+step "mavlora benchmark"
+cargo bench --locked -q -p mavlora --bench radio
 step "rig suite, emulated rig"
 bash ci/rig-emulated.sh --out target/rig-report

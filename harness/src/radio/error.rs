@@ -4,6 +4,14 @@
 /// or [`Radio`](super::Radio) is built, so a bad rig file fails before a run starts.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ConfigError {
+    /// A preset name that is not built in.
+    #[error("unknown radio preset {name:?}; built in: {builtin}")]
+    UnknownPreset {
+        /// The name given.
+        name: String,
+        /// The built-in names, comma separated.
+        builtin: String,
+    },
     /// A number is outside what the radio or the model accepts (a LoRa spreading
     /// factor of 13, a probability above 1, a negative latency, ...).
     #[error("{field} = {value} is out of range: expected {expected}")]

@@ -47,6 +47,7 @@ pub mod link;
 pub mod loss;
 mod pair;
 pub mod preset;
+pub mod setup;
 
 pub use airtime::{FskParams, LoraParams, Modulation};
 pub use duty::{DutyCycle, DutyTracker};
@@ -56,6 +57,7 @@ pub use link::{AirPacket, Link, LinkConfig, LinkStats, Slot};
 pub use loss::{GilbertElliott, LinkBudget, LossModel, PathLoss};
 pub use pair::{Direction, Radio};
 pub use preset::{Access, BurstParams, Preset, TdmParams};
+pub use setup::{PresetSpec, RadioSetup};
 
 #[cfg(test)]
 mod tests {

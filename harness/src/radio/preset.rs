@@ -120,6 +120,20 @@ fn sik_tdm(air_rate_kbps: u32, golay: bool, max_data: u32) -> TdmParams {
 }
 
 impl Preset {
+    /// Names [`Preset::builtin`] knows.
+    pub const BUILTIN: &[&str] = &["sik-64k", "sik-64k-ecc", "lora-sf7", "dmd-dl1"];
+
+    /// A built-in preset by its name (as in [`Preset::BUILTIN`]).
+    pub fn builtin(name: &str) -> Option<Preset> {
+        match name {
+            "sik-64k" => Some(Preset::sik_64k()),
+            "sik-64k-ecc" => Some(Preset::sik_64k_ecc()),
+            "lora-sf7" => Some(Preset::lora_sf7()),
+            "dmd-dl1" => Some(Preset::dmd_dl1()),
+            _ => None,
+        }
+    }
+
     /// mRo SiK at 64 kbit/s air rate, 100 mW (20 dBm) as on the paper's bench,
     /// without ECC. Firmware facts (ArduPilot SiK): 252-byte air packets
     /// including a 2-byte TDM trailer (250 data bytes), a 1850-byte serial
