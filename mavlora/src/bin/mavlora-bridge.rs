@@ -170,7 +170,8 @@ fn run(args: Args) -> Result<()> {
             Ok(Event::Serial(_, SerialEvent::Bytes(b))) => {
                 bridge.handle_radio_bytes(&b, clock.now());
             }
-            Ok(Event::Serial(..) | Event::Udp(..)) | Err(RecvTimeoutError::Timeout) => {}
+            Ok(Event::Serial(..) | Event::Udp(..) | Event::Tcp(..))
+            | Err(RecvTimeoutError::Timeout) => {}
             Ok(Event::Stop) => {
                 info!("signal received, shutting down");
                 break;

@@ -1,5 +1,5 @@
 //! `mavlora-router`: runs on the ground between the radio's serial port and ground-station
-//! software on UDP. See the crate README for command lines.
+//! software on UDP and TCP. See the crate README for command lines.
 //!
 //! Exit codes: 0 after SIGINT/SIGTERM, 1 on a configuration or setup error, 2 on bad usage.
 
@@ -17,14 +17,14 @@ use serde::Deserialize;
 use tracing::{error, info, warn};
 
 use mavlora::io::{
-    Clock, Event, SerialEvent, SerialLink, Tlog, UdpEndpoint, init_logging, load_config, on_signal,
-    signing_epoch_now,
+    Clock, Event, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, init_logging,
+    load_config, on_signal, signing_epoch_now,
 };
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::SchedulerConfig;
 use mavlora::signing::{SigningConfig, SigningKey};
 
-/// MavLora router: radio serial port <-> ground stations on UDP.
+/// MavLora router: radio serial port <-> ground stations on UDP and TCP.
 #[derive(Parser, Debug)]
 #[command(version)]
 struct Args {
@@ -43,6 +43,10 @@ struct Args {
     /// Local UDP address [default: 0.0.0.0:14555].
     #[arg(long)]
     udp_bind: Option<SocketAddr>,
+    /// Also listen for ground stations on TCP here, e.g. 0.0.0.0:5760 (QGroundControl "TCP",
+    /// `mavproxy.py --master=tcp:HOST:5760`); every client gets every frame.
+    #[arg(long)]
+    tcp_listen: Option<SocketAddr>,
     /// Write a MAVProxy-format telemetry log here.
     #[arg(long)]
     tlog: Option<PathBuf>,
@@ -74,6 +78,7 @@ struct FileConfig {
     radio_baud: Option<u32>,
     udp: Option<SocketAddr>,
     udp_bind: Option<SocketAddr>,
+    tcp_listen: Option<SocketAddr>,
     tlog: Option<PathBuf>,
     rate: Option<u32>,
     burst: Option<u32>,
@@ -141,6 +146,10 @@ fn run(args: Args) -> Result<()> {
         .or(file.udp_bind)
         .unwrap_or(([0, 0, 0, 0], 14555).into());
     let mut udp = UdpEndpoint::spawn(bind, peer, tx.clone(), stop.clone())?;
+    let tcp = match args.tcp_listen.or(file.tcp_listen) {
+        Some(addr) => Some(TcpEndpoint::spawn(addr, tx.clone(), stop.clone())?),
+        None => None,
+    };
     let radio_baud = args.radio_baud.or(file.radio_baud).unwrap_or(57_600);
     let mut radio = SerialLink::spawn("radio", radio_path, radio_baud, tx, stop.clone());
     let clock = Clock::start();
@@ -171,6 +180,10 @@ fn run(args: Args) -> Result<()> {
                 record(&mut tlog, &b);
                 router.handle_gcs_bytes(&b, clock.now());
             }
+            Ok(Event::Tcp(b, _)) => {
+                record(&mut tlog, &b);
+                router.handle_gcs_bytes(&b, clock.now());
+            }
             Ok(Event::Serial(_, SerialEvent::Opened)) | Err(RecvTimeoutError::Timeout) => {}
             Ok(Event::Stop) => {
                 info!("signal received, shutting down");
@@ -183,12 +196,15 @@ fn run(args: Args) -> Result<()> {
         while let Some(f) = router.poll_gcs_transmit() {
             record(&mut tlog, f.as_bytes());
             udp.send(f.as_bytes());
+            if let Some(tcp) = &tcp {
+                tcp.send(f.as_bytes());
+            }
         }
         while let Some(f) = router.poll_radio_transmit(now, usize::MAX) {
             radio.write(f.as_bytes());
         }
         if now >= next_status {
-            status(&router, &radio);
+            status(&router, &radio, tcp.as_ref());
             next_status = now + status_every;
         }
     }
@@ -196,11 +212,11 @@ fn run(args: Args) -> Result<()> {
     if let Some(t) = &mut tlog {
         t.flush().context("flushing tlog")?;
     }
-    status(&router, &radio);
+    status(&router, &radio, tcp.as_ref());
     Ok(())
 }
 
-fn status(router: &Router, radio: &SerialLink) {
+fn status(router: &Router, radio: &SerialLink, tcp: Option<&TcpEndpoint>) {
     let s = router.stats();
     let peer_loss = router.quality().peer().and_then(|p| p.loss_ratio);
     info!(
@@ -212,6 +228,7 @@ fn status(router: &Router, radio: &SerialLink) {
         radio_opens = radio.opens.load(Ordering::Relaxed),
         gcs_rx = s.gcs_reader.frames(),
         gcs_tx = s.to_gcs_frames,
+        tcp_clients = tcp.map_or(0, TcpEndpoint::clients),
         expanded = s.expanded_frames,
         heartbeats_thinned = s.filter.rate_limited,
         mission_duplicates = s.mission_duplicates,

@@ -9,8 +9,10 @@ use super::config::BridgeConfig;
 use super::fc_watch::{FcEvent, FcWatch};
 use super::gcs_heartbeat::GcsHeartbeat;
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
-use crate::dialect::{MavCmd, MavMessage, MavType};
-use crate::filter::{FilterStats, RadioFilter, Verdict, set_message_interval_requests};
+use crate::dialect::{MavCmd, MavMessage, MavResult, MavType};
+use crate::filter::{
+    FilterStats, RadioFilter, Verdict, request_data_stream_requests, set_message_interval_requests,
+};
 use crate::mission::{MissionRelay, MissionStats};
 use crate::quality::LinkQuality;
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
@@ -39,8 +41,11 @@ pub struct BridgeStats {
     pub to_fc_frames: u64,
     /// Bytes written to the flight controller.
     pub to_fc_bytes: u64,
-    /// `SET_MESSAGE_INTERVAL` commands sent (retries included).
+    /// `SET_MESSAGE_INTERVAL` / `REQUEST_DATA_STREAM` messages sent (retries included).
     pub config_commands: u64,
+    /// Configurations done with `REQUEST_DATA_STREAM` (MAVLink 1 autopilot, or
+    /// `SET_MESSAGE_INTERVAL` refused as unsupported).
+    pub data_stream_fallbacks: u64,
     /// `COMMAND_ACK`s for them.
     pub config_acks: u64,
     /// Flight-controller reboots detected.
@@ -56,6 +61,9 @@ pub struct BridgeStats {
 #[derive(Debug)]
 struct ConfigState {
     pending: Vec<MavMessage>,
+    /// `SET_MESSAGE_INTERVAL` is acknowledged; `REQUEST_DATA_STREAM` is not, so it is sent
+    /// `config_attempts` times (harmless: the request is idempotent).
+    acknowledged: bool,
     expected_acks: u64,
     acks: u64,
     attempts: u32,
@@ -114,6 +122,7 @@ impl Bridge {
             signer: config.signing.as_ref().map(|s| s.signer()),
             config_state: ConfigState {
                 pending: Vec::new(),
+                acknowledged: true,
                 expected_acks: 0,
                 acks: 0,
                 attempts: 0,
@@ -192,6 +201,7 @@ impl Bridge {
                 );
                 self.radio_sender.set_system(frame.system_id());
                 self.fc_sender.set_system(frame.system_id());
+                self.fc_sender.set_version(frame.version());
                 self.start_config(now);
             }
             Some(FcEvent::Rebooted) => {
@@ -206,8 +216,7 @@ impl Bridge {
                 if let MavMessage::COMMAND_ACK(ack) = msg
                     && ack.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
                 {
-                    self.stats.config_acks += 1;
-                    self.config_state.acks += 1;
+                    self.config_ack(ack.result, now);
                     return;
                 }
                 if self.mission.handle_fc(msg, now) {
@@ -220,8 +229,7 @@ impl Bridge {
                 && ack.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
                 && self.config_state.acks < self.config_state.expected_acks
             {
-                self.stats.config_acks += 1;
-                self.config_state.acks += 1;
+                self.config_ack(ack.result, now);
                 return;
             }
             if let Some(compactor) = &mut self.compactor
@@ -246,15 +254,56 @@ impl Bridge {
         let Some((sys, comp)) = self.watch.fc() else {
             return;
         };
+        // MAVLink 1 autopilots predate SET_MESSAGE_INTERVAL (ArduPilot < 4.0, APM).
+        if self.watch.version() == Some(MavlinkVersion::V1)
+            && !self.config.profile.data_streams().is_empty()
+        {
+            self.start_data_streams(now);
+            return;
+        }
         let pending = set_message_interval_requests(&self.config.profile, sys, comp);
         self.config_state = ConfigState {
             expected_acks: pending.len() as u64,
+            acknowledged: true,
             pending,
             acks: 0,
             attempts: 0,
             next_retry: Some(now),
         };
         self.config_tick(now);
+    }
+
+    fn start_data_streams(&mut self, now: Instant) {
+        let Some((sys, comp)) = self.watch.fc() else {
+            return;
+        };
+        info!(
+            streams = self.config.profile.data_streams().len(),
+            "configuring the flight controller with REQUEST_DATA_STREAM"
+        );
+        self.stats.data_stream_fallbacks += 1;
+        self.config_state = ConfigState {
+            pending: request_data_stream_requests(&self.config.profile, sys, comp),
+            acknowledged: false,
+            expected_acks: 0,
+            acks: 0,
+            attempts: 0,
+            next_retry: Some(now),
+        };
+        self.config_tick(now);
+    }
+
+    fn config_ack(&mut self, result: MavResult, now: Instant) {
+        self.stats.config_acks += 1;
+        self.config_state.acks += 1;
+        // An autopilot without SET_MESSAGE_INTERVAL says so once per request; the first
+        // refusal switches to the MAVLink 1 way if the profile has one.
+        if result == MavResult::MAV_RESULT_UNSUPPORTED
+            && self.config_state.acknowledged
+            && !self.config.profile.data_streams().is_empty()
+        {
+            self.start_data_streams(now);
+        }
     }
 
     fn config_tick(&mut self, now: Instant) {
@@ -265,7 +314,8 @@ impl Bridge {
         if now < due {
             return;
         }
-        if st.acks >= st.expected_acks || st.attempts >= self.config.config_attempts {
+        let done = st.acknowledged && st.acks >= st.expected_acks;
+        if done || st.attempts >= self.config.config_attempts {
             st.next_retry = None;
             return;
         }

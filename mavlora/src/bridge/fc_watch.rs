@@ -13,6 +13,8 @@
 
 use std::time::Duration;
 
+use mavlink::MavlinkVersion;
+
 use crate::dialect::{MavAutopilot, MavMessage};
 use crate::time::Instant;
 use crate::wire::Frame;
@@ -31,6 +33,7 @@ pub enum FcEvent {
 pub struct FcWatch {
     silence: Duration,
     fc: Option<(u8, u8)>,
+    version: Option<MavlinkVersion>,
     last_heartbeat: Option<Instant>,
     last_boot_ms: Option<u32>,
 }
@@ -44,6 +47,7 @@ impl FcWatch {
         Self {
             silence,
             fc: None,
+            version: None,
             last_heartbeat: None,
             last_boot_ms: None,
         }
@@ -52,6 +56,12 @@ impl FcWatch {
     /// The flight controller's (system id, component id), once seen.
     pub fn fc(&self) -> Option<(u8, u8)> {
         self.fc
+    }
+
+    /// The MAVLink version of the flight controller's last heartbeat: a MAVLink 1 autopilot
+    /// gets MAVLink 1 frames and `REQUEST_DATA_STREAM` instead of `SET_MESSAGE_INTERVAL`.
+    pub fn version(&self) -> Option<MavlinkVersion> {
+        self.version
     }
 
     /// Whether `frame` comes from the flight controller's autopilot component.
@@ -85,6 +95,7 @@ impl FcWatch {
                 _ => None,
             };
             self.fc = Some(me);
+            self.version = Some(frame.version());
             self.last_heartbeat = Some(now);
             if event.is_some() {
                 self.last_boot_ms = None;

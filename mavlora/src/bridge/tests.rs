@@ -1,3 +1,7 @@
+// MAV_DATA_STREAM / REQUEST_DATA_STREAM are deprecated upstream in favour of
+// SET_MESSAGE_INTERVAL; they are used here on purpose, for MAVLink 1 autopilots.
+#![allow(deprecated)]
+
 use std::time::Duration;
 
 use mavlink::MavlinkVersion;
@@ -266,4 +270,86 @@ fn a_silent_reboot_seen_first_in_the_uptime_counts_once() {
     b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(4150));
     assert_eq!(intervals(&to_fc(&mut b, ms(4150))).len(), 2);
     assert_eq!(b.stats().fc_reboots, 1);
+}
+
+const PROFILE_WITH_STREAMS: &str = r#"
+[messages.GLOBAL_POSITION_INT]
+stream_hz = 3
+radio = 3
+[data_streams]
+all = 0
+position = 3
+"#;
+
+fn data_streams(msgs: &[MavMessage]) -> Vec<(u32, u16, u8)> {
+    msgs.iter()
+        .filter_map(|m| match m {
+            MavMessage::REQUEST_DATA_STREAM(r) => {
+                Some((r.req_stream_id as u32, r.req_message_rate, r.start_stop))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn mavlink1_autopilot_is_configured_with_request_data_stream_in_mavlink1() {
+    let mut c = config();
+    c.profile = Profile::parse(PROFILE_WITH_STREAMS, "test").unwrap();
+    c.config_attempts = 2;
+    let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V1);
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(100));
+    let frames: Vec<_> = std::iter::from_fn(|| b.poll_fc_transmit(ms(100))).collect();
+    assert!(
+        frames.iter().all(|f| f.version() == MavlinkVersion::V1),
+        "a MAVLink 1 autopilot gets MAVLink 1 frames"
+    );
+    let msgs: Vec<_> = frames.iter().map(|f| f.decode().unwrap()).collect();
+    assert!(intervals(&msgs).is_empty());
+    assert_eq!(data_streams(&msgs), vec![(0, 0, 0), (6, 3, 1)]);
+    // no ack exists: sent again at each attempt, then no more
+    let mut later = Vec::new();
+    let mut now = ms(100);
+    while now < ms(10_000) {
+        now = now + Duration::from_millis(500);
+        b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), now);
+        b.handle_timeout(now);
+        later.extend(to_fc(&mut b, now));
+    }
+    assert_eq!(data_streams(&later).len(), 2);
+    assert_eq!(b.stats().data_stream_fallbacks, 1);
+}
+
+#[test]
+fn set_message_interval_refused_as_unsupported_falls_back_to_data_streams() {
+    let mut c = config();
+    c.profile = Profile::parse(PROFILE_WITH_STREAMS, "test").unwrap();
+    let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(100));
+    assert_eq!(intervals(&to_fc(&mut b, ms(100))), vec![(33.0, 333_333.0)]);
+    let refused = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+        result: MavResult::MAV_RESULT_UNSUPPORTED,
+    });
+    b.handle_fc_bytes(fc.frame(&refused).as_bytes(), ms(150));
+    assert_eq!(
+        data_streams(&to_fc(&mut b, ms(150))),
+        vec![(0, 0, 0), (6, 3, 1)]
+    );
+    // and SET_MESSAGE_INTERVAL is not retried afterwards
+    b.handle_timeout(ms(2200));
+    assert!(intervals(&to_fc(&mut b, ms(2200))).is_empty());
+}
+
+#[test]
+fn without_data_streams_a_mavlink1_autopilot_still_gets_set_message_interval() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V1);
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(100));
+    assert_eq!(
+        intervals(&to_fc(&mut b, ms(100))),
+        vec![(30.0, -1.0), (33.0, 333_333.0)]
+    );
 }

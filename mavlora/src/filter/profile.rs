@@ -9,7 +9,15 @@
 //! [messages.GLOBAL_POSITION_INT]   # a name from the dialect, or a numeric id: [messages.33]
 //! stream_hz = 3             # SET_MESSAGE_INTERVAL to the flight controller; 0 stops the stream
 //! radio = 3                 # "pass", "drop", or a maximum rate in Hz
+//!
+//! [data_streams]            # REQUEST_DATA_STREAM, for MAVLink 1 autopilots (APM, old
+//! all = 0                   # ArduPilot) that do not implement SET_MESSAGE_INTERVAL:
+//! position = 3              # MAV_DATA_STREAM_* group (lower case, no prefix) -> Hz, 0 stops
 //! ```
+
+// MAV_DATA_STREAM / REQUEST_DATA_STREAM are deprecated upstream in favour of
+// SET_MESSAGE_INTERVAL; they are used here on purpose, for MAVLink 1 autopilots.
+#![allow(deprecated)]
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -17,6 +25,7 @@ use std::path::Path;
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::dialect::MavDataStream;
 use crate::wire::known;
 
 /// What happens to a message on its way to the radio.
@@ -45,7 +54,28 @@ pub struct MessageRule {
 pub struct Profile {
     default_radio: RadioRule,
     rules: BTreeMap<u32, MessageRule>,
+    data_streams: Vec<(MavDataStream, u16)>,
 }
+
+/// `MAV_DATA_STREAM` groups by their profile key, in the order `all` first: a request for
+/// `all` resets every group, so it must go before the specific ones.
+pub const DATA_STREAMS: [(&str, MavDataStream); 9] = [
+    ("all", MavDataStream::MAV_DATA_STREAM_ALL),
+    ("raw_sensors", MavDataStream::MAV_DATA_STREAM_RAW_SENSORS),
+    (
+        "extended_status",
+        MavDataStream::MAV_DATA_STREAM_EXTENDED_STATUS,
+    ),
+    ("rc_channels", MavDataStream::MAV_DATA_STREAM_RC_CHANNELS),
+    (
+        "raw_controller",
+        MavDataStream::MAV_DATA_STREAM_RAW_CONTROLLER,
+    ),
+    ("position", MavDataStream::MAV_DATA_STREAM_POSITION),
+    ("extra1", MavDataStream::MAV_DATA_STREAM_EXTRA1),
+    ("extra2", MavDataStream::MAV_DATA_STREAM_EXTRA2),
+    ("extra3", MavDataStream::MAV_DATA_STREAM_EXTRA3),
+];
 
 /// Why a profile could not be loaded. Each names the file (or origin) and, where it can, the
 /// line and key at fault.
@@ -92,6 +122,30 @@ pub enum ProfileError {
         /// The value as parsed.
         value: String,
     },
+    /// A `[data_streams]` key that is not a `MAV_DATA_STREAM` group.
+    #[error("{origin}:{line}: unknown data stream `{name}` (expected one of {expected})")]
+    UnknownDataStream {
+        /// The file.
+        origin: String,
+        /// 1-based line of the key.
+        line: usize,
+        /// The key as written.
+        name: String,
+        /// The accepted keys.
+        expected: String,
+    },
+    /// A `[data_streams]` rate outside 0..=65535 Hz (the field is a `u16`).
+    #[error("{origin}:{line}: data stream `{name}` = {value} (expected 0..=65535 Hz, 0 stops it)")]
+    InvalidDataStreamRate {
+        /// The file.
+        origin: String,
+        /// 1-based line of the value.
+        line: usize,
+        /// The key.
+        name: String,
+        /// The value as written.
+        value: i64,
+    },
     /// A `stream_hz` that is negative or not finite.
     #[error("{origin}:{line}: `{key}`: stream_hz = {value} (expected a rate in Hz >= 0)")]
     InvalidStreamRate {
@@ -113,6 +167,8 @@ struct ProfileFile {
     defaults: Option<DefaultsFile>,
     #[serde(default)]
     messages: BTreeMap<Spanned<String>, RuleFile>,
+    #[serde(default)]
+    data_streams: BTreeMap<Spanned<String>, Spanned<i64>>,
 }
 
 #[derive(Deserialize)]
@@ -190,10 +246,39 @@ impl Profile {
             };
             rules.insert(id, MessageRule { radio, stream_hz });
         }
+
+        let mut data_streams = Vec::new();
+        for (key, hz) in file.data_streams {
+            let name = key.get_ref();
+            let Some(&(_, id)) = DATA_STREAMS.iter().find(|(n, _)| n == name) else {
+                return Err(ProfileError::UnknownDataStream {
+                    origin: origin.to_owned(),
+                    line: line_of(key.span()),
+                    name: name.clone(),
+                    expected: DATA_STREAMS.map(|(n, _)| n).join(", "),
+                });
+            };
+            let rate =
+                u16::try_from(*hz.get_ref()).map_err(|_| ProfileError::InvalidDataStreamRate {
+                    origin: origin.to_owned(),
+                    line: line_of(hz.span()),
+                    name: name.clone(),
+                    value: *hz.get_ref(),
+                })?;
+            data_streams.push((id, rate));
+        }
+        // MAV_DATA_STREAM_ALL (0) first: it overrides the groups sent before it.
+        data_streams.sort_by_key(|&(id, _)| id as u32);
         Ok(Self {
             default_radio,
             rules,
+            data_streams,
         })
+    }
+
+    /// `REQUEST_DATA_STREAM` groups and rates (Hz, 0 = stop), `MAV_DATA_STREAM_ALL` first.
+    pub fn data_streams(&self) -> &[(MavDataStream, u16)] {
+        &self.data_streams
     }
 
     /// Radio treatment of message `id`.
@@ -272,6 +357,40 @@ radio = 0.5
         assert_eq!(
             streams,
             vec![(0, None), (30, Some(0.0)), (33, Some(3.0)), (74, None)]
+        );
+    }
+
+    #[test]
+    fn data_streams_all_first_and_checked() {
+        let p = Profile::parse(
+            "[data_streams]\nposition = 3\nall = 0\nextended_status = 1\n",
+            "p",
+        )
+        .unwrap();
+        let ids: Vec<_> = p
+            .data_streams()
+            .iter()
+            .map(|&(s, hz)| (s as u32, hz))
+            .collect();
+        assert_eq!(ids, vec![(0, 0), (2, 1), (6, 3)]);
+        let err =
+            Profile::parse("[data_streams]\n\nposition = 3\npositon = 1\n", "p.toml").unwrap_err();
+        assert!(
+            matches!(err, ProfileError::UnknownDataStream { line: 4, .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains("extra3"), "{err}");
+        let err = Profile::parse("[data_streams]\nall = -1\n", "p.toml").unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ProfileError::InvalidDataStreamRate {
+                    line: 2,
+                    value: -1,
+                    ..
+                }
+            ),
+            "{err}"
         );
     }
 
@@ -364,5 +483,19 @@ mod shipped_profiles {
         ] {
             assert_eq!(p.radio_rule(id(kept)), RadioRule::Pass, "{kept}");
         }
+    }
+
+    #[test]
+    fn every_shipped_profile_loads() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles");
+        let mut n = 0;
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            Profile::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            n += 1;
+        }
+        assert!(n >= 3, "only {n} profiles in {dir}");
+        let ardupilot = Profile::load(format!("{dir}/ardupilot-mavlink1.toml")).unwrap();
+        assert_eq!(ardupilot.data_streams()[0].0 as u32, 0, "`all` goes first");
     }
 }

@@ -2,7 +2,11 @@
 //! configuring the flight controller saved the most bandwidth in the paper (11,440 → 1,536
 //! B/s), filtering on the companion computer catches what it cannot be told to stop.
 
-use crate::dialect::{COMMAND_LONG_DATA, MavCmd, MavMessage};
+// MAV_DATA_STREAM / REQUEST_DATA_STREAM are deprecated upstream in favour of
+// SET_MESSAGE_INTERVAL; they are used here on purpose, for MAVLink 1 autopilots.
+#![allow(deprecated)]
+
+use crate::dialect::{COMMAND_LONG_DATA, MavCmd, MavMessage, REQUEST_DATA_STREAM_DATA};
 
 use super::profile::Profile;
 
@@ -39,6 +43,28 @@ pub fn set_message_interval_requests(
         .collect()
 }
 
+/// One `REQUEST_DATA_STREAM` per `[data_streams]` entry of the profile, `MAV_DATA_STREAM_ALL`
+/// first: the MAVLink 1 way (ArduPilot before 4.0, APM). These are not acknowledged.
+pub fn request_data_stream_requests(
+    profile: &Profile,
+    target_system: u8,
+    target_component: u8,
+) -> Vec<MavMessage> {
+    profile
+        .data_streams()
+        .iter()
+        .map(|&(stream, hz)| {
+            MavMessage::REQUEST_DATA_STREAM(REQUEST_DATA_STREAM_DATA {
+                target_system,
+                target_component,
+                req_stream_id: stream,
+                req_message_rate: hz,
+                start_stop: u8::from(hz > 0),
+            })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -65,5 +91,20 @@ mod tests {
             .collect();
         // ATTITUDE (30) stopped, GLOBAL_POSITION_INT (33) every 333,333 µs; HEARTBEAT untouched
         assert_eq!(params, vec![(30.0, -1.0), (33.0, 333_333.0)]);
+    }
+
+    #[test]
+    fn data_stream_requests_start_and_stop() {
+        let p = Profile::parse("[data_streams]\nall = 0\nposition = 3\n", "p").unwrap();
+        let reqs: Vec<_> = request_data_stream_requests(&p, 1, 1)
+            .into_iter()
+            .map(|m| match m {
+                MavMessage::REQUEST_DATA_STREAM(r) => {
+                    (r.req_stream_id as u32, r.req_message_rate, r.start_stop)
+                }
+                other => panic!("unexpected {other:?}"),
+            })
+            .collect();
+        assert_eq!(reqs, vec![(0, 0, 0), (6, 3, 1)]);
     }
 }

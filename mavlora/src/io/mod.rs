@@ -1,14 +1,16 @@
 //! The IO driver of the two binaries (feature `cli`): serial ports that reopen, a UDP
-//! endpoint that learns its peer, a `.tlog` writer, the wall clock. The engines never see
+//! endpoint that learns its peer, a TCP listener for ground stations, a `.tlog` writer, the wall clock. The engines never see
 //! any of it: this module turns IO into `handle_*_bytes(bytes, now)` calls.
 
 mod clock;
 mod serial;
+mod tcp;
 mod tlog;
 mod udp;
 
 pub use clock::{Clock, signing_epoch_now};
 pub use serial::{SerialEvent, SerialLink};
+pub use tcp::TcpEndpoint;
 pub use tlog::Tlog;
 pub use udp::UdpEndpoint;
 
@@ -19,6 +21,8 @@ pub enum Event {
     Serial(&'static str, SerialEvent),
     /// A datagram from the ground-station side.
     Udp(Vec<u8>, std::net::SocketAddr),
+    /// One whole frame from a TCP ground station.
+    Tcp(Vec<u8>, std::net::SocketAddr),
     /// SIGINT or SIGTERM.
     Stop,
 }

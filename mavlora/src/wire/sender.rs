@@ -40,6 +40,11 @@ impl Sender {
         self.system = system;
     }
 
+    /// Frames from now on use `version` (a MAVLink 1 peer cannot parse MAVLink 2).
+    pub fn set_version(&mut self, version: MavlinkVersion) {
+        self.version = version;
+    }
+
     /// Continues another sender's sequence (regenerated or resequenced streams).
     pub fn set_next_sequence(&mut self, sequence: u8) {
         self.next_sequence = sequence;
