@@ -123,6 +123,24 @@ fn execute(command: Command) -> Result<ExitCode> {
                     );
                 }
             }
+            for (name, setup) in &rig.radios {
+                let preset = setup.preset.resolve()?;
+                println!(
+                    "radio {name}: {} ({:.0} B/s max), ok",
+                    preset.name,
+                    preset.max_data_rate()
+                );
+            }
+            if let Some(m) = &rig.mavlora {
+                for suite in &m.suites {
+                    println!("mavlora: suite {}", suite.as_str());
+                }
+                for profile in ["px4-normal.toml", "px4-compact.toml"] {
+                    let path = m.profiles.join(profile);
+                    mavlora::filter::Profile::load(&path)?;
+                    println!("{}: ok", path.display());
+                }
+            }
             println!("{}: ok", rig.path.display());
             Ok(ExitCode::SUCCESS)
         }

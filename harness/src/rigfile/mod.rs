@@ -18,10 +18,12 @@ use toml::de::DeTable;
 use crate::measurement::Limits;
 
 mod error;
+mod mavlora;
 mod schema;
 
 pub use error::RigFileError;
 use error::{Location, Locator, dotted};
+pub use mavlora::{DEFAULT_PROFILES_DIR, MavloraSection, NamedRadio, RadioRoles, Suite};
 use schema::RawFile;
 
 /// Output folder used when the rig file names none, relative to the current
@@ -51,6 +53,10 @@ pub struct RigFile {
     pub fixtures: FixturesSection,
     /// `[multirx]`; `None` means no MultiRX scenarios on this rig.
     pub multirx: Option<MultirxSection>,
+    /// `[radios]`: emulated radios by name, checked against the model.
+    pub radios: BTreeMap<String, crate::radio::RadioSetup>,
+    /// `[mavlora]`; `None` means no MavLora scenarios on this rig.
+    pub mavlora: Option<MavloraSection>,
     /// `[limits]`: overrides of built-in SLA limits, by measurement name.
     pub limits: BTreeMap<String, Limits>,
     /// Where each `[limits]` key is, for [`RigFile::check_limit_names`].
@@ -479,6 +485,8 @@ impl Checker<'_> {
             ),
         };
         let multirx = raw.multirx.map(|m| self.multirx(m)).transpose()?;
+        let radios = self.radios(raw.radios)?;
+        let mavlora = raw.mavlora.map(|m| self.mavlora(m, &radios)).transpose()?;
         let mut limit_locations = BTreeMap::new();
         for (name, limits) in &raw.limits {
             let at = ["limits", name.as_str()];
@@ -496,6 +504,8 @@ impl Checker<'_> {
             rig,
             fixtures,
             multirx,
+            radios,
+            mavlora,
             limits: raw.limits,
             limit_locations,
         })
