@@ -19,10 +19,10 @@ use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::io::{
-    Clock, Event, SerialEvent, SerialLink, init_logging, load_config, on_signal, signing_epoch_now,
+    Clock, Event, SerialEvent, SerialLink, init_logging, load_config, on_signal,
+    signing_from_key_file,
 };
 use mavlora::schedule::SchedulerConfig;
-use mavlora::signing::{SigningConfig, SigningKey};
 
 /// MavLora bridge: flight controller serial port <-> radio serial port.
 #[derive(Parser, Debug)]
@@ -115,14 +115,7 @@ fn run(args: Args) -> Result<()> {
     };
     let rate = args.rate.or(file.rate).unwrap_or(683);
     let burst = args.burst.or(file.burst).unwrap_or(600);
-    let mut config = BridgeConfig::new(
-        profile,
-        SchedulerConfig {
-            rate_bytes_per_s: rate,
-            burst_bytes: burst,
-            max_queued_bytes: (rate as usize * 4).max(4096),
-        },
-    );
+    let mut config = BridgeConfig::new(profile, SchedulerConfig::for_radio(rate, burst));
     if args.compact || file.compact.unwrap_or(false) {
         config.compact = Some(CompactConfig::default());
     }
@@ -133,12 +126,7 @@ fn run(args: Args) -> Result<()> {
         config.quality.period = Duration::from_secs_f64(p);
     }
     if let Some(path) = args.key.or(file.key) {
-        config.signing = Some(SigningConfig {
-            key: SigningKey::load(&path)?,
-            link_id: 1,
-            epoch: signing_epoch_now(),
-        });
-        info!(key = %path.display(), "radio link signing on");
+        config.signing = Some(signing_from_key_file(&path, 1)?);
     }
     let status_every =
         Duration::from_secs_f64(args.status_interval.or(file.status_interval).unwrap_or(5.0));

@@ -18,11 +18,10 @@ use tracing::{error, info, warn};
 
 use mavlora::io::{
     Clock, Event, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, init_logging,
-    load_config, on_signal, signing_epoch_now,
+    load_config, on_signal, signing_from_key_file,
 };
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::SchedulerConfig;
-use mavlora::signing::{SigningConfig, SigningKey};
 
 /// MavLora router: radio serial port <-> ground stations on UDP and TCP.
 #[derive(Parser, Debug)]
@@ -108,11 +107,7 @@ fn run(args: Args) -> Result<()> {
         .context("no radio port: --radio or `radio`")?;
     let rate = args.rate.or(file.rate).unwrap_or(683);
     let burst = args.burst.or(file.burst).unwrap_or(600);
-    let mut config = RouterConfig::new(SchedulerConfig {
-        rate_bytes_per_s: rate,
-        burst_bytes: burst,
-        max_queued_bytes: (rate as usize * 4).max(4096),
-    });
+    let mut config = RouterConfig::new(SchedulerConfig::for_radio(rate, burst));
     if let Some(p) = args.gcs_heartbeat_period.or(file.gcs_heartbeat_period) {
         config.gcs_heartbeat_period = Duration::from_secs_f64(p);
     }
@@ -120,12 +115,7 @@ fn run(args: Args) -> Result<()> {
         config.quality.period = Duration::from_secs_f64(p);
     }
     if let Some(path) = args.key.or(file.key) {
-        config.signing = Some(SigningConfig {
-            key: SigningKey::load(&path)?,
-            link_id: 2,
-            epoch: signing_epoch_now(),
-        });
-        info!(key = %path.display(), "radio link signing on");
+        config.signing = Some(signing_from_key_file(&path, 2)?);
     }
     let status_every =
         Duration::from_secs_f64(args.status_interval.or(file.status_interval).unwrap_or(5.0));

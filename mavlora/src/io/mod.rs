@@ -8,7 +8,7 @@ mod tcp;
 mod tlog;
 mod udp;
 
-pub use clock::{Clock, signing_epoch_now};
+pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
 pub use serial::{SerialEvent, SerialLink};
 pub use tcp::TcpEndpoint;
 pub use tlog::Tlog;

@@ -22,6 +22,18 @@ pub struct SchedulerConfig {
     pub max_queued_bytes: usize,
 }
 
+impl SchedulerConfig {
+    /// A radio budget of `rate` bytes/s with bursts of `burst` bytes, queueing up to 4 s of
+    /// traffic (at least 4 KiB): what both binaries use.
+    pub fn for_radio(rate: u32, burst: u32) -> Self {
+        Self {
+            rate_bytes_per_s: rate,
+            burst_bytes: burst,
+            max_queued_bytes: (rate as usize * 4).max(4096),
+        }
+    }
+}
+
 /// Why a [`SchedulerConfig`] is unusable.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ScheduleError {
