@@ -17,6 +17,8 @@
 //!   compact telemetry expanded back into standard messages.
 //! - [`compact`]: [`compact::Compactor`] and [`compact::Expander`], with their precision.
 //! - [`mission`]: the mission relay with radio round-trip-time timeouts.
+//! - [`command`]: the command relay: the router resends commands over the radio on a
+//!   measured round-trip timeout, the bridge answers copies from its ack cache.
 //! - [`signing`]: MAVLink 2 signing of the radio link, replay rejection.
 //! - [`sim`]: a deterministic virtual-clock world (PX4-like flight controller, ground
 //!   station, lossy radio) for tests and benchmarks.
@@ -36,6 +38,7 @@
 pub use mavlora_dialect as dialect;
 
 pub mod bridge;
+pub mod command;
 pub mod compact;
 pub mod filter;
 #[cfg(feature = "cli")]

@@ -204,6 +204,8 @@ fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink) {
         config_acks = s.config_acks,
         fc_reboots = s.fc_reboots,
         missions = s.mission.completed,
+        command_acks_replayed = s.commands.replayed,
+        command_copies_dropped = s.commands.dropped,
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,

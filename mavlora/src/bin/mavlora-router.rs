@@ -222,6 +222,8 @@ fn status(router: &Router, radio: &SerialLink, tcp: Option<&TcpEndpoint>) {
         expanded = s.expanded_frames,
         heartbeats_thinned = s.filter.rate_limited,
         mission_duplicates = s.mission_duplicates,
+        command_resends = s.commands.retransmissions,
+        command_ground_retries_dropped = s.commands.ground_duplicates,
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,

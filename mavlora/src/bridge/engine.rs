@@ -1,6 +1,7 @@
 //! The bridge state machine.
 
 use std::collections::VecDeque;
+use std::time::Duration;
 
 use mavlink::{MavlinkVersion, Message as _};
 use tracing::{debug, info};
@@ -8,6 +9,7 @@ use tracing::{debug, info};
 use super::config::BridgeConfig;
 use super::fc_watch::{FcEvent, FcWatch};
 use super::gcs_heartbeat::GcsHeartbeat;
+use crate::command::{AckCache, AckCacheStats, CacheVerdict};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
 use crate::dialect::{MavCmd, MavMessage, MavResult, MavType};
 use crate::filter::{
@@ -35,6 +37,8 @@ pub struct BridgeStats {
     pub compact: CompactStats,
     /// Mission relay.
     pub mission: MissionStats,
+    /// Commands from the radio: forwarded, answered from the ack cache, dropped copies.
+    pub commands: AckCacheStats,
     /// Radio link signing (all zero when signing is off).
     pub signing: SigningStats,
     /// Frames written to the flight controller.
@@ -81,6 +85,7 @@ pub struct Bridge {
     quality: LinkQuality,
     compactor: Option<Compactor>,
     mission: MissionRelay,
+    commands: AckCache,
     watch: FcWatch,
     gcs_heartbeat: GcsHeartbeat,
     /// Frames we originate on the radio link (reports, compact telemetry, mission).
@@ -110,6 +115,7 @@ impl Bridge {
             quality: LinkQuality::new(config.quality, now),
             compactor: config.compact.map(Compactor::new),
             mission: MissionRelay::new(config.mission),
+            commands: AckCache::new(Duration::from_secs(5), Duration::from_secs(1)),
             watch: FcWatch::new(config.fc_silence),
             gcs_heartbeat: GcsHeartbeat::new(
                 config.gcs_heartbeat_period,
@@ -146,6 +152,7 @@ impl Bridge {
                 .map(|c| c.stats())
                 .unwrap_or_default(),
             mission: self.mission.stats(),
+            commands: self.commands.stats(),
             signing: self.signer.as_ref().map(|s| s.stats()).unwrap_or_default(),
             ..self.stats.clone()
         }
@@ -231,6 +238,9 @@ impl Bridge {
             {
                 self.config_ack(ack.result, now);
                 return;
+            }
+            if id == 77 {
+                self.commands.ack(frame.system_id(), &frame, msg, now);
             }
             if let Some(compactor) = &mut self.compactor
                 && self.watch.is_fc(&frame)
@@ -380,6 +390,19 @@ impl Bridge {
                 let for_vehicle = msg.target_system_id() == Some(self.radio_sender.system());
                 if id != 0 && for_vehicle && self.mission.handle_radio(from, &msg, now) {
                     return;
+                }
+            }
+            // Commands the router may have resent: each reaches the FC once.
+            75 | 76 => {
+                if let Ok(msg) = frame.decode::<MavMessage>() {
+                    match self.commands.command(&frame, &msg, now) {
+                        CacheVerdict::Forward => {}
+                        CacheVerdict::Replay(ack) => {
+                            self.scheduler.push(ack, Class::Priority, now);
+                            return;
+                        }
+                        CacheVerdict::Drop => return,
+                    }
                 }
             }
             _ => {}

@@ -353,3 +353,45 @@ fn without_data_streams_a_mavlink1_autopilot_still_gets_set_message_interval() {
         vec![(30.0, -1.0), (33.0, 333_333.0)]
     );
 }
+
+#[test]
+fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(0));
+    to_fc(&mut b, ms(0));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let cmd = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        param1: 1.0,
+        ..Default::default()
+    });
+    let is_cmd = |m: &MavMessage| matches!(m, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_DO_SET_MODE);
+    b.handle_radio_bytes(gcs.frame(&cmd).as_bytes(), ms(100));
+    assert_eq!(
+        to_fc(&mut b, ms(100)).iter().filter(|m| is_cmd(m)).count(),
+        1
+    );
+    let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        result: MavResult::MAV_RESULT_ACCEPTED,
+    });
+    b.handle_fc_bytes(fc.frame(&ack).as_bytes(), ms(120));
+    let acks = |frames: Vec<OwnedFrame>| frames.iter().filter(|f| f.message_id() == 77).count();
+    assert_eq!(acks(to_radio(&mut b, ms(120))), 1);
+    // the ack was lost on the radio and the router resends the command
+    b.handle_radio_bytes(gcs.frame(&cmd).as_bytes(), ms(1100));
+    assert_eq!(
+        to_fc(&mut b, ms(1100)).iter().filter(|m| is_cmd(m)).count(),
+        0,
+        "executed once"
+    );
+    assert_eq!(
+        acks(to_radio(&mut b, ms(1100))),
+        1,
+        "answered from the cache"
+    );
+    assert_eq!(b.stats().commands.replayed, 1);
+}

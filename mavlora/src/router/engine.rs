@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use mavlink::{MavHeader, MavlinkVersion};
 
+use crate::command::{CommandRetransmitter, RetransmitStats};
 use crate::compact::Expander;
 use crate::dialect::MavMessage;
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
@@ -33,6 +34,11 @@ pub struct RouterConfig {
     pub gcs_heartbeat_period: Duration,
     /// Initial radio round trip for the mission duplicate suppressor.
     pub initial_rtt: Duration,
+    /// First timeout before a command is resent over the radio; later ones follow the
+    /// measured command round trip.
+    pub command_initial_rto: Duration,
+    /// Sends of one command over the radio, the first included; 1 turns retransmission off.
+    pub command_attempts: u32,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
 }
@@ -48,6 +54,8 @@ impl RouterConfig {
             autopilot_component: 1,
             gcs_heartbeat_period: Duration::from_secs(5),
             initial_rtt: Duration::from_millis(1500),
+            command_initial_rto: Duration::from_millis(1000),
+            command_attempts: 5,
             signing: None,
         }
     }
@@ -74,6 +82,8 @@ pub struct RouterStats {
     pub to_gcs_bytes: u64,
     /// Ground mission retransmissions dropped within one radio round trip.
     pub mission_duplicates: u64,
+    /// The command relay's resends and dropped ground retries.
+    pub commands: RetransmitStats,
     /// `LINK_QUALITY` reports sent to the radio.
     pub link_quality_sent: u64,
     /// Radio link signing (all zero when signing is off).
@@ -91,6 +101,7 @@ pub struct Router {
     heartbeat_filter: RadioFilter,
     expander: Expander,
     dedup: DuplicateSuppressor,
+    commands: CommandRetransmitter,
     sender: Sender,
     /// Streams towards the ground station that we renumber, by (system, component).
     resequenced: HashMap<(u8, u8), u8>,
@@ -119,6 +130,12 @@ impl Router {
                 Duration::from_millis(300),
                 Duration::from_secs(8),
             ),
+            commands: CommandRetransmitter::new(
+                config.command_initial_rto,
+                Duration::from_millis(200),
+                Duration::from_secs(3),
+                config.command_attempts,
+            ),
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
@@ -137,6 +154,7 @@ impl Router {
             filter: self.heartbeat_filter.stats(),
             scheduler: self.scheduler.stats(),
             mission_duplicates: self.dedup.suppressed(),
+            commands: self.commands.stats(),
             signing: self.signer.as_ref().map(|s| s.stats()).unwrap_or_default(),
             ..self.stats.clone()
         }
@@ -166,6 +184,11 @@ impl Router {
             } else if matches!(id, 44 | 73)
                 && let Ok(msg) = frame.decode::<MavMessage>()
                 && !self.dedup.from_ground(&msg, now)
+            {
+                continue;
+            } else if matches!(id, 75 | 76)
+                && let Ok(msg) = frame.decode::<MavMessage>()
+                && !self.commands.from_ground(&frame, &msg, now)
             {
                 continue;
             }
@@ -201,6 +224,12 @@ impl Router {
                 40 | 51 => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.dedup.from_radio(&msg, now);
+                    }
+                    self.push_gcs(frame);
+                }
+                77 => {
+                    if let Ok(msg) = frame.decode::<MavMessage>() {
+                        self.commands.from_radio(frame.system_id(), &msg, now);
                     }
                     self.push_gcs(frame);
                 }
@@ -251,8 +280,12 @@ impl Router {
         self.to_gcs.push_back(frame);
     }
 
-    /// Does what is due at `now` (our link-quality report, also shown to the ground station).
+    /// Does what is due at `now`: our link-quality report (also shown to the ground
+    /// station), command retransmissions.
     pub fn handle_timeout(&mut self, now: Instant) {
+        while let Some(frame) = self.commands.poll_retransmit(now) {
+            self.scheduler.push(frame, Class::Priority, now);
+        }
         if let Some(report) = self.quality.poll_report(now, self.radio_reader.stats()) {
             let frame = self.sender.frame(&MavMessage::LINK_QUALITY(report));
             self.stats.link_quality_sent += 1;
@@ -285,6 +318,7 @@ impl Router {
         [
             Some(self.quality.poll_timeout()),
             self.scheduler.poll_timeout(now),
+            self.commands.poll_timeout(),
             (!self.to_gcs.is_empty()).then_some(now),
         ]
         .into_iter()

@@ -144,3 +144,50 @@ fn item_requested_again_by_the_vehicle_is_not_a_duplicate() {
     assert_eq!(items, 2);
     assert_eq!(r.stats().mission_duplicates, 1);
 }
+
+fn radio_out(r: &mut Router, now: Instant) -> Vec<MavMessage> {
+    r.handle_timeout(now);
+    std::iter::from_fn(|| r.poll_radio_transmit(now, usize::MAX))
+        .map(|f| f.decode::<MavMessage>().unwrap())
+        .collect()
+}
+
+fn commands(msgs: &[MavMessage]) -> usize {
+    msgs.iter()
+        .filter(|m| matches!(m, MavMessage::COMMAND_LONG(_)))
+        .count()
+}
+
+#[test]
+fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd, MavResult};
+    let mut r = router();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let cmd = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        ..Default::default()
+    });
+    r.handle_gcs_bytes(gcs.frame(&cmd).as_bytes(), ms(0));
+    assert_eq!(commands(&radio_out(&mut r, ms(0))), 1);
+    // lost on the radio: resent after the initial 1 s timeout, not at the ground's 1.5 s
+    assert_eq!(commands(&radio_out(&mut r, ms(999))), 0);
+    assert_eq!(commands(&radio_out(&mut r, ms(1000))), 1);
+    // the ground station's own retry is not sent again
+    r.handle_gcs_bytes(gcs.frame(&cmd).as_bytes(), ms(1500));
+    assert_eq!(commands(&radio_out(&mut r, ms(1500))), 0);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        result: MavResult::MAV_RESULT_ACCEPTED,
+    });
+    r.handle_radio_bytes(fc.frame(&ack).as_bytes(), ms(1700));
+    assert!(gcs_out(&mut r).iter().any(|f| f.message_id() == 77));
+    assert_eq!(commands(&radio_out(&mut r, ms(20_000))), 0);
+    let s = r.stats().commands;
+    assert_eq!(
+        (s.commands, s.retransmissions, s.ground_duplicates, s.acked),
+        (1, 1, 1, 1)
+    );
+}
