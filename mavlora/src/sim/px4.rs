@@ -287,6 +287,17 @@ impl Px4Fc {
         self
     }
 
+    /// Sets the stream rates `profile` asks for, as if a companion computer had sent its
+    /// `SET_MESSAGE_INTERVAL`s (or the operator had set PX4's parameters): for runs without a
+    /// bridge that should still stream what the profile wants. The acks are not sent.
+    pub fn apply_profile_rates(&mut self, profile: &crate::filter::Profile, now: Instant) {
+        let queued = self.out.len();
+        for msg in crate::filter::set_message_interval_requests(profile, 1, 1) {
+            self.handle((1, 191), msg, now);
+        }
+        self.out.truncate(queued);
+    }
+
     /// Position and velocity at `now`.
     pub fn kinematics(&self, now: Instant) -> Kinematics {
         let secs = now.saturating_duration_since(self.booted).as_secs_f64();

@@ -1,0 +1,72 @@
+//! Duty cycle of compact telemetry on LoRa SF7/125 kHz: the share of time each direction's
+//! transmitter is on air over the paper's 513 s flight, against the EU 433 MHz SRD rule
+//! (ERC/REC 70-03: 10 mW e.r.p., ≤ 10 % duty cycle) that would make the link legal without
+//! the special Danish channels the paper needed.
+
+use anyhow::Result;
+use mavlora::Instant;
+use mavlora::sim::profiles::PX4_COMPACT_TOML;
+use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
+
+use super::world::SimWorld;
+use super::{Radios, Scenario, mavlora_configs};
+use crate::measurement::Measurement;
+use crate::radio::{LinkStats, RadioSetup};
+use crate::scenario::PhaseContext;
+
+pub const SCENARIO: Scenario = Scenario {
+    name: "duty_cycle",
+    summary: "Duty cycle: compact telemetry (px4-compact.toml, bridge --compact) on LoRa SF7/125 kHz over the 513 s flight, airtime share per direction against EU 433 MHz SRD's 10 %",
+    measurements,
+    run,
+};
+
+/// EU 433 MHz SRD duty-cycle limit, %.
+pub const EU_SRD_PCT: f64 = 10.0;
+
+fn measurements(_: &Radios) -> Vec<Measurement> {
+    vec![
+        Measurement::new("mavlora.lora_sf7.duty_cycle_pct", "%")
+            .describe(
+                "UAV→GCS airtime ÷ flight time, compact telemetry through the bridge, whole \
+                 513 s flight; EU 433 MHz SRD allows 10 %",
+            )
+            .at_most(EU_SRD_PCT),
+        Measurement::new("mavlora.lora_sf7.uplink_duty_cycle_pct", "%").describe(
+            "GCS→UAV airtime ÷ flight time (the router's thinned ground heartbeats and \
+             LINK_QUALITY), same flight",
+        ),
+    ]
+}
+
+/// Airtime shares (downlink, uplink) in %, and the radio's counters.
+pub fn measure(radios: &Radios) -> Result<((f64, f64), LinkStats, LinkStats)> {
+    let setup = radios.seeded(&radios.duty);
+    let preset = setup.preset.resolve()?;
+    let route = Route::PAPER;
+    let fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(route));
+    let mavlora = mavlora_configs(PX4_COMPACT_TOML, "px4-compact.toml", true, Some(&preset))?;
+    let mut w = SimWorld::new(fc, Some(mavlora), Some(&setup))?;
+    w.run_until(Instant::ZERO + route.duration());
+    let flight = route.duration().as_secs_f64();
+    let down = w.link_stats(RadioSetup::DOWNLINK).unwrap_or_default();
+    let up = w.link_stats(RadioSetup::UPLINK).unwrap_or_default();
+    let pct = |s: &LinkStats| 100.0 * s.airtime.as_secs_f64() / flight;
+    Ok(((pct(&down), pct(&up)), down, up))
+}
+
+fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
+    let ((down, up), d, u) = measure(radios)?;
+    ctx.record("mavlora.lora_sf7.duty_cycle_pct", down);
+    ctx.record("mavlora.lora_sf7.uplink_duty_cycle_pct", up);
+    for (label, s) in [("UAV→GCS", &d), ("GCS→UAV", &u)] {
+        ctx.log(format!(
+            "{label}: {} air packets, {} bytes, {:.1} s on air, mean packet {:.1} bytes",
+            s.packets_sent,
+            s.bytes_sent,
+            s.airtime.as_secs_f64(),
+            s.bytes_sent as f64 / s.packets_sent.max(1) as f64
+        ));
+    }
+    Ok(())
+}
