@@ -7,9 +7,9 @@ use std::time::Duration;
 use mavlink::MavlinkVersion;
 
 use crate::dialect::{
-    COMMAND_LONG_DATA, HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA, MISSION_COUNT_DATA,
-    MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA, MavAutopilot,
-    MavCmd, MavFrame, MavMessage, MavMissionResult, MavType,
+    COMMAND_LONG_DATA, HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA,
+    MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA,
+    MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionResult, MavType,
 };
 use crate::time::Instant;
 use crate::wire::{FrameReader, OwnedFrame, Sender};

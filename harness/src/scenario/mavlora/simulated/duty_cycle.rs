@@ -8,7 +8,7 @@ use mavlora::Instant;
 use mavlora::sim::profiles::PX4_COMPACT_TOML;
 use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 
-use super::world::SimWorld;
+use super::world::{Counts, SimWorld};
 use super::{Radios, Scenario, mavlora_configs};
 use crate::measurement::Measurement;
 use crate::radio::{LinkStats, RadioSetup};
@@ -39,8 +39,25 @@ fn measurements(_: &Radios) -> Vec<Measurement> {
     ]
 }
 
-/// Airtime shares (downlink, uplink) in %, and the radio's counters.
-pub fn measure(radios: &Radios) -> Result<((f64, f64), LinkStats, LinkStats)> {
+/// What the flight put on air.
+#[derive(Debug, Clone)]
+pub struct Duty {
+    /// UAV→GCS airtime share, %.
+    pub down_pct: f64,
+    /// GCS→UAV airtime share, %.
+    pub up_pct: f64,
+    /// The radio's counters, UAV→GCS.
+    pub down: LinkStats,
+    /// The radio's counters, GCS→UAV.
+    pub up: LinkStats,
+    /// Frames the bridge handed to the radio.
+    pub down_sent: Counts,
+    /// Flight time, s.
+    pub flight_s: f64,
+}
+
+/// Flies the route and measures the airtime shares.
+pub fn measure(radios: &Radios) -> Result<Duty> {
     let setup = radios.seeded(&radios.duty);
     let preset = setup.preset.resolve()?;
     let route = Route::PAPER;
@@ -52,14 +69,30 @@ pub fn measure(radios: &Radios) -> Result<((f64, f64), LinkStats, LinkStats)> {
     let down = w.link_stats(RadioSetup::DOWNLINK).unwrap_or_default();
     let up = w.link_stats(RadioSetup::UPLINK).unwrap_or_default();
     let pct = |s: &LinkStats| 100.0 * s.airtime.as_secs_f64() / flight;
-    Ok(((pct(&down), pct(&up)), down, up))
+    Ok(Duty {
+        down_pct: pct(&down),
+        up_pct: pct(&up),
+        down,
+        up,
+        down_sent: w.down_sent.clone(),
+        flight_s: flight,
+    })
 }
 
 fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
-    let ((down, up), d, u) = measure(radios)?;
-    ctx.record("mavlora.lora_sf7.duty_cycle_pct", down);
-    ctx.record("mavlora.lora_sf7.uplink_duty_cycle_pct", up);
-    for (label, s) in [("UAV→GCS", &d), ("GCS→UAV", &u)] {
+    let d = measure(radios)?;
+    ctx.record("mavlora.lora_sf7.duty_cycle_pct", d.down_pct);
+    ctx.record("mavlora.lora_sf7.uplink_duty_cycle_pct", d.up_pct);
+    let bytes_per_s = d.down_sent.total_bytes() as f64 / d.flight_s;
+    ctx.annotate(
+        "mavlora.lora_sf7.duty_cycle_pct",
+        &format!(
+            "{bytes_per_s:.1} B/s of frames, {} air packets: one frame per packet, so each pays \
+             LoRa's preamble, header and CRC",
+            d.down.packets_sent
+        ),
+    );
+    for (label, s) in [("UAV→GCS", &d.down), ("GCS→UAV", &d.up)] {
         ctx.log(format!(
             "{label}: {} air packets, {} bytes, {:.1} s on air, mean packet {:.1} bytes",
             s.packets_sent,

@@ -116,8 +116,8 @@ fn loss_of(s: &LinkStats) -> f64 {
 /// Runs one upload, relayed or naive, over `setup` (already seeded).
 pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload> {
     let preset = setup.preset.resolve()?;
-    let mut fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed)
-        .with_flight(Flight::Route(Route::PAPER));
+    let mut fc =
+        Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(Route::PAPER));
     let mavlora = if relay {
         Some(mavlora_configs(
             PX4_COMPACT_TOML,

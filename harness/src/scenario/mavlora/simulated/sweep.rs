@@ -229,6 +229,10 @@ fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
     let dir = evidence_dir(ctx)?;
     let path = dir.join("attenuation_sweep.csv");
     std::fs::write(&path, csv).with_context(|| format!("writing {}", path.display()))?;
-    ctx.attach("attenuation sweep (loss and period per step)", path, "text/csv");
+    ctx.attach(
+        "attenuation sweep (loss and period per step)",
+        path,
+        "text/csv",
+    );
     Ok(())
 }

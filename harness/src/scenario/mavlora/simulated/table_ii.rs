@@ -20,7 +20,7 @@ use mavlora::sim::{Flight, PX4_CONFIG, Px4Fc, Route};
 use super::world::SimWorld;
 use super::{Radios, Scenario, mavlora_configs};
 use crate::measurement::Measurement;
-use crate::radio::{RadioSetup, Preset};
+use crate::radio::{Preset, RadioSetup};
 use crate::scenario::PhaseContext;
 
 pub const SCENARIO: Scenario = Scenario {
@@ -37,7 +37,8 @@ pub const VARIANTS: [&str; 4] = ["wired", "limit", "limit_filter", "compact"];
 /// its default rule: `TIMESYNC` (10 Hz) and `PING` (1 Hz). The shipped profile was written
 /// for PX4's "Normal" profile, which sends neither; dropped here so the compact variant is
 /// judged on what it is meant to send (issue: add these to the shipped file).
-pub const COMPACT_EXTRA: &str = "\n[messages.TIMESYNC]\nradio = \"drop\"\n\n[messages.PING]\nradio = \"drop\"\n";
+pub const COMPACT_EXTRA: &str =
+    "\n[messages.TIMESYNC]\nradio = \"drop\"\n\n[messages.PING]\nradio = \"drop\"\n";
 
 /// One row of the paper's Table II.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -215,9 +216,7 @@ pub fn render(rows: &[Row]) -> String {
         "variant", "B/s", "msg/s", "paper B/s", "paper msg/s"
     );
     for row in rows {
-        let paper = paper_table()
-            .into_iter()
-            .find(|p| p.variant == row.variant);
+        let paper = paper_table().into_iter().find(|p| p.variant == row.variant);
         let (pb, pm) = paper.map_or(("-".into(), "-".into()), |p| {
             (
                 format!("{}{}", if p.bound { "< " } else { "" }, p.bytes_per_s),
