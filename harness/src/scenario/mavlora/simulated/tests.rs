@@ -262,3 +262,17 @@ fn quantile_is_nearest_rank() {
     assert!(quantile(&[], 0.5).is_nan());
     assert_eq!(quantile(&[1.0, f64::INFINITY], 0.99), f64::INFINITY);
 }
+
+/// A rig file can carry the radios: the built-ins round-trip through TOML, unknown keys
+/// are refused.
+#[test]
+fn radios_round_trip_through_toml() {
+    let radios = Radios::paper_defaults();
+    let text = toml::to_string(&radios).unwrap();
+    let back: Radios = toml::from_str(&text).unwrap();
+    assert_eq!(back, radios);
+    let partial: Radios = toml::from_str("seed = 7\n").unwrap();
+    assert_eq!(partial.seed, 7);
+    assert_eq!(partial.mission, radios.mission);
+    assert!(toml::from_str::<Radios>("sede = 7\n").is_err());
+}
