@@ -16,3 +16,6 @@ pub use link::{Link, LinkConfig, LinkStats};
 pub use px4::{Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec};
 pub use rng::SplitMix64;
 pub use world::{Path, World};
+
+#[cfg(test)]
+mod tests;
