@@ -7,9 +7,9 @@ use std::time::Duration;
 use mavlink::MavlinkVersion;
 
 use crate::dialect::{
-    HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA, MISSION_COUNT_DATA,
-    MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA, MavAutopilot,
-    MavCmd, MavFrame, MavMessage, MavMissionResult, MavType,
+    COMMAND_LONG_DATA, HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA,
+    MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA,
+    MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionResult, MavType,
 };
 use crate::time::Instant;
 use crate::wire::{FrameReader, OwnedFrame, Sender};
@@ -32,6 +32,66 @@ struct Upload {
     retries: u32,
 }
 
+/// Commands sent one at a time, as an operator's ground station does: a `COMMAND_LONG`, then
+/// the same again every `retry` until a `COMMAND_ACK` for it arrives (QGroundControl and
+/// MAVSDK resend unacknowledged commands), at most `attempts` copies; the next command
+/// `period` after the last one finished. Commands alternate between
+/// `MAV_CMD_DO_SET_MODE` (AUTO.MISSION, the mode the vehicle is already in) and
+/// `MAV_CMD_DO_CHANGE_SPEED` (the cruise speed): harmless, and acks of consecutive commands
+/// are told apart by their command id (`COMMAND_ACK` carries no sequence).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommandPlan {
+    /// Pause between the end of one command and the next.
+    pub period: Duration,
+    /// Resend after this long without an ack.
+    pub retry: Duration,
+    /// Copies sent at most before the command counts as failed.
+    pub attempts: u32,
+}
+
+impl Default for CommandPlan {
+    /// A command every 2 s, resent after 1.5 s (the MAVLink command protocol's default
+    /// timeout, as for missions), 5 copies at most.
+    fn default() -> Self {
+        Self {
+            period: Duration::from_secs(2),
+            retry: Duration::from_millis(1500),
+            attempts: 5,
+        }
+    }
+}
+
+/// What the command loop did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CommandStats {
+    /// Commands started.
+    pub started: u64,
+    /// Copies sent, first ones and retries.
+    pub copies: u64,
+    /// Commands acknowledged.
+    pub acked: u64,
+    /// Commands given up after `attempts` copies without an ack.
+    pub failed: u64,
+    /// First copy sent → first matching ack, per acknowledged command, in order.
+    pub latencies: Vec<Duration>,
+}
+
+#[derive(Debug)]
+struct Pending {
+    command: MavCmd,
+    first_sent: Instant,
+    last_sent: Instant,
+    copies: u32,
+}
+
+#[derive(Debug)]
+struct Commands {
+    plan: CommandPlan,
+    next_at: Instant,
+    pending: Option<Pending>,
+    stats: CommandStats,
+}
+
 /// Simulated ground station (system 255, component 190) talking to vehicle 1/1.
 #[derive(Debug)]
 pub struct GcsMock {
@@ -50,6 +110,7 @@ pub struct GcsMock {
     pub items_sent: u64,
     /// Messages of each id received.
     pub received: std::collections::BTreeMap<u32, u64>,
+    commands: Option<Commands>,
 }
 
 impl GcsMock {
@@ -67,7 +128,111 @@ impl GcsMock {
             downloaded: None,
             items_sent: 0,
             received: Default::default(),
+            commands: None,
         }
+    }
+
+    /// Starts sending commands at `now` (see [`CommandPlan`]).
+    pub fn start_commands(&mut self, plan: CommandPlan, now: Instant) {
+        self.commands = Some(Commands {
+            plan,
+            next_at: now,
+            pending: None,
+            stats: CommandStats::default(),
+        });
+    }
+
+    /// Stops starting new commands; one in flight still waits for its ack.
+    pub fn stop_commands(&mut self) {
+        if let Some(c) = &mut self.commands {
+            c.next_at = Instant::from_micros(u64::MAX);
+        }
+    }
+
+    /// The command loop's counters (empty if never started).
+    pub fn command_stats(&self) -> CommandStats {
+        self.commands
+            .as_ref()
+            .map(|c| c.stats.clone())
+            .unwrap_or_default()
+    }
+
+    fn command_copy(&mut self, command: MavCmd, confirmation: u8) {
+        let (param1, param2, param3) = match command {
+            // base mode: custom mode enabled; PX4 main mode AUTO (4), sub mode MISSION (4)
+            MavCmd::MAV_CMD_DO_SET_MODE => (1.0, 4.0, 4.0),
+            // ground speed, 10 m/s, no throttle change
+            _ => (1.0, 10.0, -1.0),
+        };
+        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            param1,
+            param2,
+            param3,
+            command,
+            target_system: 1,
+            target_component: 1,
+            confirmation,
+            ..COMMAND_LONG_DATA::default()
+        }));
+    }
+
+    fn commands_tick(&mut self, now: Instant) {
+        let Some(c) = &mut self.commands else { return };
+        let mut copy = None;
+        if let Some(p) = &mut c.pending {
+            if now >= p.last_sent + c.plan.retry {
+                if p.copies >= c.plan.attempts {
+                    c.stats.failed += 1;
+                    c.pending = None;
+                    c.next_at = now + c.plan.period;
+                } else {
+                    p.copies += 1;
+                    p.last_sent = now;
+                    c.stats.copies += 1;
+                    copy = Some((p.command, (p.copies - 1) as u8));
+                }
+            }
+        } else if now >= c.next_at {
+            let command = if c.stats.started % 2 == 0 {
+                MavCmd::MAV_CMD_DO_SET_MODE
+            } else {
+                MavCmd::MAV_CMD_DO_CHANGE_SPEED
+            };
+            c.stats.started += 1;
+            c.stats.copies += 1;
+            c.pending = Some(Pending {
+                command,
+                first_sent: now,
+                last_sent: now,
+                copies: 1,
+            });
+            copy = Some((command, 0));
+        }
+        if let Some((command, confirmation)) = copy {
+            self.command_copy(command, confirmation);
+        }
+    }
+
+    fn command_ack(&mut self, command: MavCmd, now: Instant) {
+        let Some(c) = &mut self.commands else { return };
+        if let Some(p) = &c.pending
+            && p.command == command
+        {
+            c.stats.acked += 1;
+            c.stats
+                .latencies
+                .push(now.saturating_duration_since(p.first_sent));
+            c.pending = None;
+            c.next_at = now + c.plan.period;
+        }
+    }
+
+    fn commands_timeout(&self) -> Option<Instant> {
+        let c = self.commands.as_ref()?;
+        Some(match &c.pending {
+            Some(p) => p.last_sent + c.plan.retry,
+            None => c.next_at,
+        })
     }
 
     /// `n` distinct waypoints.
@@ -188,6 +353,10 @@ impl GcsMock {
     }
 
     fn handle(&mut self, msg: MavMessage, now: Instant) {
+        if let MavMessage::COMMAND_ACK(a) = &msg {
+            self.command_ack(a.command, now);
+            return;
+        }
         self.download_step(&msg, now);
         if self.upload.is_none()
             && let MavMessage::MISSION_ACK(a) = &msg
@@ -228,7 +397,8 @@ impl GcsMock {
             .map(|u| u.at)
             .or(self.download.as_ref().map(|d| d.at))
             .map(|at| at + self.timeout);
-        Some(retry.map_or(self.next_heartbeat, |r| r.min(self.next_heartbeat)))
+        let t = retry.map_or(self.next_heartbeat, |r| r.min(self.next_heartbeat));
+        Some(self.commands_timeout().map_or(t, |c| c.min(t)))
     }
 
     /// Heartbeats and upload retries due at `now`.
@@ -242,6 +412,7 @@ impl GcsMock {
                 ..HEARTBEAT_DATA::default()
             }));
         }
+        self.commands_tick(now);
         if let Some(d) = &mut self.download
             && now >= d.at + self.timeout
         {

@@ -6,12 +6,16 @@
 
 mod gcs;
 mod link;
+pub mod profiles;
 mod px4;
 mod rng;
 mod world;
 
-pub use gcs::GcsMock;
+pub use gcs::{CommandPlan, CommandStats, GcsMock};
 pub use link::{Link, LinkConfig, LinkStats};
-pub use px4::{PX4_NORMAL, Px4Fc, StreamSpec};
+pub use px4::{Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec};
 pub use rng::SplitMix64;
 pub use world::{Path, World};
+
+#[cfg(test)]
+mod tests;

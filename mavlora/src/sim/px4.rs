@@ -59,6 +59,153 @@ pub const PX4_NORMAL: &[StreamSpec] = &[
     s(0, 1.0, 9),    // HEARTBEAT
 ];
 
+/// PX4's USB "Config" MAVLink profile, what a flight controller streams to a ground station
+/// on USB or, as in the paper's wired SITL run (Table II, "gcs fc wired"), when nobody limits
+/// it. Rates: `Mavlink::configure_streams_to_default`, `case MAVLINK_MODE_CONFIG`, in PX4's
+/// `src/modules/mavlink/mavlink_main.cpp`. Kept: the streams of that list whose ids appear in
+/// the paper's Fig. 6a (what its SITL actually sent); left out: those needing hardware a SITL
+/// quad without RC has not (distance sensor, ESC, EFI, optical flow, camera, ADS-B, RC,
+/// gimbal) and the debug streams. `GPS_RAW_INT` is "unlimited" (on every GPS update):
+/// 10 Hz assumed, the Gazebo GPS plugin's rate. Payload lengths: common.xml without
+/// extensions.
+pub const PX4_CONFIG: &[StreamSpec] = &[
+    s(30, 50.0, 28),  // ATTITUDE
+    s(31, 50.0, 32),  // ATTITUDE_QUATERNION
+    s(105, 50.0, 62), // HIGHRES_IMU
+    s(140, 30.0, 41), // ACTUATOR_CONTROL_TARGET (group 0)
+    s(32, 30.0, 28),  // LOCAL_POSITION_NED
+    s(26, 25.0, 22),  // SCALED_IMU
+    s(36, 20.0, 21),  // SERVO_OUTPUT_RAW (output group 0)
+    s(74, 20.0, 20),  // VFR_HUD
+    s(33, 10.0, 28),  // GLOBAL_POSITION_INT
+    s(24, 10.0, 30),  // GPS_RAW_INT
+    s(87, 10.0, 51),  // POSITION_TARGET_GLOBAL_INT
+    s(141, 10.0, 32), // ALTITUDE
+    s(111, 10.0, 16), // TIMESYNC
+    s(83, 8.0, 37),   // ATTITUDE_TARGET
+    s(230, 5.0, 42),  // ESTIMATOR_STATUS
+    s(241, 2.5, 32),  // VIBRATION
+    s(245, 2.0, 2),   // EXTENDED_SYS_STATE
+    s(1, 1.0, 31),    // SYS_STATUS
+    s(2, 1.0, 12),    // SYSTEM_TIME
+    s(4, 1.0, 14),    // PING
+    s(147, 0.5, 36),  // BATTERY_STATUS
+    s(242, 0.5, 52),  // HOME_POSITION
+    s(0, 1.0, 9),     // HEARTBEAT
+];
+
+/// Where the simulated flight controller flies.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Flight {
+    /// A 200 m circle at 10 m/s, 50 m up, for ever.
+    Circle,
+    /// A route, then landed at home.
+    Route(Route),
+}
+
+/// An out-and-back route from home: climb, fly `length_m` (half out along `bearing_deg`, half
+/// back) at `speed_m_s`, descend.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Route {
+    /// Horizontal distance flown, m.
+    pub length_m: f64,
+    /// Cruise speed, m/s.
+    pub speed_m_s: f64,
+    /// Cruise height above home, m.
+    pub altitude_m: f64,
+    /// Climb rate, m/s.
+    pub climb_m_s: f64,
+    /// Descent rate, m/s.
+    pub descent_m_s: f64,
+    /// Direction of the outbound leg, degrees from north.
+    pub bearing_deg: f64,
+}
+
+/// Position and velocity in metres and m/s, north-east-up from home.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Kinematics {
+    /// North of home, m.
+    pub north: f64,
+    /// East of home, m.
+    pub east: f64,
+    /// Above home, m.
+    pub up: f64,
+    /// Velocity north, m/s.
+    pub vn: f64,
+    /// Velocity east, m/s.
+    pub ve: f64,
+    /// Velocity up, m/s.
+    pub vu: f64,
+}
+
+impl Route {
+    /// The paper's route (section VI-A): 4 km at 10 m/s at 100 m. Climb at 3 m/s and descent
+    /// at 1.25 m/s (PX4's `MPC_Z_VEL_MAX_UP` default and a gentle landing) make the flight
+    /// 513.3 s, the paper's 513 s wired flight.
+    pub const PAPER: Route = Route {
+        length_m: 4000.0,
+        speed_m_s: 10.0,
+        altitude_m: 100.0,
+        climb_m_s: 3.0,
+        descent_m_s: 1.25,
+        bearing_deg: 45.0,
+    };
+
+    fn phases(&self) -> (f64, f64, f64) {
+        (
+            self.altitude_m / self.climb_m_s,
+            self.length_m / self.speed_m_s,
+            self.altitude_m / self.descent_m_s,
+        )
+    }
+
+    /// Take-off to touch-down.
+    pub fn duration(&self) -> Duration {
+        let (c, f, d) = self.phases();
+        Duration::from_secs_f64(c + f + d)
+    }
+
+    /// Where the vehicle is `t` seconds after take-off (on the ground at home after landing).
+    pub fn at(&self, t: f64) -> Kinematics {
+        let (climb, cruise, descent) = self.phases();
+        let (sin, cos) = self.bearing_deg.to_radians().sin_cos();
+        let half = self.length_m / 2.0;
+        let t = t.max(0.0);
+        if t < climb {
+            return Kinematics {
+                up: self.climb_m_s * t,
+                vu: self.climb_m_s,
+                ..Kinematics::default()
+            };
+        }
+        if t < climb + cruise {
+            let flown = (t - climb) * self.speed_m_s;
+            let (out, dir) = if flown < half {
+                (flown, 1.0)
+            } else {
+                (self.length_m - flown, -1.0)
+            };
+            return Kinematics {
+                north: out * cos,
+                east: out * sin,
+                up: self.altitude_m,
+                vn: dir * self.speed_m_s * cos,
+                ve: dir * self.speed_m_s * sin,
+                vu: 0.0,
+            };
+        }
+        let down = t - climb - cruise;
+        if down < descent {
+            return Kinematics {
+                up: self.altitude_m - self.descent_m_s * down,
+                vu: -self.descent_m_s,
+                ..Kinematics::default()
+            };
+        }
+        Kinematics::default()
+    }
+}
+
 #[derive(Debug)]
 struct Stream {
     spec: StreamSpec,
@@ -86,6 +233,8 @@ pub struct Px4Stats {
     pub missions_accepted: u64,
     /// `SET_MESSAGE_INTERVAL` commands obeyed.
     pub intervals_set: u64,
+    /// Other `COMMAND_LONG`s acknowledged (duplicates included, as PX4 acks each).
+    pub commands_acked: u64,
 }
 
 /// A simulated PX4 flight controller (system 1, component 1) flying a 200 m circle at
@@ -101,6 +250,7 @@ pub struct Px4Fc {
     upload: Option<Upload>,
     mission: Vec<MISSION_ITEM_INT_DATA>,
     item_retry: Duration,
+    flight: Flight,
     stats: Px4Stats,
 }
 
@@ -126,7 +276,44 @@ impl Px4Fc {
             upload: None,
             mission: Vec::new(),
             item_retry: Duration::from_millis(250),
+            flight: Flight::Circle,
             stats: Px4Stats::default(),
+        }
+    }
+
+    /// The same flight controller flying `flight` from its boot.
+    pub fn with_flight(mut self, flight: Flight) -> Self {
+        self.flight = flight;
+        self
+    }
+
+    /// Sets the stream rates `profile` asks for, as if a companion computer had sent its
+    /// `SET_MESSAGE_INTERVAL`s (or the operator had set PX4's parameters): for runs without a
+    /// bridge that should still stream what the profile wants. The acks are not sent.
+    pub fn apply_profile_rates(&mut self, profile: &crate::filter::Profile, now: Instant) {
+        let queued = self.out.len();
+        for msg in crate::filter::set_message_interval_requests(profile, 1, 1) {
+            self.handle((1, 191), msg, now);
+        }
+        self.out.truncate(queued);
+    }
+
+    /// Position and velocity at `now`.
+    pub fn kinematics(&self, now: Instant) -> Kinematics {
+        let secs = now.saturating_duration_since(self.booted).as_secs_f64();
+        match self.flight {
+            Flight::Circle => {
+                let w = 10.0 / 200.0;
+                Kinematics {
+                    north: 200.0 * (w * secs).cos(),
+                    east: 200.0 * (w * secs).sin(),
+                    up: 50.0,
+                    vn: -10.0 * (w * secs).sin(),
+                    ve: 10.0 * (w * secs).cos(),
+                    vu: 0.0,
+                }
+            }
+            Flight::Route(r) => r.at(secs),
         }
     }
 
@@ -175,6 +362,15 @@ impl Px4Fc {
                     st.hz = hz;
                     self.stats.intervals_set += 1;
                 }
+                self.send(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+                    command: c.command,
+                    result: MavResult::MAV_RESULT_ACCEPTED,
+                }));
+            }
+            // Any other command (mode changes, speed changes): accepted at once. PX4 acks
+            // every copy it receives, retries included.
+            MavMessage::COMMAND_LONG(c) if c.target_system == 1 => {
+                self.stats.commands_acked += 1;
                 self.send(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                     command: c.command,
                     result: MavResult::MAV_RESULT_ACCEPTED,
@@ -308,13 +504,23 @@ impl Px4Fc {
         let t = now.saturating_duration_since(self.booted);
         let ms = t.as_millis() as u32;
         let secs = t.as_secs_f64();
-        // 200 m circle at 10 m/s around Odense (the paper's test area)
-        let w = 10.0 / 200.0;
-        let (north, east) = (200.0 * (w * secs).cos(), 200.0 * (w * secs).sin());
-        let (vn, ve) = (-10.0 * (w * secs).sin(), 10.0 * (w * secs).cos());
+        let k = self.kinematics(now);
+        let (north, east, vn, ve) = (k.north, k.east, k.vn, k.ve);
+        // home near Odense (the paper's test area), 1e-7 degrees per unit
         let lat = 553_700_000 + (north / 0.011_132) as i32;
         let lon = 103_900_000 + (east / (0.011_132 * 0.5664)) as i32;
-        let hdg = ((ve.atan2(vn).to_degrees() + 360.0) % 360.0 * 100.0) as u16;
+        // Hovering (climb, descent) keeps the route's heading: PX4 reports yaw, never "none",
+        // and a zero heading would be truncated off the v2 payload.
+        let course = if vn.hypot(ve) < 0.1 {
+            match self.flight {
+                Flight::Route(r) => r.bearing_deg,
+                Flight::Circle => 90.0,
+            }
+        } else {
+            ve.atan2(vn).to_degrees()
+        };
+        let hdg = ((course + 360.0) % 360.0 * 100.0) as u16;
+        let rel_mm = (k.up * 1000.0) as i32;
         let msg = match spec.id {
             0 => MavMessage::HEARTBEAT(HEARTBEAT_DATA {
                 custom_mode: 0x0404_0000, // AUTO.MISSION
@@ -335,10 +541,10 @@ impl Px4Fc {
                 time_usec: t.as_micros() as u64,
                 lat,
                 lon,
-                alt: 60_000,
+                alt: 10_000 + rel_mm,
                 eph: 80,
                 epv: 120,
-                vel: 1000,
+                vel: (vn.hypot(ve) * 100.0) as u16,
                 cog: hdg,
                 fix_type: GpsFixType::GPS_FIX_TYPE_3D_FIX,
                 satellites_visible: 14,
@@ -348,24 +554,28 @@ impl Px4Fc {
                 roll: 0.05,
                 pitch: -0.1,
                 yaw: 1.0,
-                ..ATTITUDE_DATA::default()
+                // a flying multicopter never has exactly zero body rates (and zeros at the
+                // end would be truncated off the v2 payload, making it look cheaper)
+                rollspeed: 0.012,
+                pitchspeed: -0.008,
+                yawspeed: 0.003,
             }),
             33 => MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
                 time_boot_ms: ms,
                 lat,
                 lon,
-                alt: 60_000,
-                relative_alt: 50_000,
+                alt: 10_000 + rel_mm,
+                relative_alt: rel_mm,
                 vx: (vn * 100.0) as i16,
                 vy: (ve * 100.0) as i16,
-                vz: 0,
+                vz: (-k.vu * 100.0) as i16,
                 hdg,
             }),
             74 => MavMessage::VFR_HUD(VFR_HUD_DATA {
-                airspeed: 10.0,
-                groundspeed: 10.0,
-                alt: 60.0,
-                climb: 0.0,
+                airspeed: vn.hypot(ve) as f32,
+                groundspeed: vn.hypot(ve) as f32,
+                alt: (10.0 + k.up) as f32,
+                climb: k.vu as f32,
                 heading: (hdg / 100) as i16,
                 throttle: 55,
             }),

@@ -1,0 +1,122 @@
+//! Duty cycle of compact telemetry on LoRa SF7/125 kHz: the share of time each direction's
+//! transmitter is on air over the paper's 513 s flight, against the EU 433 MHz SRD rule
+//! (ERC/REC 70-03: 10 mW e.r.p., ≤ 10 % duty cycle) that would make the link legal without
+//! the special Danish channels the paper needed.
+
+use std::time::Duration;
+
+use anyhow::Result;
+use mavlora::Instant;
+use mavlora::sim::profiles::PX4_COMPACT_TOML;
+use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
+
+use super::world::{Counts, SimWorld};
+use super::{Radios, Scenario, mavlora_configs};
+use crate::measurement::Measurement;
+use crate::radio::{LinkStats, RadioSetup};
+use crate::scenario::PhaseContext;
+
+pub const SCENARIO: Scenario = Scenario {
+    name: "duty_cycle",
+    summary: "Duty cycle: compact telemetry (px4-compact.toml, bridge --compact) on LoRa SF7/125 kHz over the 513 s flight, airtime share per direction against EU 433 MHz SRD's 10 %",
+    measurements,
+    run,
+};
+
+/// EU 433 MHz SRD duty-cycle limit, %.
+pub const EU_SRD_PCT: f64 = 10.0;
+
+fn measurements(_: &Radios) -> Vec<Measurement> {
+    vec![
+        Measurement::new("mavlora.lora_sf7.duty_cycle_pct", "%")
+            .describe(
+                "UAV→GCS airtime ÷ flight time, compact telemetry through the bridge, whole \
+                 513 s flight; EU 433 MHz SRD allows 10 %",
+            )
+            .at_most(EU_SRD_PCT),
+        Measurement::new("mavlora.lora_sf7.uplink_duty_cycle_pct", "%").describe(
+            "GCS→UAV airtime ÷ flight time (the router's thinned ground heartbeats and \
+             LINK_QUALITY), same flight",
+        ),
+    ]
+}
+
+/// What the flight put on air.
+#[derive(Debug, Clone)]
+pub struct Duty {
+    /// UAV→GCS airtime share, %.
+    pub down_pct: f64,
+    /// GCS→UAV airtime share, %.
+    pub up_pct: f64,
+    /// The radio's counters, UAV→GCS.
+    pub down: LinkStats,
+    /// The radio's counters, GCS→UAV.
+    pub up: LinkStats,
+    /// Frames the bridge handed to the radio.
+    pub down_sent: Counts,
+    /// Flight time, s.
+    pub flight_s: f64,
+}
+
+/// Flies the route and measures the airtime shares.
+pub fn measure(radios: &Radios) -> Result<Duty> {
+    measure_with(radios, None)
+}
+
+/// As [`measure`], with the bridge's and router's `LINK_QUALITY` period changed.
+pub fn measure_with(radios: &Radios, quality_period: Option<Duration>) -> Result<Duty> {
+    let setup = radios.seeded(&radios.duty);
+    let preset = setup.preset.resolve()?;
+    let route = Route::PAPER;
+    let fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(route));
+    let mut mavlora = mavlora_configs(PX4_COMPACT_TOML, "px4-compact.toml", true, Some(&preset))?;
+    if let Some(p) = quality_period {
+        mavlora.0.quality.period = p;
+        mavlora.1.quality.period = p;
+    }
+    let mut w = SimWorld::new(fc, Some(mavlora), Some(&setup))?;
+    w.run_until(Instant::ZERO + route.duration());
+    let flight = route.duration().as_secs_f64();
+    let down = w.link_stats(RadioSetup::DOWNLINK).unwrap_or_default();
+    let up = w.link_stats(RadioSetup::UPLINK).unwrap_or_default();
+    let pct = |s: &LinkStats| 100.0 * s.airtime.as_secs_f64() / flight;
+    Ok(Duty {
+        down_pct: pct(&down),
+        up_pct: pct(&up),
+        down,
+        up,
+        down_sent: w.down_sent.clone(),
+        flight_s: flight,
+    })
+}
+
+fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
+    let d = measure(radios)?;
+    ctx.record("mavlora.lora_sf7.duty_cycle_pct", d.down_pct);
+    ctx.record("mavlora.lora_sf7.uplink_duty_cycle_pct", d.up_pct);
+    let bytes_per_s = d.down_sent.total_bytes() as f64 / d.flight_s;
+    ctx.annotate(
+        "mavlora.lora_sf7.duty_cycle_pct",
+        &format!(
+            "{bytes_per_s:.1} B/s of frames, {} air packets: one frame per packet, so each pays \
+             LoRa's preamble, header and CRC",
+            d.down.packets_sent
+        ),
+    );
+    // For the reader: the cheapest knob, link-quality reports every 10 s instead of 5 s.
+    let slow = measure_with(radios, Some(Duration::from_secs(10)))?;
+    ctx.log(format!(
+        "for comparison, LINK_QUALITY every 10 s: UAV→GCS {:.2} %, GCS→UAV {:.2} %",
+        slow.down_pct, slow.up_pct
+    ));
+    for (label, s) in [("UAV→GCS", &d.down), ("GCS→UAV", &d.up)] {
+        ctx.log(format!(
+            "{label}: {} air packets, {} bytes, {:.1} s on air, mean packet {:.1} bytes",
+            s.packets_sent,
+            s.bytes_sent,
+            s.airtime.as_secs_f64(),
+            s.bytes_sent as f64 / s.packets_sent.max(1) as f64
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,274 @@
+//! Mission upload over a slow lossy radio (paper section III-C and IV; PX4 issue #11078):
+//! 100 items, 10 % bursty loss both ways, during the flight.
+//!
+//! - relay: bridge and router (`px4-compact.toml`, compact telemetry): the router takes the
+//!   ground station's upload, the bridge requests items over the radio with timeouts that
+//!   follow the measured round trip, and uploads to the flight controller on its wire;
+//! - naive: a transparent radio; the ground station's protocol goes straight to PX4, which
+//!   re-requests each item after 250 ms whatever the radio. The flight controller streams
+//!   what the relay's profile asks of it (same `stream_hz`), so telemetry load is alike.
+//!
+//! PX4's 250 ms retry hurts where the round trip is longer: on LoRa SF7 (a 49-byte item is
+//! ~100 ms on air each way, half duplex) nearly every item crosses several times. On SiK at
+//! 64 kbit/s the round trip is about one TDM round (237 ms), so the naive link duplicates
+//! little and recovers a loss in 250 ms, sooner than the relay's timeout (RTT-following,
+//! at least 300 ms): there the relay is not faster, and the measurements show it.
+
+use std::time::Duration;
+
+use anyhow::Result;
+use mavlora::Instant;
+use mavlora::dialect::MavMissionResult;
+use mavlora::filter::Profile;
+use mavlora::sim::profiles::PX4_COMPACT_TOML;
+use mavlora::sim::{Flight, GcsMock, PX4_NORMAL, Px4Fc, Route};
+
+use super::world::{Counts, SimWorld, secs};
+use super::{Radios, Scenario, mavlora_configs};
+use crate::measurement::Measurement;
+use crate::radio::{LinkStats, RadioSetup};
+use crate::scenario::PhaseContext;
+
+pub const SCENARIO: Scenario = Scenario {
+    name: "mission_upload",
+    summary: "100-item mission upload during flight over LoRa SF7 and SiK 64 kbps with 10 % bursty loss both ways: MavLora relay vs a transparent radio (PX4's 250 ms item retries)",
+    measurements,
+    run,
+};
+
+/// Items uploaded.
+pub const ITEMS: u16 = 100;
+/// Telemetry settles (the bridge configures PX4's streams) before the upload starts.
+pub const WARM_UP_S: f64 = 10.0;
+/// An upload not finished this long after it started counts as not finished.
+pub const CUT_OFF_S: f64 = 300.0;
+/// The run goes on this long in any case, so the radio's measured loss rests on enough
+/// packets to compare with the configured mean.
+pub const RUN_S: f64 = WARM_UP_S + CUT_OFF_S;
+/// Mission protocol messages: MISSION_REQUEST, MISSION_COUNT, MISSION_ACK, MISSION_REQUEST_INT,
+/// MISSION_ITEM_INT (and MISSION_ITEM, MISSION_CURRENT is telemetry).
+pub const MISSION_IDS: [u32; 6] = [39, 40, 44, 47, 51, 73];
+
+fn name(radio: &str, what: &str) -> String {
+    format!("mavlora.{radio}.{what}")
+}
+
+fn measurements(radios: &Radios) -> Vec<Measurement> {
+    let mut out = Vec::new();
+    for (key, _) in &radios.mission {
+        out.extend([
+            Measurement::new(name(key, "mission_upload_s"), "s")
+                .describe(
+                    "100-item upload through the MavLora relay (compact profile) under 10 % bursty \
+                     loss both ways, while flying: the ground station's MISSION_COUNT → its \
+                     MISSION_ACK (accepted, and the flight controller holds the same 100 items)",
+                )
+                .at_most(CUT_OFF_S),
+            Measurement::new(name(key, "mission_bytes_on_air"), "B").describe(
+                "mission-protocol bytes handed to the radio during the relayed upload, both \
+                 directions (MISSION_COUNT, _REQUEST(_INT), _ITEM(_INT), _ACK), retries included",
+            ),
+            Measurement::new(name(key, "mission_efficiency"), "").describe(
+                "airtime 100 items need (one air packet each, no loss) ÷ airtime both radio \
+                 directions used during the relayed upload, telemetry included",
+            ),
+            Measurement::new(name(key, "naive.mission_upload_s"), "s").describe(
+                "same upload over a transparent radio (the ground station's protocol straight \
+                 to PX4 and its 250 ms item retries); if it does not finish, the cut-off time",
+            ),
+            Measurement::new(name(key, "naive.mission_bytes_on_air"), "B").describe(
+                "mission-protocol bytes handed to the radio during the naive upload, both \
+                 directions",
+            ),
+            Measurement::new(name(key, "naive.duplicate_items"), "").describe(
+                "items PX4 received again after storing them (its 250 ms re-requests crossing \
+                 the radio's round trip)",
+            ),
+        ]);
+    }
+    out
+}
+
+/// What one upload did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Upload {
+    /// Start → accepted, or `None` if it was not accepted by the cut-off.
+    pub upload_s: Option<f64>,
+    /// How the ground station's upload ended, if it did, and when (s after start).
+    pub result: Option<(MavMissionResult, f64)>,
+    /// Whether PX4 holds exactly the items sent.
+    pub stored: bool,
+    /// Mission-protocol bytes handed to the radio, both directions.
+    pub mission_bytes: u64,
+    /// Airtime both directions during the upload (or up to the cut-off).
+    pub airtime: Duration,
+    /// Airtime the items alone need.
+    pub needed_airtime: Duration,
+    /// Items PX4 received twice.
+    pub duplicate_items: u64,
+    /// Items the ground station sent (retries included).
+    pub items_sent: u64,
+    /// Measured loss over the whole run, UAV→GCS and GCS→UAV (lost / sent air packets).
+    pub loss: (f64, f64),
+}
+
+fn loss_of(s: &LinkStats) -> f64 {
+    if s.packets_sent == 0 {
+        return f64::NAN;
+    }
+    s.packets_lost as f64 / s.packets_sent as f64
+}
+
+/// Runs one upload, relayed or naive, over `setup` (already seeded).
+pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload> {
+    let preset = setup.preset.resolve()?;
+    let mut fc =
+        Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(Route::PAPER));
+    let mavlora = if relay {
+        Some(mavlora_configs(
+            PX4_COMPACT_TOML,
+            "px4-compact.toml",
+            true,
+            Some(&preset),
+        )?)
+    } else {
+        fc.apply_profile_rates(
+            &Profile::parse(PX4_COMPACT_TOML, "px4-compact.toml")?,
+            Instant::ZERO,
+        );
+        None
+    };
+    let mut w = SimWorld::new(fc, mavlora, Some(setup))?;
+    w.run_until(secs(WARM_UP_S));
+    let start = w.now;
+    let (down0, up0) = (w.down_sent.clone(), w.up_sent.clone());
+    let air0 = airtime(&w);
+    let items = GcsMock::mission(ITEMS);
+    w.gcs.upload(items.clone(), start);
+    let cut = start + Duration::from_secs_f64(CUT_OFF_S);
+    w.run_until_or(cut, |w| w.gcs.result.is_some());
+    let result = w
+        .gcs
+        .result
+        .map(|(r, at)| (r, at.saturating_duration_since(start).as_secs_f64()));
+    let stored = w.fc.mission() == &items[..];
+    let accepted = matches!(result, Some((MavMissionResult::MAV_MISSION_ACCEPTED, _)));
+    let mission = |now: &Counts, then: &Counts| now.since(then).bytes_of(&MISSION_IDS);
+    let mission_bytes = mission(&w.down_sent, &down0) + mission(&w.up_sent, &up0);
+    let used = airtime(&w) - air0;
+    // The average item frame as sent (v2 truncates trailing zeros, so lengths vary a little).
+    let up = w.up_sent.since(&up0);
+    let item_len = match up.frames_of(&[73]) {
+        0 => 0,
+        n => (up.bytes_of(&[73]) as f64 / n as f64).round() as usize,
+    };
+    let needed = preset.time_on_air(item_len) * u32::from(ITEMS);
+    let duplicate_items = w.fc.stats().duplicate_items;
+    let items_sent = w.gcs.items_sent;
+    w.run_until(secs(RUN_S));
+    let loss = (
+        loss_of(&w.link_stats(RadioSetup::DOWNLINK).unwrap_or_default()),
+        loss_of(&w.link_stats(RadioSetup::UPLINK).unwrap_or_default()),
+    );
+    Ok(Upload {
+        upload_s: (accepted && stored).then(|| result.map_or(f64::NAN, |r| r.1)),
+        result,
+        stored,
+        mission_bytes,
+        airtime: used,
+        needed_airtime: needed,
+        duplicate_items,
+        items_sent,
+        loss,
+    })
+}
+
+fn airtime(w: &SimWorld) -> Duration {
+    [RadioSetup::DOWNLINK, RadioSetup::UPLINK]
+        .into_iter()
+        .filter_map(|d| w.link_stats(d))
+        .map(|s| s.airtime)
+        .sum()
+}
+
+fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
+    for (key, setup) in &radios.mission {
+        let setup = radios.seeded(setup);
+        let relay = upload(radios, &setup, true)?;
+        let naive = upload(radios, &setup, false)?;
+        for (label, u) in [("relay", &relay), ("naive", &naive)] {
+            ctx.log(format!(
+                "{key} {label}: result {:?}, stored {}, {} items sent, {} duplicates at PX4, \
+                 mission bytes {}, airtime {:.1} s (items need {:.1} s); measured loss over \
+                 {RUN_S} s: UAV→GCS {:.1} %, GCS→UAV {:.1} %",
+                u.result,
+                u.stored,
+                u.items_sent,
+                u.duplicate_items,
+                u.mission_bytes,
+                u.airtime.as_secs_f64(),
+                u.needed_airtime.as_secs_f64(),
+                100.0 * u.loss.0,
+                100.0 * u.loss.1
+            ));
+        }
+        let loss_note = format!(
+            "radio loss measured over the {RUN_S} s run (configured mean 10 %, bursts of 3 \
+             packets): UAV→GCS {:.1} %, GCS→UAV {:.1} %",
+            100.0 * relay.loss.0,
+            100.0 * relay.loss.1
+        );
+        let n = name(key, "mission_upload_s");
+        match relay.upload_s {
+            Some(s) => ctx.record(&n, s),
+            None => {
+                ctx.record(&n, f64::NAN);
+                ctx.annotate(
+                    &n,
+                    &format!("not accepted by the cut-off: result {:?}", relay.result),
+                );
+            }
+        }
+        ctx.annotate(&n, &loss_note);
+        ctx.record(
+            &name(key, "mission_bytes_on_air"),
+            relay.mission_bytes as f64,
+        );
+        ctx.record(
+            &name(key, "mission_efficiency"),
+            relay.needed_airtime.as_secs_f64() / relay.airtime.as_secs_f64(),
+        );
+        let n = name(key, "naive.mission_upload_s");
+        match naive.upload_s {
+            Some(s) => ctx.record(&n, s),
+            None => {
+                ctx.record(&n, CUT_OFF_S);
+                ctx.annotate(
+                    &n,
+                    &format!(
+                        "did not finish: the ground station's upload ended {:?} (result, s after \
+                         start); {CUT_OFF_S} s recorded",
+                        naive.result
+                    ),
+                );
+            }
+        }
+        ctx.annotate(
+            &n,
+            &format!(
+                "measured loss: UAV→GCS {:.1} %, GCS→UAV {:.1} %",
+                100.0 * naive.loss.0,
+                100.0 * naive.loss.1
+            ),
+        );
+        ctx.record(
+            &name(key, "naive.mission_bytes_on_air"),
+            naive.mission_bytes as f64,
+        );
+        ctx.record(
+            &name(key, "naive.duplicate_items"),
+            naive.duplicate_items as f64,
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,286 @@
+//! MavLora's full-length reproductions of the paper (issue 4, the in-process
+//! half): the real bridge and router engines, the simulated PX4 and ground
+//! station of `mavlora::sim`, and the rig's radio model between them, under a
+//! virtual clock ([`world::SimWorld`]). An 8.5-minute flight costs seconds, and
+//! a seed gives the same numbers every time.
+//!
+//! One file per scenario: [`table_ii`] (bytes and messages per second per
+//! bandwidth mechanism), [`mission`] (100-item upload over slow lossy
+//! radios, relay vs naive), [`c2_latency`] (command → ack under loss),
+//! [`sweep`] (attenuation sweep, the paper's Fig. 1), [`blind_drone`]
+//! (uplink-only loss seen from the ground through `LINK_QUALITY`),
+//! [`duty_cycle`] (the compact profile's airtime share on LoRa).
+//!
+//! The runner takes [`scenarios`] and a [`Radios`] (built-ins from
+//! [`Radios::paper_defaults`], or the rig file's).
+//!
+//! | phase | measurements (built-in limit) |
+//! |---|---|
+//! | `table_ii` | `mavlora.<variant>.bytes_per_s`, `.msgs_per_s` for `wired`, `limit`, `limit_filter` (≤ 951 B/s), `compact` (≤ 50 B/s) |
+//! | `mission_upload` | `mavlora.<radio>.mission_upload_s` (≤ 300 s), `.mission_bytes_on_air`, `.mission_efficiency`, `.naive.mission_upload_s`, `.naive.mission_bytes_on_air`, `.naive.duplicate_items` for `lora_sf7`, `sik_64k` |
+//! | `c2_latency` | `mavlora.c2_latency_p50_ms`, `mavlora.c2_latency_p99_ms` (≤ 3000 ms) |
+//! | `attenuation_sweep` | `mavlora.<preset>.nominal_edge_db`, `.nominal_range_m` (paper ± 3 dB), CSV evidence |
+//! | `blind_drone` | `mavlora.blind_drone.detect_s` (≤ 15.5 s) |
+//! | `duty_cycle` | `mavlora.lora_sf7.duty_cycle_pct` (≤ 10 %), `mavlora.lora_sf7.uplink_duty_cycle_pct` |
+//!
+//! With the built-in radios and seed 1 three SLAs fail, for reasons the
+//! scenarios' logs spell out: compact telemetry averages 50.2 B/s over a whole
+//! flight (frames that pass raw before the bridge has seen PX4's first
+//! heartbeat); one frame per LoRa packet makes its ~50 B/s cost 11.3 % airtime;
+//! a ground station resending commands after 1.5 s needs a third copy for ~3.6 %
+//! of commands at 10 % loss, so p99 is 3.17 s (0.5 s retries give 1.18 s).
+//!
+//! Over seeds 1–20 (measured once, not a test): C2 p99 exceeds 3 s for 19;
+//! the blind drone is seen within 15.5 s for 15 (10.1–40 s: a quiet uplink
+//! carries ~2 router frames per 5 s report); the relayed LoRa upload finishes
+//! for 18 (34–48 s) — seeds 2 and 12 hit multi-second downlink loss bursts
+//! (the Gilbert-Elliott tail) and the ground station's 5 × 1.5 s retries give
+//! up; with seed 12 PX4 still stored all 100 items while the ground saw the
+//! upload cancelled; the SiK upload finishes for all 20 (27–60 s).
+
+pub mod blind_drone;
+pub mod c2_latency;
+pub mod duty_cycle;
+pub mod mission;
+pub mod sweep;
+pub mod table_ii;
+pub mod world;
+
+use anyhow::{Context, Result};
+use mavlora::bridge::BridgeConfig;
+use mavlora::compact::CompactConfig;
+use mavlora::filter::Profile;
+use mavlora::router::RouterConfig;
+use mavlora::schedule::SchedulerConfig;
+use serde::{Deserialize, Serialize};
+
+use super::super::PhaseContext;
+use crate::measurement::Measurement;
+use crate::radio::{Access, GilbertElliott, LinkConfig, Preset, RadioSetup};
+
+/// One scenario: its measurements (with built-in limits) and its script.
+pub struct Scenario {
+    /// Short name, unique among these: `table_ii`.
+    pub name: &'static str,
+    /// What it shows, for the report.
+    pub summary: &'static str,
+    /// Measurements with their built-in limits for these radios.
+    pub measurements: fn(&Radios) -> Vec<Measurement>,
+    /// Runs the scenario and records every declared measurement.
+    pub run: fn(&mut PhaseContext, &Radios) -> Result<()>,
+}
+
+/// Every simulated MavLora scenario, in the order they run.
+pub fn scenarios() -> Vec<Scenario> {
+    vec![
+        table_ii::SCENARIO,
+        mission::SCENARIO,
+        c2_latency::SCENARIO,
+        sweep::SCENARIO,
+        blind_drone::SCENARIO,
+        duty_cycle::SCENARIO,
+    ]
+}
+
+/// The radios the scenarios use, and the seed of the run. A rig file may
+/// replace each; [`Radios::paper_defaults`] are the built-ins.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Radios {
+    /// Table II's carrier for the bridge variants; `None`: an ideal wire (the `wired`
+    /// variant always runs on one).
+    pub table_ii: Option<RadioSetup>,
+    /// Mission uploads: measurement key (`lora_sf7`) and radio.
+    pub mission: Vec<(String, RadioSetup)>,
+    /// Command latency.
+    pub c2: RadioSetup,
+    /// Attenuation sweep, one preset each (their link configs give seeds and latency; the
+    /// sweep sets the attenuation).
+    pub sweep: Vec<RadioSetup>,
+    /// Blind drone: the radio before the drone's receiver goes deaf.
+    pub blind_drone: RadioSetup,
+    /// Duty cycle of compact telemetry.
+    pub duty: RadioSetup,
+    /// Mixed into every random source (flight controller, radio directions), so one number
+    /// reruns or varies a whole run.
+    pub seed: u64,
+}
+
+impl Default for Radios {
+    fn default() -> Self {
+        Radios::paper_defaults()
+    }
+}
+
+/// Mean loss of the paper's real flight, rounded (Table III: 10.1 % UAV→GCS, 7.5 % GCS→UAV).
+pub const PAPER_LOSS: f64 = 0.10;
+/// Mean length of a loss burst, air packets: the paper saw loss "distributed throughout the
+/// flight", so short bursts, not outages.
+pub const BURST_PACKETS: f64 = 3.0;
+
+fn lossy(seed: u64, loss: f64) -> LinkConfig {
+    LinkConfig {
+        burst: Some(GilbertElliott::with_mean(loss, BURST_PACKETS).expect("valid mean loss")),
+        latency_ms: 5.0,
+        seed,
+        ..LinkConfig::default()
+    }
+}
+
+/// Independent loss of `loss` per air packet, whatever its length (a Gilbert-Elliott model
+/// with both states alike).
+fn independent(seed: u64, loss: f64) -> LinkConfig {
+    LinkConfig {
+        burst: Some(GilbertElliott {
+            p_good_to_bad: 0.0,
+            p_bad_to_good: 1.0,
+            loss_good: loss,
+            loss_bad: loss,
+        }),
+        latency_ms: 5.0,
+        seed,
+        ..LinkConfig::default()
+    }
+}
+
+fn clean(seed: u64) -> LinkConfig {
+    LinkConfig {
+        latency_ms: 5.0,
+        seed,
+        ..LinkConfig::default()
+    }
+}
+
+fn setup(name: &str, downlink: LinkConfig, uplink: LinkConfig) -> RadioSetup {
+    let mut s = RadioSetup::builtin(name).expect("built-in preset");
+    s.downlink = downlink;
+    s.uplink = uplink;
+    s
+}
+
+impl Radios {
+    /// Built-ins: an ideal wire for Table II; LoRa SF7 and SiK 64 kbps with 10 % bursty loss
+    /// both ways for missions; LoRa SF7 with 10 % independent loss for commands (the paper
+    /// found its loss spread over the flight, and a burst model stepped per packet would
+    /// stretch a burst over the seconds between two commands on a quiet uplink); the three bench presets
+    /// for the sweep; SiK at 400 m for the blind drone (the radio module's doc example);
+    /// loss-free LoRa SF7 for the duty cycle. Seed 1.
+    pub fn paper_defaults() -> Radios {
+        Radios {
+            table_ii: None,
+            mission: vec![
+                (
+                    "lora_sf7".into(),
+                    setup("lora-sf7", lossy(11, PAPER_LOSS), lossy(12, PAPER_LOSS)),
+                ),
+                (
+                    "sik_64k".into(),
+                    setup("sik-64k", lossy(21, PAPER_LOSS), lossy(22, PAPER_LOSS)),
+                ),
+            ],
+            c2: setup(
+                "lora-sf7",
+                independent(31, PAPER_LOSS),
+                independent(32, PAPER_LOSS),
+            ),
+            sweep: ["sik-64k", "lora-sf7", "dmd-dl1"]
+                .iter()
+                .enumerate()
+                .map(|(i, n)| setup(n, clean(41 + i as u64), clean(51 + i as u64)))
+                .collect(),
+            blind_drone: {
+                let mut s = setup("sik-64k", clean(61), clean(62));
+                let at = crate::radio::LinkBudget {
+                    path: crate::radio::PathLoss::DistanceM(400.0),
+                    ..Default::default()
+                };
+                s.downlink.budget = at;
+                s.uplink.budget = at;
+                s
+            },
+            duty: setup("lora-sf7", clean(71), clean(72)),
+            seed: 1,
+        }
+    }
+
+    /// `setup` with its direction seeds mixed with the run's seed.
+    pub fn seeded(&self, setup: &RadioSetup) -> RadioSetup {
+        let mut s = setup.clone();
+        s.downlink.seed = mix(self.seed, s.downlink.seed);
+        s.uplink.seed = mix(self.seed, s.uplink.seed);
+        s
+    }
+}
+
+/// Two seeds into one (SplitMix64's finaliser over their combination).
+pub fn mix(a: u64, b: u64) -> u64 {
+    let mut z = a.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ b.rotate_left(17);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Serial bytes per second one direction of `preset` can carry at best: full packets in its
+/// share of the channel (its TDM windows, or half of a half-duplex channel).
+pub fn direction_capacity(preset: &Preset) -> f64 {
+    let share = match preset.access {
+        Access::Tdm(t) => t.window_ms / (2.0 * (t.window_ms + t.silence_ms)),
+        Access::Burst(_) => 0.5,
+    };
+    share * preset.max_data_rate()
+}
+
+/// The bridge's and router's byte budget for a radio: 80 % of one direction's capacity, so
+/// the radio's buffer does not overflow under the budget; `None`: an ideal wire (a budget
+/// that never binds).
+pub fn scheduler_for(preset: Option<&Preset>) -> SchedulerConfig {
+    match preset {
+        Some(p) => {
+            let rate = (0.8 * direction_capacity(p)) as u32;
+            SchedulerConfig {
+                rate_bytes_per_s: rate,
+                burst_bytes: (2 * p.max_payload) as u32,
+                max_queued_bytes: 8 * p.max_payload,
+            }
+        }
+        None => SchedulerConfig {
+            rate_bytes_per_s: 1_000_000,
+            burst_bytes: 100_000,
+            max_queued_bytes: 1_000_000,
+        },
+    }
+}
+
+/// Bridge and router settings for a profile (text), compact telemetry on or off, over a
+/// radio of `preset` (`None`: an ideal wire).
+pub fn mavlora_configs(
+    profile: &str,
+    profile_name: &str,
+    compact: bool,
+    preset: Option<&Preset>,
+) -> Result<(BridgeConfig, RouterConfig)> {
+    let profile = Profile::parse(profile, profile_name)
+        .with_context(|| format!("MavLora profile {profile_name}"))?;
+    let budget = scheduler_for(preset);
+    let mut b = BridgeConfig::new(profile, budget);
+    b.compact = compact.then(CompactConfig::default);
+    Ok((b, RouterConfig::new(budget)))
+}
+
+/// The `p`-quantile (0..=1) of sorted samples, nearest rank; NaN if there are none.
+pub fn quantile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let rank = (p * sorted.len() as f64).ceil().max(1.0) as usize;
+    sorted[rank.min(sorted.len()) - 1]
+}
+
+/// Creates the phase folder for evidence files.
+pub fn evidence_dir(ctx: &PhaseContext) -> Result<std::path::PathBuf> {
+    std::fs::create_dir_all(&ctx.dir).with_context(|| format!("creating {}", ctx.dir.display()))?;
+    Ok(ctx.dir.clone())
+}
+
+#[cfg(test)]
+mod tests;

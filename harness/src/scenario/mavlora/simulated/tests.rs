@@ -1,0 +1,301 @@
+use std::path::Path;
+use std::time::Instant as Wall;
+
+use mavlora::sim::PX4_CONFIG;
+
+use super::*;
+use crate::measurement::Outcome;
+use crate::rigfile::RigFile;
+
+fn rig() -> RigFile {
+    RigFile::from_str("[rig]\nname = \"simulated\"\n", "/tmp/simulated.toml").unwrap()
+}
+
+/// Runs one scenario as the runner would; its measurements, log and wall time.
+fn run_one(name: &str, radios: &Radios, dir: &Path) -> (Vec<Measurement>, Vec<String>, f64) {
+    let s = scenarios()
+        .into_iter()
+        .find(|s| s.name == name)
+        .expect("scenario exists");
+    let rig = rig();
+    let mut ctx = PhaseContext::new(&rig, dir);
+    for m in (s.measurements)(radios) {
+        ctx.declare(m);
+    }
+    let t0 = Wall::now();
+    (s.run)(&mut ctx, radios).unwrap();
+    let wall = t0.elapsed().as_secs_f64();
+    let (ms, log, _) = ctx.into_parts();
+    println!("--- {name}: {wall:.2} s wall");
+    for m in &ms {
+        println!(
+            "{} = {} [{}] ({}) {}",
+            m.name,
+            m.render_value(),
+            m.limits.render(&m.unit),
+            m.outcome,
+            m.note.as_deref().unwrap_or("")
+        );
+    }
+    for l in &log {
+        println!("  {l}");
+    }
+    (ms, log, wall)
+}
+
+#[track_caller]
+fn assert_all_pass(ms: &[Measurement]) {
+    assert!(!ms.is_empty());
+    for m in ms {
+        assert!(
+            m.outcome != Outcome::Unset && m.outcome.is_passing(),
+            "{} = {:?} ({}), limits {}",
+            m.name,
+            m.value,
+            m.outcome,
+            m.limits.render(&m.unit)
+        );
+    }
+}
+
+fn value(ms: &[Measurement], name: &str) -> f64 {
+    ms.iter()
+        .find(|m| m.name == name)
+        .and_then(|m| m.value)
+        .unwrap_or_else(|| panic!("{name} not recorded"))
+}
+
+/// Table II: every mechanism cuts traffic, limiting + filtering stays under the paper's
+/// 951 B/s. Compact telemetry averages just over 50 B/s over a whole flight (the frames that
+/// pass raw before the bridge has seen PX4's first heartbeat, ~125 B, tip it over): its SLA
+/// is recorded as failing, and this test pins how close it is.
+#[test]
+fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
+    let (ms, _, _) = run_one("table_ii", &Radios::paper_defaults(), Path::new(""));
+    let b = |v: &str| value(&ms, &format!("mavlora.{v}.bytes_per_s"));
+    assert!(b("wired") > b("limit") && b("limit") > b("limit_filter"));
+    assert!(b("limit_filter") > b("compact"));
+    let passing: Vec<_> = ms
+        .iter()
+        .filter(|m| m.name != "mavlora.compact.bytes_per_s")
+        .cloned()
+        .collect();
+    assert_all_pass(&passing);
+    assert!((45.0..=55.0).contains(&b("compact")), "{}", b("compact"));
+}
+
+/// Counting check: on the wire, UAV→GCS bytes per second must be what the profile's streams
+/// make: Σ rate × (payload + 12) for MAVLink 2 frames, computed here from the profile table,
+/// not from anything the world counted. Tolerance: each stream may send one frame more or
+/// less than rate × time over the flight (phase), so Σ frame / flight time.
+#[test]
+fn wired_counts_equal_the_profile_rates_times_frame_sizes() {
+    let row = table_ii::fly(&Radios::paper_defaults(), "wired").unwrap();
+    // VFR_HUD's last field, throttle, is a u16 percentage (≤ 100): its high byte is always
+    // zero and MAVLink 2 truncates it.
+    let frame = |id: u32, payload: usize| payload + 12 - usize::from(id == 74);
+    let expected_bytes: f64 = PX4_CONFIG
+        .iter()
+        .map(|s| s.hz * frame(s.id, s.payload_len) as f64)
+        .sum();
+    let expected_msgs: f64 = PX4_CONFIG.iter().map(|s| s.hz).sum();
+    let tol_bytes: f64 = PX4_CONFIG
+        .iter()
+        .map(|s| (s.payload_len + 12) as f64)
+        .sum::<f64>()
+        / row.flight_s;
+    let tol_msgs = PX4_CONFIG.len() as f64 / row.flight_s;
+    println!(
+        "wired: {:.1} B/s (expected {expected_bytes:.1} ± {tol_bytes:.2}), {:.2} msg/s \
+         (expected {expected_msgs:.2} ± {tol_msgs:.3})",
+        row.bytes_per_s, row.msgs_per_s
+    );
+    assert!(
+        (row.bytes_per_s - expected_bytes).abs() <= tol_bytes,
+        "{} vs {expected_bytes}",
+        row.bytes_per_s
+    );
+    assert!((row.msgs_per_s - expected_msgs).abs() <= tol_msgs);
+    // and everything sent on the wire arrived
+    assert_eq!(
+        row.received_msgs as f64,
+        (row.msgs_per_s * row.flight_s).round()
+    );
+}
+
+/// Both relayed uploads finish; on LoRa, whose round trip is several times PX4's 250 ms
+/// retry, the naive link floods duplicates and costs more bytes and time than the relay. (On
+/// SiK the round trip is about 250 ms, so PX4's retries rarely duplicate: there the naive
+/// link is not worse, and the test does not claim it is.)
+/// Over a loss-free radio that the filtered telemetry does not saturate, what the bridge
+/// hands the radio is what comes out at the ground, frame for frame and byte for byte.
+#[test]
+fn table_ii_over_a_clean_radio_counts_the_same_on_both_sides() {
+    let radios = Radios {
+        table_ii: Some(crate::radio::RadioSetup::builtin("sik-64k").unwrap()),
+        ..Radios::paper_defaults()
+    };
+    let row = table_ii::fly(&radios, "limit_filter").unwrap();
+    let sent = (row.msgs_per_s * row.flight_s).round() as u64;
+    // frames still in the radio when the flight ends: at most a TDM round's worth
+    assert!(
+        sent - row.received_msgs <= 10,
+        "{sent} vs {}",
+        row.received_msgs
+    );
+    assert!(
+        (row.bytes_per_s - 723.0).abs() < 20.0,
+        "{}",
+        row.bytes_per_s
+    );
+}
+
+#[test]
+fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
+    let radios = Radios::paper_defaults();
+    let (ms, log, _) = run_one("mission_upload", &radios, Path::new(""));
+    assert_all_pass(&ms);
+    for (key, _) in &radios.mission {
+        let relay = value(&ms, &format!("mavlora.{key}.mission_upload_s"));
+        assert!(relay > 0.0 && relay <= mission::CUT_OFF_S);
+        let e = value(&ms, &format!("mavlora.{key}.mission_efficiency"));
+        assert!(e > 0.0 && e <= 1.0, "{key}: efficiency {e}");
+    }
+    let v = |what: &str| value(&ms, &format!("mavlora.lora_sf7.{what}"));
+    assert!(v("naive.duplicate_items") >= 50.0);
+    assert!(v("naive.mission_bytes_on_air") > 2.0 * v("mission_bytes_on_air"));
+    assert!(v("naive.mission_upload_s") > v("mission_upload_s"));
+    // the relay's own uploads to PX4 never duplicate
+    assert!(
+        log.iter()
+            .any(|l| l.contains("lora_sf7 relay") && l.contains(" 0 duplicates"))
+    );
+}
+
+/// The bursty loss the mission scenario configures averages 10 %, as the radio counts it.
+#[test]
+fn mission_radios_lose_ten_percent_on_average() {
+    let radios = Radios::paper_defaults();
+    for (key, setup) in &radios.mission {
+        let u = mission::upload(&radios, &radios.seeded(setup), true).unwrap();
+        for (dir, loss) in [("down", u.loss.0), ("up", u.loss.1)] {
+            assert!(
+                (0.06..=0.14).contains(&loss),
+                "{key} {dir}: measured loss {loss}"
+            );
+        }
+    }
+}
+
+/// At 10 % loss each way, a command and its ack both get through with 0.81 probability; a
+/// ground station that resends after 1.5 s needs a third copy for 0.19² ≈ 3.6 % of
+/// commands, which then take 3 s plus a round trip: the median meets SORA's medium 3 s, the
+/// 99th percentile does not. This pins that finding (and fails if the relay starts
+/// retransmitting commands itself, when the SLA should pass instead).
+#[test]
+fn c2_latency_with_ground_retries_of_1_5_s_misses_sora_medium_at_the_99th_percentile() {
+    let radios = Radios::paper_defaults();
+    let (ms, log, _) = run_one("c2_latency", &radios, Path::new(""));
+    let p50 = value(&ms, "mavlora.c2_latency_p50_ms");
+    let p99 = value(&ms, "mavlora.c2_latency_p99_ms");
+    assert!(p50 < 500.0, "p50 {p50}: one round trip expected");
+    assert!(
+        (3000.0..3500.0).contains(&p99),
+        "p99 {p99}: third copy expected"
+    );
+    let (lat, stats) = c2_latency::measure(&radios).unwrap();
+    assert!(stats.started >= c2_latency::COMMANDS);
+    let third = lat.iter().filter(|&&l| l > 3000.0).count() as f64 / lat.len() as f64;
+    assert!((0.01..0.08).contains(&third), "{third}");
+    assert!(log.iter().any(|l| l.contains("resending after 0.5 s")));
+}
+
+#[test]
+fn attenuation_sweep_finds_the_papers_edges_and_writes_its_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ms, _, _) = run_one("attenuation_sweep", &Radios::paper_defaults(), dir.path());
+    assert_all_pass(&ms);
+    let csv = std::fs::read_to_string(dir.path().join("attenuation_sweep.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 3 * 15, "{csv}");
+    assert!(csv.lines().any(|l| l.starts_with("lora-sf7,120,")));
+}
+
+#[test]
+fn blind_drone_is_seen_from_the_ground() {
+    let (ms, _, _) = run_one("blind_drone", &Radios::paper_defaults(), Path::new(""));
+    assert_all_pass(&ms);
+}
+
+/// The airtime the radio reports is the airtime of the frames the bridge sent, one packet
+/// each, by the LoRa time-on-air formula (checked in `radio::airtime` against Semtech's):
+/// compact telemetry's ~50 B/s costs ~11 % of an SF7/125 kHz channel, over the EU 10 %.
+#[test]
+fn duty_cycle_is_the_airtime_of_the_frames_sent() {
+    let radios = Radios::paper_defaults();
+    let (ms, _, _) = run_one("duty_cycle", &radios, Path::new(""));
+    let d = duty_cycle::measure(&radios).unwrap();
+    assert_eq!(value(&ms, "mavlora.lora_sf7.duty_cycle_pct"), d.down_pct);
+    let lora = crate::radio::Preset::lora_sf7();
+    let expected: f64 = d
+        .down_sent
+        .frames
+        .iter()
+        .map(|(id, n)| {
+            let len = d.down_sent.bytes[id] as f64 / *n as f64;
+            *n as f64 * lora.time_on_air(len.round() as usize).as_secs_f64()
+        })
+        .sum::<f64>()
+        / d.flight_s
+        * 100.0;
+    // one frame per packet, but for the odd two that left within the radio's 5 ms idle time
+    let frames = d.down_sent.total_frames();
+    assert!(d.down.packets_sent <= frames && d.down.packets_sent * 100 >= frames * 99);
+    assert!(
+        (d.down_pct - expected).abs() < 0.05 * expected,
+        "{} vs {expected}",
+        d.down_pct
+    );
+    assert!((10.0..13.0).contains(&d.down_pct), "{}", d.down_pct);
+    assert!(value(&ms, "mavlora.lora_sf7.uplink_duty_cycle_pct") < d.down_pct);
+}
+
+/// Same seed, same numbers; another seed, other numbers (the seed reaches the draws).
+#[test]
+fn runs_are_deterministic_for_a_seed() {
+    let radios = Radios::paper_defaults();
+    let a = blind_drone::detect(&radios).unwrap();
+    let b = blind_drone::detect(&radios).unwrap();
+    assert_eq!(a, b);
+    let other = Radios {
+        seed: 2,
+        ..radios.clone()
+    };
+    let c = blind_drone::detect(&other).unwrap();
+    assert_ne!(a.views, c.views);
+    let m1 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true).unwrap();
+    let m2 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true).unwrap();
+    assert_eq!(m1, m2);
+}
+
+#[test]
+fn quantile_is_nearest_rank() {
+    let v: Vec<f64> = (1..=200).map(f64::from).collect();
+    assert_eq!(quantile(&v, 0.5), 100.0);
+    assert_eq!(quantile(&v, 0.99), 198.0);
+    assert!(quantile(&[], 0.5).is_nan());
+    assert_eq!(quantile(&[1.0, f64::INFINITY], 0.99), f64::INFINITY);
+}
+
+/// A rig file can carry the radios: the built-ins round-trip through TOML, unknown keys
+/// are refused.
+#[test]
+fn radios_round_trip_through_toml() {
+    let radios = Radios::paper_defaults();
+    let text = toml::to_string(&radios).unwrap();
+    let back: Radios = toml::from_str(&text).unwrap();
+    assert_eq!(back, radios);
+    let partial: Radios = toml::from_str("seed = 7\n").unwrap();
+    assert_eq!(partial.seed, 7);
+    assert_eq!(partial.mission, radios.mission);
+    assert!(toml::from_str::<Radios>("sede = 7\n").is_err());
+}

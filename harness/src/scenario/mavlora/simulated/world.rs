@@ -1,0 +1,400 @@
+//! A virtual-clock world for the MavLora reproductions: the simulated PX4
+//! ([`Px4Fc`]), optionally the real bridge and router engines, the rig's radio
+//! model ([`Radio`]) or an ideal wire between air and ground, and the
+//! simulated ground station ([`GcsMock`]). Like `mavlora::sim::World`, the
+//! clock jumps to the earliest deadline of any part, so a 513 s flight costs
+//! what its events cost, not 513 s; everything random is seeded, so a run is
+//! the same for the same seed.
+//!
+//! Counting happens where the brief's questions are asked: frames (by
+//! message id) and bytes handed to the carrier on each side (`*_sent`), and
+//! frames parsed out of what the carrier delivered on the far side
+//! (`*_received`): what crossed the radio.
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use mavlora::Instant;
+use mavlora::bridge::{Bridge, BridgeConfig};
+use mavlora::router::{Router, RouterConfig};
+use mavlora::schedule::ScheduleError;
+use mavlora::sim::{GcsMock, Px4Fc};
+use mavlora::wire::FrameReader;
+
+use crate::radio::{ConfigError, Direction, LinkStats, Radio, RadioSetup};
+
+/// Why a world could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum WorldError {
+    /// The radio setup is invalid.
+    #[error("radio: {0}")]
+    Radio(#[from] ConfigError),
+    /// A bridge or router scheduler setting is invalid.
+    #[error("MavLora engine: {0}")]
+    Engine(#[from] ScheduleError),
+}
+
+/// What carries bytes between the air side and the ground side.
+#[derive(Debug)]
+pub enum Carrier {
+    /// An ideal wire: no loss, no delay, no limit (the paper's "wired" run).
+    Wire,
+    /// The rig's radio model; side A is the drone.
+    Radio(Box<Radio>),
+}
+
+/// What sits at each end of the carrier.
+#[derive(Debug)]
+pub enum Relay {
+    /// MavLora: the bridge on the drone, the router on the ground.
+    MavLora(Box<Bridge>, Box<Router>),
+    /// Nothing: the flight controller's bytes go onto the carrier as they are, and the
+    /// ground station's protocol reaches the flight controller unchanged (the naive link).
+    Transparent,
+}
+
+/// Frames and bytes by message id.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Counts {
+    /// Frames per message id.
+    pub frames: BTreeMap<u32, u64>,
+    /// Bytes (whole frames) per message id.
+    pub bytes: BTreeMap<u32, u64>,
+}
+
+impl Counts {
+    fn add(&mut self, id: u32, len: usize) {
+        *self.frames.entry(id).or_default() += 1;
+        *self.bytes.entry(id).or_default() += len as u64;
+    }
+
+    /// All frames.
+    pub fn total_frames(&self) -> u64 {
+        self.frames.values().sum()
+    }
+
+    /// All bytes.
+    pub fn total_bytes(&self) -> u64 {
+        self.bytes.values().sum()
+    }
+
+    /// Frames of the given ids.
+    pub fn frames_of(&self, ids: &[u32]) -> u64 {
+        ids.iter().filter_map(|id| self.frames.get(id)).sum()
+    }
+
+    /// Bytes of the given ids.
+    pub fn bytes_of(&self, ids: &[u32]) -> u64 {
+        ids.iter().filter_map(|id| self.bytes.get(id)).sum()
+    }
+
+    /// What was added since `earlier` (a snapshot of the same counter).
+    pub fn since(&self, earlier: &Counts) -> Counts {
+        let diff = |now: &BTreeMap<u32, u64>, then: &BTreeMap<u32, u64>| {
+            now.iter()
+                .map(|(id, n)| (*id, n - then.get(id).copied().unwrap_or(0)))
+                .filter(|(_, n)| *n > 0)
+                .collect()
+        };
+        Counts {
+            frames: diff(&self.frames, &earlier.frames),
+            bytes: diff(&self.bytes, &earlier.bytes),
+        }
+    }
+}
+
+/// Counting reader on the receiving end of one direction of the carrier.
+#[derive(Debug, Default)]
+struct Tap {
+    reader: FrameReader,
+    counts: Counts,
+}
+
+impl Tap {
+    fn push(&mut self, bytes: &[u8]) {
+        self.reader.push(bytes);
+        while let Some(rx) = self.reader.next_frame() {
+            self.counts
+                .add(rx.frame.message_id(), rx.frame.as_bytes().len());
+        }
+    }
+}
+
+/// The virtual-clock world.
+#[derive(Debug)]
+pub struct SimWorld {
+    /// Virtual time.
+    pub now: Instant,
+    /// The flight controller.
+    pub fc: Px4Fc,
+    /// The ground station.
+    pub gcs: GcsMock,
+    /// Bridge and router, or nothing.
+    pub relay: Relay,
+    /// Wire or radio.
+    pub carrier: Carrier,
+    /// Frames handed to the carrier on the drone's side (UAV → GCS).
+    pub down_sent: Counts,
+    /// Frames handed to the carrier on the ground's side (GCS → UAV).
+    pub up_sent: Counts,
+    down_rx: Tap,
+    up_rx: Tap,
+    steps: u64,
+}
+
+/// mavlora time → radio time.
+pub fn to_duration(t: Instant) -> Duration {
+    Duration::from_micros(t.as_micros())
+}
+
+/// Radio time → mavlora time, rounded up so a deadline is never run early.
+pub fn to_instant(d: Duration) -> Instant {
+    Instant::from_micros(d.as_nanos().div_ceil(1000) as u64)
+}
+
+impl SimWorld {
+    /// A world with `fc`, a fresh ground station, the MavLora engines if `mavlora` is given
+    /// (bridge and router configuration) and `radio` as the carrier (`None`: an ideal wire).
+    pub fn new(
+        fc: Px4Fc,
+        mavlora: Option<(BridgeConfig, RouterConfig)>,
+        radio: Option<&RadioSetup>,
+    ) -> Result<SimWorld, WorldError> {
+        let now = Instant::ZERO;
+        let relay = match mavlora {
+            Some((b, r)) => Relay::MavLora(
+                Box::new(Bridge::new(b, now)?),
+                Box::new(Router::new(r, now)?),
+            ),
+            None => Relay::Transparent,
+        };
+        let carrier = match radio {
+            Some(setup) => Carrier::Radio(Box::new(setup.radio()?)),
+            None => Carrier::Wire,
+        };
+        Ok(SimWorld {
+            now,
+            fc,
+            gcs: GcsMock::new(now),
+            relay,
+            carrier,
+            down_sent: Counts::default(),
+            up_sent: Counts::default(),
+            down_rx: Tap::default(),
+            up_rx: Tap::default(),
+            steps: 0,
+        })
+    }
+
+    /// Frames parsed out of what the carrier delivered to the ground (UAV → GCS).
+    pub fn down_received(&self) -> &Counts {
+        &self.down_rx.counts
+    }
+
+    /// Frames parsed out of what the carrier delivered to the drone (GCS → UAV).
+    pub fn up_received(&self) -> &Counts {
+        &self.up_rx.counts
+    }
+
+    /// The radio, if the carrier is one.
+    pub fn radio(&self) -> Option<&Radio> {
+        match &self.carrier {
+            Carrier::Radio(r) => Some(r),
+            Carrier::Wire => None,
+        }
+    }
+
+    /// The radio's counters for one direction (`RadioSetup::DOWNLINK` or `UPLINK`).
+    pub fn link_stats(&self, direction: Direction) -> Option<LinkStats> {
+        self.radio().map(|r| r.link(direction).stats().clone())
+    }
+
+    /// The bridge, if MavLora is in the path.
+    pub fn bridge(&self) -> Option<&Bridge> {
+        match &self.relay {
+            Relay::MavLora(b, _) => Some(b),
+            Relay::Transparent => None,
+        }
+    }
+
+    /// The router, if MavLora is in the path.
+    pub fn router(&self) -> Option<&Router> {
+        match &self.relay {
+            Relay::MavLora(_, r) => Some(r),
+            Relay::Transparent => None,
+        }
+    }
+
+    /// Steps taken so far (one per distinct deadline), for profiling.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn next_deadline(&mut self) -> Option<Instant> {
+        let now = self.now;
+        let mut t = [self.fc.poll_timeout(), self.gcs.poll_timeout()]
+            .into_iter()
+            .flatten()
+            .min();
+        let mut fold = |d: Option<Instant>| {
+            if let Some(d) = d {
+                t = Some(t.map_or(d, |t| t.min(d)));
+            }
+        };
+        if let Relay::MavLora(b, r) = &mut self.relay {
+            fold(b.poll_timeout(now));
+            fold(r.poll_timeout(now));
+        }
+        if let Carrier::Radio(radio) = &self.carrier {
+            fold(radio.poll_timeout().map(to_instant));
+        }
+        t
+    }
+
+    /// Advances to the earliest deadline (at least 1 µs on, so a deadline that does not
+    /// clear cannot stall the clock) and runs everything due.
+    pub fn step(&mut self) {
+        let next = self
+            .next_deadline()
+            .unwrap_or(self.now + Duration::from_millis(10));
+        self.now = next.max(self.now + Duration::from_micros(1));
+        self.steps += 1;
+        let now = self.now;
+        let at = to_duration(now);
+        self.fc.handle_timeout(now);
+        self.gcs.handle_timeout(now);
+
+        // Air side: whatever the radio delivered up to now, then what leaves for the ground.
+        let mut down: Vec<Vec<u8>> = Vec::new();
+        let mut arrived = Vec::new();
+        if let Carrier::Radio(radio) = &mut self.carrier {
+            while let Some(bytes) = radio.poll_output(at, RadioSetup::UPLINK) {
+                arrived.push(bytes);
+            }
+        }
+        for bytes in &arrived {
+            self.up_rx.push(bytes);
+            self.air_input(bytes, now);
+        }
+        match &mut self.relay {
+            Relay::MavLora(b, _) => {
+                while let Some(f) = self.fc.poll_transmit() {
+                    b.handle_fc_bytes(f.as_bytes(), now);
+                }
+                b.handle_timeout(now);
+                while let Some(f) = b.poll_fc_transmit(now) {
+                    self.fc.handle_bytes(f.as_bytes(), now);
+                }
+                while let Some(f) = b.poll_radio_transmit(now, usize::MAX) {
+                    self.down_sent.add(f.message_id(), f.as_bytes().len());
+                    down.push(f.into_inner());
+                }
+            }
+            Relay::Transparent => {
+                while let Some(f) = self.fc.poll_transmit() {
+                    self.down_sent.add(f.message_id(), f.as_bytes().len());
+                    down.push(f.into_inner());
+                }
+            }
+        }
+
+        // Across, downwards.
+        match &mut self.carrier {
+            Carrier::Wire => {
+                for bytes in &down {
+                    self.down_rx.push(bytes);
+                    self.ground_input(bytes, now);
+                }
+            }
+            Carrier::Radio(radio) => {
+                for bytes in &down {
+                    radio.handle_input(at, RadioSetup::DOWNLINK, bytes);
+                }
+                let mut delivered = Vec::new();
+                while let Some(bytes) = radio.poll_output(at, RadioSetup::DOWNLINK) {
+                    delivered.push(bytes);
+                }
+                for bytes in &delivered {
+                    self.down_rx.push(bytes);
+                    self.ground_input(bytes, now);
+                }
+            }
+        }
+
+        // Ground side.
+        let mut up: Vec<Vec<u8>> = Vec::new();
+        match &mut self.relay {
+            Relay::MavLora(_, r) => {
+                while let Some(f) = self.gcs.poll_transmit() {
+                    r.handle_gcs_bytes(f.as_bytes(), now);
+                }
+                r.handle_timeout(now);
+                while let Some(f) = r.poll_gcs_transmit() {
+                    self.gcs.handle_bytes(f.as_bytes(), now);
+                }
+                while let Some(f) = r.poll_radio_transmit(now, usize::MAX) {
+                    self.up_sent.add(f.message_id(), f.as_bytes().len());
+                    up.push(f.into_inner());
+                }
+            }
+            Relay::Transparent => {
+                while let Some(f) = self.gcs.poll_transmit() {
+                    self.up_sent.add(f.message_id(), f.as_bytes().len());
+                    up.push(f.into_inner());
+                }
+            }
+        }
+
+        // Across, upwards.
+        match &mut self.carrier {
+            Carrier::Wire => {
+                for bytes in &up {
+                    self.up_rx.push(bytes);
+                    self.air_input(bytes, now);
+                }
+            }
+            Carrier::Radio(radio) => {
+                for bytes in &up {
+                    radio.handle_input(at, RadioSetup::UPLINK, bytes);
+                }
+            }
+        }
+    }
+
+    fn air_input(&mut self, bytes: &[u8], now: Instant) {
+        match &mut self.relay {
+            Relay::MavLora(b, _) => b.handle_radio_bytes(bytes, now),
+            Relay::Transparent => self.fc.handle_bytes(bytes, now),
+        }
+    }
+
+    fn ground_input(&mut self, bytes: &[u8], now: Instant) {
+        match &mut self.relay {
+            Relay::MavLora(_, r) => r.handle_radio_bytes(bytes, now),
+            Relay::Transparent => self.gcs.handle_bytes(bytes, now),
+        }
+    }
+
+    /// Steps until `until`.
+    pub fn run_until(&mut self, until: Instant) {
+        while self.now < until {
+            self.step();
+        }
+    }
+
+    /// Steps until `done` holds or `until` passes; whether `done` held.
+    pub fn run_until_or(&mut self, until: Instant, mut done: impl FnMut(&Self) -> bool) -> bool {
+        while self.now < until {
+            if done(self) {
+                return true;
+            }
+            self.step();
+        }
+        done(self)
+    }
+}
+
+/// `s` seconds after the epoch.
+pub fn secs(s: f64) -> Instant {
+    Instant::from_micros((s * 1e6).round() as u64)
+}
