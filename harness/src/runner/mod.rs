@@ -21,6 +21,8 @@ use crate::scenario::multirx::{self, Limits, Scenario};
 use crate::strategy::firmware::{self, FirmwareImage};
 use crate::strategy::multirx::MultirxSession;
 
+mod mavlora;
+
 /// What to run and where to write.
 pub struct RunOptions {
     pub out_dir: PathBuf,
@@ -73,13 +75,14 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
             trials.push(whole_run_trial(&rig, &phases, mode, limits));
         }
     }
+    known_names.extend(mavlora::add_trials(&rig, &phases, &out_dir, &mut trials));
     rig.check_limit_names(known_names.iter().map(String::as_str))?;
 
     let args = Arguments {
         filter: options.filter.clone(),
         exact: options.exact,
         list: options.list,
-        // Scenarios time a real device: one at a time.
+        // Scenarios time real devices and processes: one at a time.
         test_threads: Some(1),
         ..Arguments::default()
     };

@@ -1,0 +1,110 @@
+//! MavLora trials: the simulated reproductions (in-process, virtual clock) and the real-time
+//! runs of the real binaries, each scenario one phase.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Result;
+use libtest_mimic::Trial;
+
+use super::{Phases, conclude};
+use crate::measurement::Measurement;
+use crate::record::{Attachment, PhaseRecord, now_rfc3339};
+use crate::rigfile::{MavloraSection, RigFile, Suite};
+use crate::scenario::PhaseContext;
+use crate::scenario::mavlora::simulated::{self, Radios};
+
+/// The simulated scenarios' radios, from the rig file's `[mavlora]`.
+pub fn simulated_radios(section: &MavloraSection) -> Radios {
+    let r = &section.radios;
+    Radios {
+        table_ii: r.table_ii.as_ref().map(|n| n.setup.clone()),
+        // Measurement keys are the rig file's radio names: `lora-sf7-bursty` → `lora_sf7_bursty`.
+        mission: r
+            .mission
+            .iter()
+            .map(|n| (n.name.replace('-', "_"), n.setup.clone()))
+            .collect(),
+        c2: r.c2.setup.clone(),
+        sweep: r.sweep.iter().map(|n| n.setup.clone()).collect(),
+        blind_drone: r.blind_drone.setup.clone(),
+        duty: r.duty.setup.clone(),
+        seed: section.seed,
+    }
+}
+
+/// Adds the trials of every suite the rig file asks for; returns the measurement names they
+/// may record (for the `[limits]` check).
+pub fn add_trials(
+    rig: &Arc<RigFile>,
+    phases: &Phases,
+    out_dir: &Path,
+    trials: &mut Vec<Trial>,
+) -> Vec<String> {
+    let Some(section) = &rig.mavlora else {
+        return Vec::new();
+    };
+    let mut names = Vec::new();
+    if section.suites.contains(&Suite::Simulated) {
+        let radios = Arc::new(simulated_radios(section));
+        for scenario in simulated::scenarios() {
+            let declared = (scenario.measurements)(&radios);
+            names.extend(declared.iter().map(|m| m.name.clone()));
+            let name = format!("mavlora::simulated::{}", scenario.name);
+            let (rig, phases, out_dir, radios) =
+                (rig.clone(), phases.clone(), out_dir.to_path_buf(), radios.clone());
+            trials.push(Trial::test(name.clone(), move || {
+                let record = run_phase(
+                    &rig,
+                    &out_dir,
+                    &name,
+                    scenario.summary,
+                    (scenario.measurements)(&radios),
+                    |ctx| (scenario.run)(ctx, &radios),
+                );
+                conclude(&phases, record)
+            }));
+        }
+    }
+    names
+}
+
+/// One phase: declares `measurements`, runs `body` with the phase's context and folder, and
+/// turns what it recorded, logged and attached into a [`PhaseRecord`].
+pub fn run_phase(
+    rig: &RigFile,
+    out_dir: &Path,
+    name: &str,
+    summary: &str,
+    measurements: Vec<Measurement>,
+    body: impl FnOnce(&mut PhaseContext) -> Result<()>,
+) -> PhaseRecord {
+    let started = now_rfc3339();
+    let clock = Instant::now();
+    let dir: PathBuf = out_dir.join(name.replace("::", "."));
+    let mut ctx = PhaseContext::new(rig, &dir);
+    for m in measurements {
+        ctx.declare(m);
+    }
+    ctx.log(summary);
+    let error = body(&mut ctx).err().map(|e| format!("{e:#}"));
+    let (measurements, log, files) = ctx.into_parts();
+    let mut record = PhaseRecord::ran(
+        name,
+        started,
+        clock.elapsed().as_secs_f64(),
+        measurements,
+        error,
+    );
+    record.log = log;
+    for (label, path, media) in files {
+        match Attachment::from_file(out_dir, &path, label, media) {
+            Ok(a) => record.attachments.push(a),
+            Err(e) => record
+                .log
+                .push(format!("attachment {} not kept: {e}", path.display())),
+        }
+    }
+    record
+}
