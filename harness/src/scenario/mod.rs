@@ -2,6 +2,7 @@
 //! scenarios run on every rig; only the rig file changes.
 
 pub mod context;
+pub mod mavlora;
 pub mod multirx;
 
 pub use context::PhaseContext;
