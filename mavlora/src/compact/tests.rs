@@ -142,3 +142,90 @@ impl Instant {
         Self::from_millis(s * 1000)
     }
 }
+
+proptest! {
+    /// expand(compact(x)) == x within the precision table of the module doc.
+    #[test]
+    fn expansion_is_exact_within_precision(
+        lat in -900_000_000i32..900_000_000, lon in -1_800_000_000i32..1_800_000_000,
+        dlat in prop::collection::vec(-3_000i32..3_000, 2),
+        dlon in prop::collection::vec(-6_000i32..6_000, 2),
+        rel in -1_000_000i32..1_000_000, drel in prop::collection::vec(-10_000i32..10_000, 2),
+        home in -100_000i32..3_000_000,
+        t0 in 0u32..4_000_000_000, dt in prop::collection::vec(340u32..600, 2),
+        hdg in 0u16..36_000, vx in -1_700i16..1_700, vy in -1_700i16..1_700, vz in -1_200i16..1_200,
+        custom_mode: u32, armed: bool, voltage: u16, remaining in -1i8..=100,
+        fix in 0u8..=8, sats: u8, seq: u16,
+    ) {
+        let mut c = Compactor::new(CompactConfig::default());
+        let mut now = Instant::ZERO;
+        let hb = heartbeat(custom_mode, armed);
+        let sys = MavMessage::SYS_STATUS(SYS_STATUS_DATA { voltage_battery: voltage, battery_remaining: remaining, ..Default::default() });
+        let gps = MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
+            fix_type: [GpsFixType::GPS_FIX_TYPE_NO_GPS, GpsFixType::GPS_FIX_TYPE_NO_FIX, GpsFixType::GPS_FIX_TYPE_2D_FIX,
+                GpsFixType::GPS_FIX_TYPE_3D_FIX, GpsFixType::GPS_FIX_TYPE_RTK_FIXED][usize::from(fix) % 5],
+            satellites_visible: sats, ..Default::default() });
+        let mc = MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq });
+        let mut positions = Vec::new();
+        let mut t = t0;
+        for i in 0..3 {
+            let (dl, dn, dr) = if i == 0 { (0, 0, 0) } else { (dlat[i - 1], dlon[i - 1], drel[i - 1]) };
+            if i > 0 { t = t.wrapping_add(dt[i - 1]); }
+            positions.push(GLOBAL_POSITION_INT_DATA {
+                time_boot_ms: t, lat: lat + dl, lon: lon + dn,
+                relative_alt: rel + dr, alt: rel + dr + home, vx, vy, vz, hdg,
+            });
+        }
+        let mut compact = Vec::new();
+        for m in [&hb, &sys, &gps, &mc] {
+            prop_assert!(c.observe(m, now));
+        }
+        for (i, p) in positions.iter().enumerate() {
+            if i > 0 { now = now + Duration::from_millis(u64::from(dt[i - 1])); }
+            c.observe(&MavMessage::GLOBAL_POSITION_INT(p.clone()), now);
+            compact.extend(std::iter::from_fn(|| c.poll(now)));
+        }
+        now = now + Duration::from_secs(1);
+        compact.extend(std::iter::from_fn(|| c.poll(now)));
+        let mut e = Expander::new();
+        let expanded: Vec<MavMessage> = compact.iter().flat_map(|m| e.expand(m)).collect();
+        let got: Vec<_> = expanded.iter().filter_map(|m| match m {
+            MavMessage::GLOBAL_POSITION_INT(p) => Some(p.clone()), _ => None }).collect();
+        prop_assert_eq!(got.len(), 3);
+        for (g, x) in got.iter().zip(&positions) {
+            prop_assert_eq!((g.lat, g.lon, g.hdg), (x.lat, x.lon, x.hdg));
+            prop_assert!((g.relative_alt - x.relative_alt).abs() <= 50);
+            prop_assert!((g.alt - x.alt).abs() <= 100, "{} vs {}", g.alt, x.alt);
+            prop_assert!((i64::from(g.time_boot_ms.wrapping_sub(x.time_boot_ms) as i32)).abs() <= 5);
+            prop_assert!((i32::from(g.vz) - i32::from(x.vz)).abs() <= 5);
+        }
+        let speed = f64::from(vx).hypot(f64::from(vy));
+        let mut saw = [false; 4];
+        for m in &expanded {
+            match m {
+                MavMessage::HEARTBEAT(h) => {
+                    let MavMessage::HEARTBEAT(x) = &hb else { unreachable!() };
+                    prop_assert_eq!(h, x);
+                    saw[0] = true;
+                }
+                MavMessage::SYS_STATUS(s) => {
+                    prop_assert_eq!((s.voltage_battery, s.battery_remaining), (voltage, remaining));
+                    saw[1] = true;
+                }
+                MavMessage::GPS_RAW_INT(g) => {
+                    let MavMessage::GPS_RAW_INT(x) = &gps else { unreachable!() };
+                    prop_assert_eq!((g.fix_type, g.satellites_visible), (x.fix_type, sats));
+                    saw[2] = true;
+                }
+                MavMessage::VFR_HUD(v) => {
+                    prop_assert!((f64::from(v.groundspeed) * 100.0 - speed).abs() <= 5.01);
+                    prop_assert!((f64::from(v.climb) * 100.0 + f64::from(vz)).abs() <= 5.01);
+                    prop_assert_eq!(v.heading, (hdg / 100) as i16);
+                }
+                MavMessage::MISSION_CURRENT(m) => { prop_assert_eq!(m.seq, seq); saw[3] = true; }
+                _ => {}
+            }
+        }
+        prop_assert_eq!(saw, [true; 4]);
+    }
+}
