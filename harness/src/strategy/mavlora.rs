@@ -302,18 +302,20 @@ impl LineReader {
                     let Ok(line) = line else { break };
                     let at = Mono::now();
                     // Snapshot first: the point is the counters at this moment.
-                    let radio = radio.as_ref().map(|r| {
-                        (
-                            r.stats(RadioSetup::DOWNLINK),
-                            r.stats(RadioSetup::UPLINK),
-                        )
-                    });
+                    let radio = radio
+                        .as_ref()
+                        .map(|r| (r.stats(RadioSetup::DOWNLINK), r.stats(RadioSetup::UPLINK)));
                     match serde_json::from_str::<Value>(&line) {
                         Ok(value) => {
-                            sink.list.lock().unwrap().push(FixtureLine { at, value, radio });
+                            sink.list
+                                .lock()
+                                .unwrap()
+                                .push(FixtureLine { at, value, radio });
                             sink.changed.notify_all();
                         }
-                        Err(_) => tracing::warn!(fixture = %label, line, "unparsable fixture output"),
+                        Err(_) => {
+                            tracing::warn!(fixture = %label, line, "unparsable fixture output")
+                        }
                     }
                 }
                 *sink.closed.lock().unwrap() = true;
@@ -365,18 +367,28 @@ pub struct MavloraSession {
     pub started: Mono,
 }
 
+/// `mavlora_gcs.py`'s exit status when it ran its plan to the end but a phase
+/// did not succeed (a lost command, a refused mission): the measurements say
+/// which, so it is not an unclean exit.
+pub const GCS_PHASE_FAILED: i32 = 3;
+
 /// How one program ended.
 #[derive(Debug, Clone)]
 pub struct ExitRecord {
     pub name: String,
     /// `None`: it had to be killed.
     pub status: Option<ExitStatus>,
+    /// Exit codes besides 0 that still mean it ended as designed.
+    pub accepted: Vec<i32>,
     pub log: PathBuf,
 }
 
 impl ExitRecord {
+    /// Exited with status 0 (or an accepted code), not by a signal or a kill.
     pub fn clean(&self) -> bool {
-        self.status.is_some_and(|s| s.success())
+        self.status
+            .and_then(|s| s.code())
+            .is_some_and(|c| c == 0 || self.accepted.contains(&c))
     }
 }
 
@@ -592,12 +604,13 @@ impl MavloraSession {
             }
         };
         // The reader sees EOF after the exit; wait for its last line.
-        let _ = self.gcs_lines.wait_for(Duration::from_secs(2), |l| {
-            l.value.get("event").is_none()
-        });
+        let _ = self
+            .gcs_lines
+            .wait_for(Duration::from_secs(2), |l| l.value.get("event").is_none());
         let mut exits = vec![ExitRecord {
             name: "mavlora_gcs".into(),
             status: gcs_status,
+            accepted: vec![GCS_PHASE_FAILED],
             log: self.gcs.log_path().to_path_buf(),
         }];
         let grace = Duration::from_secs(5);
@@ -610,12 +623,14 @@ impl MavloraSession {
             exits.push(ExitRecord {
                 name: p.name().to_string(),
                 status: p.terminate(grace)?,
+                accepted: Vec::new(),
                 log: p.log_path().to_path_buf(),
             });
         }
         exits.push(ExitRecord {
             name: "mavlora_fc".into(),
             status: self.fc.terminate(grace)?,
+            accepted: Vec::new(),
             log: self.fc.log_path().to_path_buf(),
         });
         let (downlink, uplink) = self.radio_stats();

@@ -50,7 +50,12 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
     let num = |k: &str| c[k].as_f64().unwrap_or(f64::NAN);
     ctx.log(format!(
         "{} acked, {} lost, {} sends, max {:.0} ms; latencies {}; FC received {}",
-        c["acked"], c["lost"], c["sends"], num("max_ms"), c["latency_ms"], report.fc["commands"]
+        c["acked"],
+        c["lost"],
+        c["sends"],
+        num("max_ms"),
+        c["latency_ms"],
+        report.fc["commands"]
     ));
     ctx.record(&name("c2_latency_p50_ms"), num("p50_ms"));
     ctx.record(&name("c2_latency_p99_ms"), num("p99_ms"));

@@ -63,7 +63,10 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
     if let Some(why) = why {
         ctx.log(format!("mission differs: {why}"));
     }
-    ctx.record(&name("mission_items_intact"), if intact { 1.0 } else { 0.0 });
+    ctx.record(
+        &name("mission_items_intact"),
+        if intact { 1.0 } else { 0.0 },
+    );
     ensure_clean(ctx, &report)
 }
 
@@ -75,7 +78,11 @@ pub fn compare(sent: &Value, got: &Value) -> (bool, Option<String>) {
     if sent.is_empty() || sent.len() != got.len() {
         return (
             false,
-            Some(format!("{} items sent, {} at the FC", sent.len(), got.len())),
+            Some(format!(
+                "{} items sent, {} at the FC",
+                sent.len(),
+                got.len()
+            )),
         );
     }
     for (s, g) in sent.iter().zip(got) {

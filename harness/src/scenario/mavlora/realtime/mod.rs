@@ -46,13 +46,36 @@ pub fn name(what: &str) -> String {
 /// Runs one session to the end of its GCS plan and keeps its evidence: logs,
 /// summaries, tlog, the radio's counters and the programs' status lines.
 pub fn run_session(ctx: &mut PhaseContext, options: SessionOptions) -> Result<SessionReport> {
-    let label = options.name.clone();
-    let session = MavloraSession::start(options)?;
-    ctx.log(format!(
-        "{label}: telemetry at the GCS {:.0} ms after start",
-        session.telemetry_at.ms_since(session.started)
-    ));
-    let report = session.finish()?;
+    Ok(run_sessions(ctx, vec![options])?.remove(0))
+}
+
+/// Runs sessions side by side (each on its own radio and ports), so
+/// independent measurements share the wall time; reports in the given order.
+pub fn run_sessions(
+    ctx: &mut PhaseContext,
+    options: Vec<SessionOptions>,
+) -> Result<Vec<SessionReport>> {
+    let mut sessions = Vec::new();
+    for o in options {
+        let session = MavloraSession::start(o)?;
+        ctx.log(format!(
+            "{}: telemetry at the GCS {:.0} ms after start",
+            session.options.name,
+            session.telemetry_at.ms_since(session.started)
+        ));
+        sessions.push(session);
+    }
+    let mut reports = Vec::new();
+    for session in sessions {
+        let label = session.options.name.clone();
+        let report = session.finish()?;
+        keep_evidence(ctx, &label, &report);
+        reports.push(report);
+    }
+    Ok(reports)
+}
+
+fn keep_evidence(ctx: &mut PhaseContext, label: &str, report: &SessionReport) {
     for file in &report.files {
         let media = if file.extension().is_some_and(|e| e == "json") {
             "application/json"
@@ -77,7 +100,6 @@ pub fn run_session(ctx: &mut PhaseContext, options: SessionOptions) -> Result<Se
             ctx.log(format!("{label}: {who} {line}"));
         }
     }
-    Ok(report)
 }
 
 /// Fails the phase when a program did not stop cleanly (status 0 on
