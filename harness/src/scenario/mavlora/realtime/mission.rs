@@ -120,9 +120,10 @@ mod tests {
                    "autocontinue": 1, "param1": 0.0})
         };
         let sent = json!([item(0, 10), item(1, 11)]);
-        assert_eq!(compare(&sent, &json!([item(0, 10), item(1, 11)])).0, true);
-        assert_eq!(compare(&sent, &json!([item(0, 10), item(1, 12)])).0, false);
-        assert_eq!(compare(&sent, &json!([item(0, 10)])).0, false);
-        assert_eq!(compare(&json!([]), &json!([])).0, false);
+        assert!(compare(&sent, &json!([item(0, 10), item(1, 11)])).0);
+        let (intact, why) = compare(&sent, &json!([item(0, 10), item(1, 12)]));
+        assert!(!intact && why.unwrap().contains("item 1 x"));
+        assert!(!compare(&sent, &json!([item(0, 10)])).0);
+        assert!(!compare(&json!([]), &json!([])).0);
     }
 }
