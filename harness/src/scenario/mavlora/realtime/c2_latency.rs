@@ -57,6 +57,18 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
         c["latency_ms"],
         report.fc["commands"]
     ));
+    // Where the retries came from: sends the FC never got were lost on the
+    // uplink; the rest of the extra sends answered an ack lost on the downlink.
+    let fc_got: f64 = ["176", "512"]
+        .iter()
+        .filter_map(|k| report.fc["commands"][k].as_f64())
+        .sum();
+    let sends = num("sends");
+    ctx.log(format!(
+        "command sends lost on the uplink: {}; acks lost on the downlink (or late): {}",
+        sends - fc_got,
+        fc_got - num("acked")
+    ));
     ctx.record(&name("c2_latency_p50_ms"), num("p50_ms"));
     ctx.record(&name("c2_latency_p99_ms"), num("p99_ms"));
     ctx.record(&name("c2_commands_lost"), num("lost"));
