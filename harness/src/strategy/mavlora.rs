@@ -401,6 +401,8 @@ pub struct SessionReport {
     pub gcs: Value,
     /// The GCS's event lines, each with the radio's counters when read.
     pub gcs_events: Vec<FixtureLine>,
+    /// The FC fixture's event lines (`ready`, `mission`, `reboot`).
+    pub fc_events: Vec<FixtureLine>,
     /// Drone → ground, whole session.
     pub downlink: LinkStats,
     /// Ground → drone, whole session.
@@ -658,7 +660,7 @@ impl MavloraSession {
             .into_iter()
             .filter(|l| l.value.get("event").is_some())
             .collect();
-        let _ = self.fc_lines.all(); // FC events (missions) are in its summary too
+        let fc_events = self.fc_lines.all();
         let bridge_status = self.bridge.as_ref().and_then(|p| last_status(p.log_path()));
         let router_status = self.router.as_ref().and_then(|p| last_status(p.log_path()));
         let mut files: Vec<PathBuf> = exits.iter().map(|e| e.log.clone()).collect();
@@ -676,6 +678,7 @@ impl MavloraSession {
             fc,
             gcs,
             gcs_events,
+            fc_events,
             downlink,
             uplink,
             bridge_status,
