@@ -1,7 +1,7 @@
 //! Command-to-ack latency through bridge and router over SiK with 10 %
 //! bursty loss each way, as a ground station sees it: first send to first
 //! `COMMAND_ACK`, a retry after 1.5 s without one. SORA's TMPR asks < 3 s
-//! for medium robustness.
+//! for medium robustness, < 5 s for low.
 
 use anyhow::Result;
 
@@ -32,6 +32,11 @@ fn measurements() -> Vec<Measurement> {
                 "99th percentile, {COMMANDS} commands (= the slowest); {HOW}"
             ))
             .at_most(3000.0),
+        Measurement::new(name("c2_latency_max_ms"), "ms")
+            .describe(format!(
+                "slowest of {COMMANDS} commands, against SORA's low-robustness bound (< 5 s); {HOW}"
+            ))
+            .at_most(5000.0),
         Measurement::new(name("c2_commands_lost"), "")
             .describe(format!("commands of {COMMANDS} never acked after 5 sends"))
             .equal_to(0.0),
@@ -71,6 +76,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
     ));
     ctx.record(&name("c2_latency_p50_ms"), num("p50_ms"));
     ctx.record(&name("c2_latency_p99_ms"), num("p99_ms"));
+    ctx.record(&name("c2_latency_max_ms"), num("max_ms"));
     ctx.record(&name("c2_commands_lost"), num("lost"));
     ensure_clean(ctx, &report)
 }

@@ -92,6 +92,28 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
             t["by_type"]
         ));
         ctx.record(&name(&format!("{variant}.bytes_per_s")), bytes_per_s);
+        // Steady state means after the bridge's SET_MESSAGE_INTERVAL round: check it.
+        let configured = report
+            .fc_events
+            .iter()
+            .filter(|l| l.event() == Some("interval"))
+            .map(|l| l.at)
+            .max();
+        let opened = report.event("window_start").map(|l| l.at);
+        match (configured, opened) {
+            (Some(c), Some(w)) if c <= w => ctx.log(format!(
+                "{variant}: stream rates configured {:.2} s before the window opened",
+                w.since(c).as_secs_f64()
+            )),
+            (Some(_), Some(_)) => ctx.annotate(
+                &name(&format!("{variant}.bytes_per_s")),
+                "the bridge was still configuring stream rates when the window opened",
+            ),
+            _ => ctx.annotate(
+                &name(&format!("{variant}.bytes_per_s")),
+                "the bridge configured no stream rate (check bridge.log)",
+            ),
+        }
         ctx.record(&name(&format!("{variant}.msgs_per_s")), msgs);
     }
     for r in &reports {
