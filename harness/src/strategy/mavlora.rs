@@ -778,6 +778,42 @@ mod tests {
         assert_eq!(status_field(&line, "fc_rx"), Some(5.0));
     }
 
+    fn options(dir: &Path) -> SessionOptions {
+        let repo = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+        let defaults = SessionDefaults {
+            python: PathBuf::from("python3"),
+            fixtures_dir: repo.join("fixtures"),
+            bridge_program: PathBuf::from("/bin/true"),
+            router_program: PathBuf::from("/bin/true"),
+            profile_dir: repo.join("mavlora/profiles"),
+            lossy_radio: sik_with_loss(0.1, 2.0).unwrap(),
+            clean_radio: RadioSetup::builtin("sik-64k").unwrap(),
+        };
+        defaults.options("t", &defaults.clean_radio, dir)
+    }
+
+    #[test]
+    fn a_missing_program_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut o = options(dir.path());
+        o.bridge_program = dir.path().join("no-such-bridge");
+        let err = MavloraSession::start(o).err().unwrap();
+        assert!(matches!(err, SessionError::ProgramMissing(_)), "{err}");
+        assert!(err.to_string().contains("no-such-bridge"), "{err}");
+    }
+
+    #[test]
+    fn a_fixture_that_does_not_start_names_its_log() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut o = options(dir.path());
+        o.fixtures_dir = dir.path().join("no-fixtures");
+        let err = MavloraSession::start(o).err().unwrap();
+        assert!(matches!(err, SessionError::FixtureStart { .. }), "{err}");
+        assert!(err.to_string().contains("fc.log"), "{err}");
+        let log = std::fs::read_to_string(dir.path().join("fc.log")).unwrap();
+        assert!(log.contains("mavlora_fc.py"), "{log}");
+    }
+
     #[test]
     fn gcs_budget_covers_every_retry_of_every_command() {
         let plan = GcsPlan {
