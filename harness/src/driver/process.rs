@@ -3,7 +3,7 @@
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::process::{Child, ChildStdin, ChildStdout, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
@@ -64,6 +64,38 @@ impl Process {
             );
         }
         Ok(())
+    }
+
+    /// Waits up to `timeout` for the program to exit by itself; `None` if it still runs.
+    pub fn wait_timeout(&mut self, timeout: Duration) -> Result<Option<ExitStatus>> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait()? {
+                return Ok(Some(status));
+            }
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Like [`Process::stop`], but says how it ended: the exit status after
+    /// SIGTERM, or `None` if it had to be killed (a clean stop is evidence too).
+    pub fn terminate(&mut self, grace: Duration) -> Result<Option<ExitStatus>> {
+        if let Some(status) = self.child.try_wait()? {
+            return Ok(Some(status));
+        }
+        if let Some(pid) = rustix::process::Pid::from_raw(self.child.id() as i32) {
+            let _ = rustix::process::kill_process(pid, rustix::process::Signal::TERM);
+        }
+        if let Some(status) = self.wait_timeout(grace)? {
+            return Ok(Some(status));
+        }
+        tracing::warn!(name = %self.name, "did not stop on SIGTERM; killing");
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        Ok(None)
     }
 
     /// Asks the program to stop (SIGTERM), then kills it after `grace`.

@@ -2,4 +2,5 @@
 //! (labgrid's vocabulary): build → (flash) → running → torn down.
 
 pub mod firmware;
+pub mod mavlora;
 pub mod multirx;

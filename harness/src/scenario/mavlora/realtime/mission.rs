@@ -1,0 +1,129 @@
+//! A mission upload through the bridge's relay over SiK with 10 % bursty
+//! loss each way: the flight controller retries items every 250 ms (PX4
+//! issue #11078), the relay must keep that off the radio and deliver every
+//! item intact.
+
+use anyhow::Result;
+use serde_json::Value;
+
+use super::{Scenario, ensure_clean, name, run_session};
+use crate::measurement::Measurement;
+use crate::scenario::PhaseContext;
+use crate::strategy::mavlora::{GcsPlan, SessionDefaults};
+
+pub const SCENARIO: Scenario = Scenario {
+    name: "mission",
+    summary: "40-item mission upload through bridge and router over SiK with 10 % bursty loss; items intact at the FC",
+    measurements,
+    run,
+};
+
+const ITEMS: u32 = 40;
+
+fn measurements() -> Vec<Measurement> {
+    vec![
+        Measurement::new(name("mission_upload_s"), "s")
+            .describe(format!(
+                "{ITEMS} items, GCS MISSION_COUNT to MISSION_ACK (accepted) as the pymavlink GCS timed it; \
+                 NaN when not accepted within 90 s"
+            ))
+            .at_most(60.0),
+        Measurement::new(name("mission_items_intact"), "")
+            .describe(
+                "1 when the FC fixture's stored mission equals what the GCS sent, item for item \
+                 (seq, command, frame, x, y, z, autocontinue, param1), else 0",
+            )
+            .equal_to(1.0),
+    ]
+}
+
+fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
+    let mut o = d.options("mission", &d.lossy_radio, &ctx.dir.join("mission"));
+    o.gcs = GcsPlan {
+        listen_s: 2.0,
+        items: ITEMS,
+        upload_timeout_s: 90.0,
+        ..GcsPlan::default()
+    };
+    let report = run_session(ctx, o)?;
+    let accepted = report.gcs["result"].as_i64() == Some(0);
+    let upload_s = report.gcs["upload_s"].as_f64().unwrap_or(f64::NAN);
+    ctx.log(format!(
+        "result {} after {upload_s:.2} s; GCS sent {} item messages; FC: {} item requests, {} duplicate items",
+        report.gcs["result"],
+        report.gcs["items_sent"],
+        report.fc["item_requests"],
+        report.fc["duplicate_items"]
+    ));
+    ctx.record(
+        &name("mission_upload_s"),
+        if accepted { upload_s } else { f64::NAN },
+    );
+    let (intact, why) = compare(&report.gcs["mission"], &report.fc["mission"]);
+    if let Some(why) = why {
+        ctx.log(format!("mission differs: {why}"));
+    }
+    ctx.record(
+        &name("mission_items_intact"),
+        if intact { 1.0 } else { 0.0 },
+    );
+    ensure_clean(ctx, &report)
+}
+
+/// Whether the FC holds exactly the mission the GCS sent; else the first difference.
+pub fn compare(sent: &Value, got: &Value) -> (bool, Option<String>) {
+    let (Some(sent), Some(got)) = (sent.as_array(), got.as_array()) else {
+        return (false, Some("no mission in a summary".into()));
+    };
+    if sent.is_empty() || sent.len() != got.len() {
+        return (
+            false,
+            Some(format!(
+                "{} items sent, {} at the FC",
+                sent.len(),
+                got.len()
+            )),
+        );
+    }
+    for (s, g) in sent.iter().zip(got) {
+        for key in ["seq", "command", "frame", "x", "y", "autocontinue"] {
+            if s[key] != g[key] {
+                return (
+                    false,
+                    Some(format!("item {} {key}: {} vs {}", s["seq"], s[key], g[key])),
+                );
+            }
+        }
+        for key in ["z", "param1"] {
+            let (a, b) = (s[key].as_f64(), g[key].as_f64());
+            // float32 on the wire
+            if !matches!((a, b), (Some(a), Some(b)) if (a - b).abs() <= 1e-6 * a.abs().max(1.0)) {
+                return (
+                    false,
+                    Some(format!("item {} {key}: {} vs {}", s["seq"], s[key], g[key])),
+                );
+            }
+        }
+    }
+    (true, None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn a_changed_or_missing_item_is_not_intact() {
+        let item = |seq: i64, x: i64| {
+            json!({"seq": seq, "command": 16, "frame": 6, "x": x, "y": 2, "z": 50.0,
+                   "autocontinue": 1, "param1": 0.0})
+        };
+        let sent = json!([item(0, 10), item(1, 11)]);
+        assert!(compare(&sent, &json!([item(0, 10), item(1, 11)])).0);
+        let (intact, why) = compare(&sent, &json!([item(0, 10), item(1, 12)]));
+        assert!(!intact && why.unwrap().contains("item 1 x"));
+        assert!(!compare(&sent, &json!([item(0, 10)])).0);
+        assert!(!compare(&json!([]), &json!([])).0);
+    }
+}

@@ -1,0 +1,121 @@
+//! Short real-time MavLora scenarios: the real `mavlora-bridge` and
+//! `mavlora-router` between a pymavlink PX4 and a pymavlink ground station,
+//! over the radio emulator on pty pairs, on the wall clock
+//! ([`MavloraSession`]). They check what the virtual-clock runs cannot: that
+//! the programs, their serial and UDP IO and their timers meet the SLAs when
+//! bytes take real time. Each scenario takes under ~50 s.
+//!
+//! - [`table_ii`]: radio bandwidth of compact telemetry and of limiting +
+//!   filtering (paper Table II), loss-free SiK;
+//! - [`mission`]: a mission upload through the relay over SiK with bursty loss;
+//! - [`c2_latency`]: command-to-ack latency over SiK with bursty loss (SORA
+//!   TMPR: < 3 s for medium robustness).
+
+pub mod c2_latency;
+pub mod mission;
+pub mod table_ii;
+
+use anyhow::{Result, bail};
+
+use crate::measurement::Measurement;
+use crate::scenario::PhaseContext;
+use crate::strategy::mavlora::{MavloraSession, SessionOptions, SessionReport};
+
+pub use crate::strategy::mavlora::SessionDefaults;
+
+/// One scenario: its measurements (with built-in limits) and its script.
+pub struct Scenario {
+    /// Short name, unique among the real-time scenarios: `table_ii`.
+    pub name: &'static str,
+    /// What it shows, for the report.
+    pub summary: &'static str,
+    pub measurements: fn() -> Vec<Measurement>,
+    pub run: fn(&mut PhaseContext, &SessionDefaults) -> Result<()>,
+}
+
+/// Every real-time scenario, in the order they run.
+pub fn scenarios() -> Vec<Scenario> {
+    vec![table_ii::SCENARIO, mission::SCENARIO, c2_latency::SCENARIO]
+}
+
+/// `mavlora.pty.<what>`.
+pub fn name(what: &str) -> String {
+    format!("mavlora.pty.{what}")
+}
+
+/// Runs one session to the end of its GCS plan and keeps its evidence: logs,
+/// summaries, tlog, the radio's counters and the programs' status lines.
+pub fn run_session(ctx: &mut PhaseContext, options: SessionOptions) -> Result<SessionReport> {
+    Ok(run_sessions(ctx, vec![options])?.remove(0))
+}
+
+/// Runs sessions side by side (each on its own radio and ports), so
+/// independent measurements share the wall time; reports in the given order.
+pub fn run_sessions(
+    ctx: &mut PhaseContext,
+    options: Vec<SessionOptions>,
+) -> Result<Vec<SessionReport>> {
+    let mut sessions = Vec::new();
+    for o in options {
+        let session = MavloraSession::start(o)?;
+        ctx.log(format!(
+            "{}: telemetry at the GCS {:.0} ms after start",
+            session.options.name,
+            session.telemetry_at.ms_since(session.started)
+        ));
+        sessions.push(session);
+    }
+    let mut reports = Vec::new();
+    for session in sessions {
+        let label = session.options.name.clone();
+        let report = session.finish()?;
+        keep_evidence(ctx, &label, &report);
+        reports.push(report);
+    }
+    Ok(reports)
+}
+
+fn keep_evidence(ctx: &mut PhaseContext, label: &str, report: &SessionReport) {
+    for file in &report.files {
+        let media = if file.extension().is_some_and(|e| e == "json") {
+            "application/json"
+        } else if file.extension().is_some_and(|e| e == "tlog") {
+            "application/octet-stream"
+        } else {
+            "text/plain"
+        };
+        let stem = file.file_name().unwrap_or_default().to_string_lossy();
+        ctx.attach(format!("{label}/{stem}"), file.clone(), media);
+    }
+    let (d, u) = (&report.downlink, &report.uplink);
+    ctx.log(format!(
+        "{label}: radio downlink {} B offered, {} on air, {} lost, {} dropped (buffer); uplink {} offered, {} on air, {} lost",
+        d.bytes_offered, d.bytes_sent, d.bytes_lost, d.bytes_dropped, u.bytes_offered, u.bytes_sent, u.bytes_lost
+    ));
+    for (who, line) in [
+        ("bridge", &report.bridge_status),
+        ("router", &report.router_status),
+    ] {
+        if let Some(line) = line {
+            ctx.log(format!("{label}: {who} {line}"));
+        }
+    }
+}
+
+/// Fails the phase when a program did not stop cleanly (status 0 on
+/// SIGTERM, or the GCS's own status): called after the measurements are
+/// recorded, so they are kept either way.
+pub fn ensure_clean(ctx: &mut PhaseContext, report: &SessionReport) -> Result<()> {
+    let bad: Vec<String> = report
+        .exits
+        .iter()
+        .filter(|e| !e.clean())
+        .map(|e| format!("{} ({:?}, see {})", e.name, e.status, e.log.display()))
+        .collect();
+    if bad.is_empty() {
+        ctx.log("every program exited with status 0");
+        Ok(())
+    } else {
+        bail!("did not exit cleanly: {}", bad.join("; "))
+    }
+}
