@@ -91,8 +91,10 @@ pub struct RadioRoles {
     pub duty: NamedRadio,
     /// Real-time runs that measure bandwidth: loss-free.
     pub realtime_ideal: NamedRadio,
-    /// Real-time mission and C2 runs: lossy.
+    /// Real-time mission run: lossy.
     pub realtime_lossy: NamedRadio,
+    /// Real-time command run: lossy.
+    pub realtime_c2: NamedRadio,
 }
 
 #[derive(Debug, Deserialize)]
@@ -118,6 +120,7 @@ pub(super) struct RawRoles {
     pub duty: Option<String>,
     pub realtime_ideal: Option<String>,
     pub realtime_lossy: Option<String>,
+    pub realtime_c2: Option<String>,
 }
 
 /// Radios every rig has without writing them: the built-in presets, loss-free.
@@ -224,6 +227,7 @@ impl Checker<'_> {
             duty: one("duty", r.duty, "lora-sf7")?,
             realtime_ideal: one("realtime_ideal", r.realtime_ideal, "sik-64k")?,
             realtime_lossy: one("realtime_lossy", r.realtime_lossy, "sik-64k")?,
+            realtime_c2: one("realtime_c2", r.realtime_c2, "sik-64k")?,
         };
         Ok(MavloraSection {
             suites,

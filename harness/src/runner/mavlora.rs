@@ -13,6 +13,7 @@ use crate::measurement::Measurement;
 use crate::record::{Attachment, PhaseRecord, now_rfc3339};
 use crate::rigfile::{MavloraSection, RigFile, Suite};
 use crate::scenario::PhaseContext;
+use crate::scenario::mavlora::realtime::{self, SessionDefaults};
 use crate::scenario::mavlora::simulated::{self, Radios};
 
 /// The simulated scenarios' radios, from the rig file's `[mavlora]`.
@@ -52,8 +53,12 @@ pub fn add_trials(
             let declared = (scenario.measurements)(&radios);
             names.extend(declared.iter().map(|m| m.name.clone()));
             let name = format!("mavlora::simulated::{}", scenario.name);
-            let (rig, phases, out_dir, radios) =
-                (rig.clone(), phases.clone(), out_dir.to_path_buf(), radios.clone());
+            let (rig, phases, out_dir, radios) = (
+                rig.clone(),
+                phases.clone(),
+                out_dir.to_path_buf(),
+                radios.clone(),
+            );
             trials.push(Trial::test(name.clone(), move || {
                 let record = run_phase(
                     &rig,
@@ -67,7 +72,63 @@ pub fn add_trials(
             }));
         }
     }
+    if section.suites.contains(&Suite::Realtime) {
+        let defaults = Arc::new(session_defaults(rig, section));
+        for scenario in realtime::scenarios() {
+            names.extend((scenario.measurements)().into_iter().map(|m| m.name));
+            let name = format!("mavlora::realtime::{}", scenario.name);
+            let (rig, phases, out_dir, defaults) = (
+                rig.clone(),
+                phases.clone(),
+                out_dir.to_path_buf(),
+                defaults.clone(),
+            );
+            trials.push(Trial::test(name.clone(), move || {
+                let record = run_phase(
+                    &rig,
+                    &out_dir,
+                    &name,
+                    scenario.summary,
+                    (scenario.measurements)(),
+                    |ctx| {
+                        let defaults = defaults
+                            .as_ref()
+                            .as_ref()
+                            .map_err(|e| anyhow::anyhow!("{e}"))?;
+                        (scenario.run)(ctx, defaults)
+                    },
+                );
+                conclude(&phases, record)
+            }));
+        }
+    }
     names
+}
+
+/// What the real-time sessions start, from the rig file: its Python and fixtures, the
+/// MavLora programs it names (else those next to the `rig` binary), its profiles and radios.
+fn session_defaults(rig: &RigFile, section: &MavloraSection) -> Result<SessionDefaults, String> {
+    let near_rig = |name: &str| {
+        std::env::current_exe()
+            .map(|e| e.with_file_name(name))
+            .map_err(|e| format!("cannot locate the rig binary to find {name}: {e}"))
+    };
+    Ok(SessionDefaults {
+        python: rig.fixtures.python.clone(),
+        fixtures_dir: rig.fixtures.dir.clone(),
+        bridge_program: match &section.bridge {
+            Some(p) => p.clone(),
+            None => near_rig("mavlora-bridge")?,
+        },
+        router_program: match &section.router {
+            Some(p) => p.clone(),
+            None => near_rig("mavlora-router")?,
+        },
+        profile_dir: section.profiles.clone(),
+        lossy_radio: section.radios.realtime_lossy.setup.clone(),
+        clean_radio: section.radios.realtime_ideal.setup.clone(),
+        c2_radio: section.radios.realtime_c2.setup.clone(),
+    })
 }
 
 /// One phase: declares `measurements`, runs `body` with the phase's context and folder, and

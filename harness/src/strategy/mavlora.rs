@@ -184,6 +184,9 @@ pub struct SessionDefaults {
     pub lossy_radio: RadioSetup,
     /// SiK without loss, for bandwidth.
     pub clean_radio: RadioSetup,
+    /// SiK with independent loss, for commands: a burst model stepped per packet would
+    /// stretch one burst over the seconds between two commands on a quiet uplink.
+    pub c2_radio: RadioSetup,
 }
 
 impl SessionDefaults {
@@ -200,6 +203,7 @@ impl SessionDefaults {
             profile_dir: repo.join("mavlora/profiles"),
             lossy_radio: sik_with_loss(0.10, 2.0)?,
             clean_radio: RadioSetup::builtin("sik-64k")?,
+            c2_radio: sik_with_independent_loss(0.10)?,
         })
     }
 
@@ -239,6 +243,25 @@ pub fn sik_with_loss(loss: f64, burst: f64) -> Result<RadioSetup> {
         seed: 2,
         ..LinkConfig::default()
     };
+    Ok(setup)
+}
+
+/// SiK 64k losing `loss` of the air packets each way, independently (seeds 3 down, 4 up).
+pub fn sik_with_independent_loss(loss: f64) -> Result<RadioSetup> {
+    let mut setup = RadioSetup::builtin("sik-64k")?;
+    let independent = |seed| LinkConfig {
+        burst: Some(GilbertElliott {
+            p_good_to_bad: 0.0,
+            p_bad_to_good: 1.0,
+            loss_good: loss,
+            loss_bad: loss,
+        }),
+        seed,
+        ..LinkConfig::default()
+    };
+    setup.downlink = independent(3);
+    setup.uplink = independent(4);
+    setup.radio()?;
     Ok(setup)
 }
 
@@ -788,6 +811,7 @@ mod tests {
             profile_dir: repo.join("mavlora/profiles"),
             lossy_radio: sik_with_loss(0.1, 2.0).unwrap(),
             clean_radio: RadioSetup::builtin("sik-64k").unwrap(),
+            c2_radio: sik_with_independent_loss(0.1).unwrap(),
         };
         defaults.options("t", &defaults.clean_radio, dir)
     }

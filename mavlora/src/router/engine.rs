@@ -38,6 +38,7 @@ pub struct RouterConfig {
     /// measured command round trip.
     pub command_initial_rto: Duration,
     /// Sends of one command over the radio, the first included; 1 turns retransmission off.
+    /// The default, 8, outlasts a ground station's 5 tries 1.5 s apart.
     pub command_attempts: u32,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
@@ -55,7 +56,7 @@ impl RouterConfig {
             gcs_heartbeat_period: Duration::from_secs(5),
             initial_rtt: Duration::from_millis(1500),
             command_initial_rto: Duration::from_millis(1000),
-            command_attempts: 5,
+            command_attempts: 8,
             signing: None,
         }
     }
@@ -130,10 +131,12 @@ impl Router {
                 Duration::from_millis(300),
                 Duration::from_secs(8),
             ),
+            // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
+            // congestion, so doubling the timeout past it only adds latency.
             commands: CommandRetransmitter::new(
                 config.command_initial_rto,
                 Duration::from_millis(200),
-                Duration::from_secs(3),
+                Duration::from_millis(1500),
                 config.command_attempts,
             ),
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),

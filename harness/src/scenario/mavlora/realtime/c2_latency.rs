@@ -44,7 +44,7 @@ fn measurements() -> Vec<Measurement> {
 }
 
 fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
-    let mut o = d.options("c2_latency", &d.lossy_radio, &ctx.dir.join("c2_latency"));
+    let mut o = d.options("c2_latency", &d.c2_radio, &ctx.dir.join("c2_latency"));
     o.gcs = GcsPlan {
         listen_s: 2.0,
         commands: COMMANDS,
