@@ -55,6 +55,10 @@ struct Args {
     /// Replace periodic telemetry by compact frames (the router expands them).
     #[arg(long)]
     compact: bool,
+    /// With --compact: hold compact frames this many ms so they share one radio packet
+    /// (LoRa under a duty-cycle rule: 1500 fits EU 433 MHz's 10 % at SF7/125 kHz) [default: 0].
+    #[arg(long)]
+    coalesce_ms: Option<u64>,
     /// Vehicle system id, until the flight controller's heartbeat tells [default: 1].
     #[arg(long)]
     system_id: Option<u8>,
@@ -81,6 +85,7 @@ struct FileConfig {
     rate: Option<u32>,
     burst: Option<u32>,
     compact: Option<bool>,
+    coalesce_ms: Option<u64>,
     system_id: Option<u8>,
     link_quality_period: Option<f64>,
     status_interval: Option<f64>,
@@ -116,8 +121,14 @@ fn run(args: Args) -> Result<()> {
     let rate = args.rate.or(file.rate).unwrap_or(683);
     let burst = args.burst.or(file.burst).unwrap_or(600);
     let mut config = BridgeConfig::new(profile, SchedulerConfig::for_radio(rate, burst));
+    let coalesce_ms = args.coalesce_ms.or(file.coalesce_ms);
     if args.compact || file.compact.unwrap_or(false) {
-        config.compact = Some(CompactConfig::default());
+        config.compact = Some(CompactConfig {
+            coalesce: Duration::from_millis(coalesce_ms.unwrap_or(0)),
+            ..CompactConfig::default()
+        });
+    } else if coalesce_ms.is_some() {
+        anyhow::bail!("--coalesce-ms / `coalesce_ms` needs compact telemetry (--compact)");
     }
     if let Some(id) = args.system_id.or(file.system_id) {
         config.system_id = id;

@@ -54,6 +54,9 @@ pub struct BridgeStats {
     pub config_acks: u64,
     /// Flight-controller reboots detected.
     pub fc_reboots: u64,
+    /// Compact mode: frames the compact messages replace, dropped before the flight
+    /// controller was identified.
+    pub held_before_fc: u64,
     /// Ground heartbeats regenerated towards the flight controller.
     pub gcs_heartbeats_regenerated: u64,
     /// `LINK_QUALITY` reports sent to the radio.
@@ -249,6 +252,12 @@ impl Bridge {
                 return;
             }
         }
+        // Compact mode: until the autopilot's first heartbeat names it, what the compact frames
+        // will carry does not go raw (a few hundred bytes at start otherwise).
+        if self.compactor.is_some() && self.watch.fc().is_none() && REPLACED_IDS.contains(&id) {
+            self.stats.held_before_fc += 1;
+            return;
+        }
         if self.filter.check(&frame, now) == Verdict::Pass {
             self.scheduler.push(frame, Class::of(id), now);
         }
@@ -417,16 +426,33 @@ impl Bridge {
     /// Does what is due at `now`: link-quality reports, compact telemetry, regenerated ground
     /// heartbeats, configuration retries, mission timeouts.
     pub fn handle_timeout(&mut self, now: Instant) {
-        if let Some(report) = self.quality.poll_report(now, self.radio_reader.stats()) {
+        let mut released = false;
+        if let Some(compactor) = &mut self.compactor {
+            // A coalesced group must leave whole (one radio packet): as priority frames, so a
+            // batch cannot replace the batch before it in the scheduler.
+            let class = if compactor.coalescing() {
+                Class::Priority
+            } else {
+                Class::Periodic
+            };
+            while let Some(msg) = compactor.poll(now) {
+                released = true;
+                let frame = self.radio_sender.frame(&msg);
+                self.scheduler.push(frame, class, now);
+            }
+        }
+        // Coalescing: the report rides with the next group instead of paying its own packet.
+        if (!self.coalescing() || released)
+            && let Some(report) = self.quality.poll_report(now, self.radio_reader.stats())
+        {
             let frame = self.radio_sender.frame(&MavMessage::LINK_QUALITY(report));
             self.stats.link_quality_sent += 1;
-            self.scheduler.push(frame, Class::Periodic, now);
-        }
-        if let Some(compactor) = &mut self.compactor {
-            while let Some(msg) = compactor.poll(now) {
-                let frame = self.radio_sender.frame(&msg);
-                self.scheduler.push(frame, Class::Periodic, now);
-            }
+            let class = if released {
+                Class::Priority
+            } else {
+                Class::Periodic
+            };
+            self.scheduler.push(frame, class, now);
         }
         while let Some(frame) = self.gcs_heartbeat.poll(now) {
             self.stats.gcs_heartbeats_regenerated += 1;
@@ -435,6 +461,12 @@ impl Bridge {
         self.config_tick(now);
         self.mission.handle_timeout(now);
         self.drain_mission(now);
+    }
+
+    /// Whether compact frames are coalesced and link-quality reports ride with them (only
+    /// once the flight controller is known: before, nothing would carry the reports).
+    fn coalescing(&self) -> bool {
+        self.watch.fc().is_some() && self.compactor.as_ref().is_some_and(Compactor::coalescing)
     }
 
     fn drain_mission(&mut self, now: Instant) {
@@ -476,8 +508,9 @@ impl Bridge {
 
     /// When the engine next needs [`handle_timeout`](Self::handle_timeout) or can send.
     pub fn poll_timeout(&mut self, now: Instant) -> Option<Instant> {
+        let quality = (!self.coalescing()).then(|| self.quality.poll_timeout());
         [
-            Some(self.quality.poll_timeout()),
+            quality,
             self.scheduler.poll_timeout(now),
             self.compactor.as_ref().and_then(|c| c.poll_timeout()),
             self.gcs_heartbeat.poll_timeout(),

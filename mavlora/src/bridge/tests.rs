@@ -395,3 +395,27 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
     );
     assert_eq!(b.stats().commands.replayed, 1);
 }
+
+#[test]
+fn compact_mode_keeps_replaced_messages_off_the_radio_before_the_fc_is_known() {
+    let mut c = config();
+    c.compact = Some(CompactConfig::default());
+    let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
+    b.handle_fc_bytes(fc.frame(&pos).as_bytes(), ms(0));
+    assert!(
+        to_radio(&mut b, ms(10))
+            .iter()
+            .all(|f| f.message_id() != 33)
+    );
+    assert_eq!(b.stats().held_before_fc, 1);
+    // without compact telemetry the same frame goes (the filter allows 3 Hz)
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    b.handle_fc_bytes(fc.frame(&pos).as_bytes(), ms(0));
+    assert!(
+        to_radio(&mut b, ms(10))
+            .iter()
+            .any(|f| f.message_id() == 33)
+    );
+}

@@ -24,6 +24,11 @@ pub struct CompactConfig {
     /// A status frame goes at least this often, and immediately on a change of mode, arming,
     /// state, fix type or mission item.
     pub status_period: Duration,
+    /// Frames wait this long after the first of them is ready and then leave together, so
+    /// that they share one radio packet: on LoRa each packet pays ~30 ms of preamble and
+    /// header, which decides whether compact telemetry fits a 10 % duty cycle. Zero (the
+    /// default) sends each frame when it is ready. Adds up to this much position latency.
+    pub coalesce: Duration,
 }
 
 impl Default for CompactConfig {
@@ -33,6 +38,7 @@ impl Default for CompactConfig {
             batch_samples: 3,
             batch_period: Duration::from_secs(1),
             status_period: Duration::from_secs(10),
+            coalesce: Duration::ZERO,
         }
     }
 }
@@ -72,6 +78,10 @@ pub struct Compactor {
     next_status: Option<Instant>,
     last_sent: Option<Instant>,
     out: VecDeque<MavMessage>,
+    /// When the first frame now in `out` was ready (coalescing).
+    held_since: Option<Instant>,
+    /// A coalesced group is leaving: hand out the rest of `out` without waiting.
+    releasing: bool,
     stats: CompactStats,
 }
 
@@ -96,6 +106,8 @@ impl Compactor {
             next_status: None,
             last_sent: None,
             out: VecDeque::new(),
+            held_since: None,
+            releasing: false,
             stats: CompactStats::default(),
         }
     }
@@ -158,18 +170,18 @@ impl Compactor {
         if let Some(first) = self.samples.first()
             && !fits(first, &sample)
         {
-            self.flush_batch();
+            self.flush_batch(now);
         }
         if self.samples.is_empty() {
             self.batch_started = Some(now);
         }
         self.samples.push(sample);
         if self.samples.len() >= self.config.batch_samples.clamp(1, 3) {
-            self.flush_batch();
+            self.flush_batch(now);
         }
     }
 
-    fn flush_batch(&mut self) {
+    fn flush_batch(&mut self, now: Instant) {
         let Some((first, rest)) = self.samples.split_first() else {
             return;
         };
@@ -201,8 +213,14 @@ impl Compactor {
         self.samples.clear();
         self.batch_started = None;
         self.stats.batches += 1;
-        self.out
-            .push_back(MavMessage::MAVLORA_POSITION_BATCH(batch));
+        self.enqueue(MavMessage::MAVLORA_POSITION_BATCH(batch), now);
+    }
+
+    fn enqueue(&mut self, msg: MavMessage, now: Instant) {
+        if self.out.is_empty() {
+            self.held_since = Some(now);
+        }
+        self.out.push_back(msg);
     }
 
     /// Whether the status changed in a way the ground must learn now.
@@ -223,7 +241,7 @@ impl Compactor {
         if let Some(started) = self.batch_started
             && now >= started + self.config.batch_period
         {
-            self.flush_batch();
+            self.flush_batch(now);
         }
         if self.heartbeat_seen {
             let periodic = self.next_status.is_none_or(|t| now >= t);
@@ -233,18 +251,47 @@ impl Compactor {
             // on a real clock they come a little later than `batch_period` apart, and a
             // keep-alive due at exactly one period added a status to most batches
             // (+10 B/s, found by the rig's real-time table_ii scenario).
-            let silent = self.last_sent.is_none_or(|t| now >= t + self.keep_alive());
-            if (periodic || silent || self.status_changed()) && self.out.is_empty() {
+            let silent =
+                self.out.is_empty() && self.last_sent.is_none_or(|t| now >= t + self.keep_alive());
+            let status_waiting = self
+                .out
+                .iter()
+                .any(|m| matches!(m, MavMessage::MAVLORA_STATUS(_)));
+            // Without coalescing a status never waits behind a batch: it goes on its own turn.
+            let room = if self.config.coalesce.is_zero() {
+                self.out.is_empty()
+            } else {
+                !status_waiting
+            };
+            if (periodic || silent || self.status_changed()) && room {
                 self.last_sent_status = Some(self.status.clone());
                 self.next_status = Some(now + self.config.status_period);
                 self.stats.statuses += 1;
-                self.out
-                    .push_back(MavMessage::MAVLORA_STATUS(self.status.clone()));
+                self.enqueue(MavMessage::MAVLORA_STATUS(self.status.clone()), now);
             }
         }
-        let msg = self.out.pop_front()?;
+        if !self.releasing
+            && let Some(since) = self.held_since
+            && now < since + self.config.coalesce
+        {
+            return None;
+        }
+        let Some(msg) = self.out.pop_front() else {
+            self.releasing = false;
+            self.held_since = None;
+            return None;
+        };
+        self.releasing = !self.out.is_empty();
+        if !self.releasing {
+            self.held_since = None;
+        }
         self.last_sent = Some(now);
         Some(msg)
+    }
+
+    /// Whether frames are held for coalescing (`coalesce` > 0).
+    pub fn coalescing(&self) -> bool {
+        !self.config.coalesce.is_zero()
     }
 
     /// Silence after which a status goes as a keep-alive (see `poll`).
@@ -255,7 +302,11 @@ impl Compactor {
     /// When [`poll`](Self::poll) next has something to give.
     pub fn poll_timeout(&self) -> Option<Instant> {
         if !self.out.is_empty() {
-            return self.last_sent.or(Some(Instant::ZERO));
+            if self.releasing {
+                return self.last_sent.or(Some(Instant::ZERO));
+            }
+            let since = self.held_since.unwrap_or(Instant::ZERO);
+            return Some(since + self.config.coalesce);
         }
         let batch = self.batch_started.map(|t| t + self.config.batch_period);
         let status = self.heartbeat_seen.then(|| {

@@ -58,6 +58,51 @@ fn three_positions_make_one_batch_and_status_goes_on_change() {
 }
 
 #[test]
+fn coalesced_frames_leave_together_after_the_hold() {
+    let mut c = Compactor::new(CompactConfig {
+        coalesce: Duration::from_millis(1500),
+        ..CompactConfig::default()
+    });
+    c.observe(&heartbeat(0, false), Instant::ZERO);
+    let mut groups: Vec<(u64, usize, usize)> = Vec::new();
+    // 10 s of 5 Hz position: every 200 ms observe, then poll
+    for k in 0..=50u64 {
+        let now = Instant::from_millis(k * 200);
+        let pos = GLOBAL_POSITION_INT_DATA {
+            time_boot_ms: (k * 200) as u32,
+            lat: 553_700_000 + k as i32 * 20,
+            ..Default::default()
+        };
+        c.observe(&MavMessage::GLOBAL_POSITION_INT(pos), now);
+        let out = drain(&mut c, now);
+        if !out.is_empty() {
+            let batches = out
+                .iter()
+                .filter(|m| matches!(m, MavMessage::MAVLORA_POSITION_BATCH(_)))
+                .count();
+            groups.push((k * 200, batches, out.len() - batches));
+        }
+        // nothing is due before the next release
+        if let Some(t) = c.poll_timeout() {
+            assert!(
+                t > now || !drain(&mut c, now).is_empty(),
+                "{t:?} at {now:?}"
+            );
+        }
+    }
+    // the first status waits too; afterwards two batches per release, every ~2 s
+    assert!(groups.len() >= 4, "{groups:?}");
+    for pair in groups.windows(2).skip(1) {
+        let gap = pair[1].0 - pair[0].0;
+        assert!((1800..=2200).contains(&gap), "{groups:?}");
+    }
+    assert!(groups.iter().skip(1).all(|&(_, b, _)| b == 2), "{groups:?}");
+    // none lost: what was made left, but for at most two still held at the end
+    let released: usize = groups.iter().map(|g| g.1).sum();
+    assert!((0..=2).contains(&(c.stats().batches as usize - released)));
+}
+
+#[test]
 fn position_jump_starts_a_new_batch_instead_of_overflowing() {
     let mut c = Compactor::new(CompactConfig::default());
     let a = GLOBAL_POSITION_INT_DATA::default();

@@ -33,13 +33,6 @@ pub const SCENARIO: Scenario = Scenario {
 /// The variants, in the paper's order of decreasing traffic.
 pub const VARIANTS: [&str; 4] = ["wired", "limit", "limit_filter", "compact"];
 
-/// Streams PX4's USB profile sends that `px4-compact.toml` does not list, so they would pass
-/// its default rule: `TIMESYNC` (10 Hz) and `PING` (1 Hz). The shipped profile was written
-/// for PX4's "Normal" profile, which sends neither; dropped here so the compact variant is
-/// judged on what it is meant to send (issue: add these to the shipped file).
-pub const COMPACT_EXTRA: &str =
-    "\n[messages.TIMESYNC]\nradio = \"drop\"\n\n[messages.PING]\nradio = \"drop\"\n";
-
 /// One row of the paper's Table II.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PaperRow {
@@ -167,7 +160,6 @@ pub fn fly(radios: &Radios, variant: &'static str) -> Result<Row> {
         Some(s) => Some(s.preset.resolve()?),
         None => None,
     };
-    let compact_profile = format!("{PX4_COMPACT_TOML}{COMPACT_EXTRA}");
     let mavlora = match variant {
         "wired" => None,
         "limit" => Some(mavlora_configs(
@@ -183,7 +175,7 @@ pub fn fly(radios: &Radios, variant: &'static str) -> Result<Row> {
             preset.as_ref(),
         )?),
         "compact" => Some(mavlora_configs(
-            &compact_profile,
+            PX4_COMPACT_TOML,
             "px4-compact.toml",
             true,
             preset.as_ref(),
@@ -249,11 +241,6 @@ fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
         ));
         rows.push(row);
     }
-    ctx.annotate(
-        &name("compact", "bytes_per_s"),
-        "px4-compact.toml plus radio drops for TIMESYNC and PING, which PX4's USB profile sends \
-         and the shipped profile (written for PX4's Normal profile) does not list",
-    );
     for line in render(&rows).lines() {
         ctx.log(line.to_string());
     }
