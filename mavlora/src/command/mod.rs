@@ -4,7 +4,8 @@
 //! above 3 s, SORA's medium TMPR bound. The relay closes that gap on the radio leg itself:
 //!
 //! - [`CommandRetransmitter`] (router): resends a command over the radio after a timeout that
-//!   follows the measured command round trip (RFC 6298, as the mission relay), until the
+//!   follows the measured command round trip (RFC 6298's estimate, as the mission relay, but
+//!   without its backoff: loss on a radio is not congestion), until the
 //!   vehicle's `COMMAND_ACK` comes back; the ground station's own retries of a command still
 //!   in flight are dropped (the router is already retrying).
 //! - [`AckCache`] (bridge): a command the flight controller has already acknowledged, seen

@@ -112,7 +112,9 @@ impl CommandRetransmitter {
             self.stats.given_up += 1;
             return self.poll_retransmit(now);
         }
-        self.rtt.backoff();
+        // No exponential backoff (RFC 6298 5.5): on a radio a lost command is loss, not
+        // congestion (the scheduler's byte budget already paces the link), and doubling the
+        // timeout after a lost copy is what pushes the 99th percentile past 3 s.
         let p = &mut self.pending[i];
         p.attempts += 1;
         p.sent = now;
