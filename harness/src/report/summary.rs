@@ -94,6 +94,10 @@ pub fn render_summary(record: &RunRecord, dir: &Path) -> String {
             out.push('\n');
         }
     }
+    if let Some(table) = super::table_ii::render(record) {
+        out.push('\n');
+        out.push_str(&table);
+    }
     out.push('\n');
     out.push_str(&closing_line(record, dir));
     out.push('\n');
