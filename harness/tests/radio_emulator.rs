@@ -7,7 +7,7 @@ use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
 use rig::radio::{Direction, LinkBudget, LinkConfig, Preset, Radio, RadioEmulator};
-use serialport::TTYPort;
+use serialport::{SerialPort as _, TTYPort};
 
 fn open(path: &str) -> TTYPort {
     serialport::new(path, 57_600)
@@ -140,4 +140,43 @@ fn a_deep_fade_loses_the_packets() {
     assert!(s.packets_sent > 0, "{s:?}");
     assert_eq!(s.packets_lost, s.packets_sent, "{s:?}");
     assert!(got.is_empty());
+}
+
+/// On a bench the emulator sits between two serial devices; here the devices are the far
+/// ends of two pty pairs, and the programs' ends are their masters.
+#[test]
+fn between_two_devices_carries_both_ways() {
+    let (mut drone, drone_dev) = TTYPort::pair().unwrap();
+    let (mut ground, ground_dev) = TTYPort::pair().unwrap();
+    for p in [&mut drone, &mut ground] {
+        p.set_timeout(Duration::from_millis(100)).unwrap();
+    }
+    let cfg = LinkConfig::default();
+    let radio = Radio::new(&Preset::sik_64k(), &cfg, &cfg).unwrap();
+    let emulator = RadioEmulator::between(
+        "bench-test",
+        radio,
+        drone_dev.name().as_deref().unwrap(),
+        ground_dev.name().as_deref().unwrap(),
+        57_600,
+    )
+    .unwrap();
+    assert_eq!(emulator.a_path(), drone_dev.name().unwrap());
+    drone.write_all(b"telemetry").unwrap();
+    assert_eq!(
+        read_for(&mut ground, 9, Duration::from_secs(3)),
+        b"telemetry"
+    );
+    ground.write_all(b"command").unwrap();
+    assert_eq!(read_for(&mut drone, 7, Duration::from_secs(3)), b"command");
+    let radio = emulator.finish();
+    assert_eq!(radio.link(Direction::AToB).stats().bytes_offered, 9);
+    assert_eq!(radio.link(Direction::BToA).stats().bytes_offered, 7);
+    // a device that is not there is an error naming it
+    let cfg = LinkConfig::default();
+    let radio = Radio::new(&Preset::sik_64k(), &cfg, &cfg).unwrap();
+    let err = RadioEmulator::between("bench", radio, "/dev/ttyNOPE0", "/dev/ttyNOPE1", 57_600)
+        .err()
+        .unwrap();
+    assert!(format!("{err:#}").contains("/dev/ttyNOPE0"), "{err:#}");
 }

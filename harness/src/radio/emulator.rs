@@ -1,4 +1,7 @@
-//! The radio emulator: a [`Radio`] between two pty pairs, on the real clock.
+//! The radio emulator: a [`Radio`] between two pty pairs, on the real clock
+//! ([`RadioEmulator::new`], CI), or between two serial devices on a bench
+//! ([`RadioEmulator::between`]: two USB-serial adapters, each null-modem wired
+//! to the bridge's or the router's radio port, in place of the radios).
 //!
 //! Side A's program opens [`RadioEmulator::a_path`], side B's opens
 //! [`RadioEmulator::b_path`]; bytes written on one side come out on the other
@@ -36,10 +39,27 @@ struct Shared {
 
 /// A running emulated radio between two pty paths.
 pub struct RadioEmulator {
-    a: PtyPair,
-    b: PtyPair,
+    a: Side,
+    b: Side,
     shared: Arc<Shared>,
     worker: Option<JoinHandle<()>>,
+}
+
+/// Where one side's program connects.
+enum Side {
+    /// The program opens this pair's far end.
+    Pty(PtyPair),
+    /// The program is wired to this device.
+    Device(String),
+}
+
+impl Side {
+    fn path(&self) -> &str {
+        match self {
+            Side::Pty(p) => p.path(),
+            Side::Device(d) => d,
+        }
+    }
 }
 
 impl RadioEmulator {
@@ -47,8 +67,45 @@ impl RadioEmulator {
     pub fn new(name: &str, radio: Radio) -> Result<RadioEmulator> {
         let mut a = PtyPair::new()?;
         let mut b = PtyPair::new()?;
-        let mut a_master = a.take_master()?;
-        let mut b_master = b.take_master()?;
+        let a_master = a.take_master()?;
+        let b_master = b.take_master()?;
+        Self::start(name, radio, Side::Pty(a), Side::Pty(b), a_master, b_master)
+    }
+
+    /// Starts `radio` between two serial devices at `baud` (8N1): side A is `a_device`
+    /// (wired to the drone's radio port), side B `b_device` (the ground's).
+    pub fn between(
+        name: &str,
+        radio: Radio,
+        a_device: &str,
+        b_device: &str,
+        baud: u32,
+    ) -> Result<RadioEmulator> {
+        let open = |path: &str| {
+            serialport::new(path, baud).open_native().with_context(|| {
+                format!("radio emulator {name}: cannot open {path} at {baud} baud")
+            })
+        };
+        let a_port = open(a_device)?;
+        let b_port = open(b_device)?;
+        Self::start(
+            name,
+            radio,
+            Side::Device(a_device.to_string()),
+            Side::Device(b_device.to_string()),
+            a_port,
+            b_port,
+        )
+    }
+
+    fn start(
+        name: &str,
+        radio: Radio,
+        a: Side,
+        b: Side,
+        mut a_master: TTYPort,
+        mut b_master: TTYPort,
+    ) -> Result<RadioEmulator> {
         for port in [&mut a_master, &mut b_master] {
             // A reader that stopped must not stall the radio for long.
             port.set_timeout(Duration::from_millis(20))?;
@@ -73,12 +130,12 @@ impl RadioEmulator {
         })
     }
 
-    /// Side A's serial port path.
+    /// The serial port side A's program opens (a pty), or is wired to (a device).
     pub fn a_path(&self) -> &str {
         self.a.path()
     }
 
-    /// Side B's serial port path.
+    /// As [`RadioEmulator::a_path`], for side B.
     pub fn b_path(&self) -> &str {
         self.b.path()
     }
