@@ -1,18 +1,13 @@
 //! MavLora trials: the simulated reproductions (in-process, virtual clock) and the real-time
 //! runs of the real binaries, each scenario one phase.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
-use std::time::Instant;
 
-use anyhow::Result;
 use libtest_mimic::Trial;
 
-use super::{Phases, conclude};
-use crate::measurement::Measurement;
-use crate::record::{Attachment, PhaseRecord, now_rfc3339};
+use super::{Phases, conclude, run_phase};
 use crate::rigfile::{MavloraSection, RigFile, Suite};
-use crate::scenario::PhaseContext;
 use crate::scenario::mavlora::realtime::{self, SessionDefaults};
 use crate::scenario::mavlora::simulated::{self, Radios};
 
@@ -129,43 +124,4 @@ fn session_defaults(rig: &RigFile, section: &MavloraSection) -> Result<SessionDe
         clean_radio: section.radios.realtime_ideal.setup.clone(),
         c2_radio: section.radios.realtime_c2.setup.clone(),
     })
-}
-
-/// One phase: declares `measurements`, runs `body` with the phase's context and folder, and
-/// turns what it recorded, logged and attached into a [`PhaseRecord`].
-pub fn run_phase(
-    rig: &RigFile,
-    out_dir: &Path,
-    name: &str,
-    summary: &str,
-    measurements: Vec<Measurement>,
-    body: impl FnOnce(&mut PhaseContext) -> Result<()>,
-) -> PhaseRecord {
-    let started = now_rfc3339();
-    let clock = Instant::now();
-    let dir: PathBuf = out_dir.join(name.replace("::", "."));
-    let mut ctx = PhaseContext::new(rig, &dir);
-    for m in measurements {
-        ctx.declare(m);
-    }
-    ctx.log(summary);
-    let error = body(&mut ctx).err().map(|e| format!("{e:#}"));
-    let (measurements, log, files) = ctx.into_parts();
-    let mut record = PhaseRecord::ran(
-        name,
-        started,
-        clock.elapsed().as_secs_f64(),
-        measurements,
-        error,
-    );
-    record.log = log;
-    for (label, path, media) in files {
-        match Attachment::from_file(out_dir, &path, label, media) {
-            Ok(a) => record.attachments.push(a),
-            Err(e) => record
-                .log
-                .push(format!("attachment {} not kept: {e}", path.display())),
-        }
-    }
-    record
 }

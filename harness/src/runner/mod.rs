@@ -145,20 +145,13 @@ fn run_scenario(
     scenario: &Scenario,
     limits: &Limits,
 ) -> PhaseRecord {
-    let started = now_rfc3339();
-    let clock = Instant::now();
-    let dir = out_dir.join(name.replace("::", "."));
-    let mut ctx = PhaseContext::new(rig, &dir);
-    for m in (scenario.measurements)(limits) {
-        ctx.declare(m);
-    }
-    for m in multirx::session_measurements(limits, scenario.name) {
-        ctx.declare(m);
-    }
-    ctx.log(scenario.summary);
-    let result = MultirxSession::start(rig, mode, scenario.options, &dir).and_then(|session| {
-        let result = (scenario.run)(&session, &mut ctx, limits);
-        let recorded = multirx::record_session(&session, &mut ctx, limits, scenario.name);
+    let mut declared = (scenario.measurements)(limits);
+    declared.extend(multirx::session_measurements(limits, scenario.name));
+    let dir = phase_dir(out_dir, name);
+    run_phase(rig, out_dir, name, scenario.summary, declared, |ctx| {
+        let session = MultirxSession::start(rig, mode, scenario.options, &dir)?;
+        let result = (scenario.run)(&session, ctx, limits);
+        let recorded = multirx::record_session(&session, ctx, limits, scenario.name);
         for log in session.finish() {
             let label = log
                 .file_stem()
@@ -172,8 +165,33 @@ fn run_scenario(
             ctx.attach(label, log, media);
         }
         result.and(recorded)
-    });
-    let error = result.err().map(|e| format!("{e:#}"));
+    })
+}
+
+/// A phase's own folder in the output folder: `multirx::parallel::b_handover` →
+/// `multirx.parallel.b_handover`.
+fn phase_dir(out_dir: &Path, name: &str) -> PathBuf {
+    out_dir.join(name.replace("::", "."))
+}
+
+/// One phase: declares `measurements`, runs `body` with the phase's context (its folder is
+/// [`phase_dir`]), and turns what it recorded, logged and attached into a [`PhaseRecord`].
+fn run_phase(
+    rig: &RigFile,
+    out_dir: &Path,
+    name: &str,
+    summary: &str,
+    measurements: Vec<Measurement>,
+    body: impl FnOnce(&mut PhaseContext) -> Result<()>,
+) -> PhaseRecord {
+    let started = now_rfc3339();
+    let clock = Instant::now();
+    let mut ctx = PhaseContext::new(rig, &phase_dir(out_dir, name));
+    for m in measurements {
+        ctx.declare(m);
+    }
+    ctx.log(summary);
+    let error = body(&mut ctx).err().map(|e| format!("{e:#}"));
     let (measurements, log, files) = ctx.into_parts();
     let mut record = PhaseRecord::ran(
         name,
