@@ -1,0 +1,308 @@
+//! Bringing the chain up and down: FC fixture, bridge, radio emulator, router,
+//! GCS fixture.
+
+use std::net::UdpSocket;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde_json::Value;
+
+use super::fixture_lines::LineReader;
+use super::report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status};
+use super::{Result, SessionError, SessionOptions, Variant};
+use crate::clock::Mono;
+use crate::driver::process::Process;
+use crate::radio::{LinkStats, RadioEmulator, RadioSetup};
+
+/// A running MavLora link with its fixtures.
+pub struct MavloraSession {
+    pub options: SessionOptions,
+    radio: Arc<RadioEmulator>,
+    fc: Process,
+    fc_lines: LineReader,
+    bridge: Option<Process>,
+    router: Option<Process>,
+    gcs: Process,
+    gcs_lines: LineReader,
+    fc_summary: PathBuf,
+    /// When the first telemetry reached the GCS.
+    pub telemetry_at: Mono,
+    pub started: Mono,
+}
+
+impl MavloraSession {
+    /// Starts FC fixture → bridge → radio → router → GCS and waits until
+    /// telemetry reaches the GCS.
+    pub fn start(options: SessionOptions) -> Result<MavloraSession> {
+        let dir = &options.out_dir;
+        std::fs::create_dir_all(dir).map_err(|source| SessionError::Io {
+            path: dir.clone(),
+            source,
+        })?;
+        let bridged = options.variant == Variant::Bridge;
+        if bridged {
+            for p in [&options.bridge_program, &options.router_program] {
+                if !p.exists() {
+                    return Err(SessionError::ProgramMissing(p.clone()));
+                }
+            }
+        }
+        let started = Mono::now();
+        let radio = Arc::new(RadioEmulator::new(&options.name, options.radio.radio()?)?);
+
+        // Flight controller: its own pty behind a bridge; the radio's port when naive.
+        let fc_summary = dir.join("fc.json");
+        let mut command = Command::new(&options.python);
+        command
+            .arg(options.fixtures_dir.join("mavlora_fc.py"))
+            .arg("--summary")
+            .arg(&fc_summary)
+            .args(["--profile", options.fc_profile.as_str(), "--path", "route"]);
+        if !bridged {
+            command.args(["--port", radio.a_path()]);
+        }
+        let mut fc = Process::spawn("mavlora_fc", command, &dir.join("fc.log"))?;
+        let fc_lines = LineReader::start("mavlora_fc", fc.take_stdout().unwrap(), None)?;
+        let fixture_timeout = Duration::from_secs(10);
+        let ready = fc_lines
+            .wait_for(fixture_timeout, |l| l.event() == Some("ready"))
+            .ok_or_else(|| SessionError::FixtureStart {
+                name: "mavlora_fc.py".into(),
+                timeout: fixture_timeout,
+                log: fc.log_path().to_path_buf(),
+            })?;
+        let fc_port = ready.value["port"].as_str().unwrap_or_default().to_string();
+        tracing::debug!(port = %fc_port, "FC fixture ready");
+
+        let mut bridge = None;
+        let mut router = None;
+        let gcs_target: Vec<String>;
+        if bridged {
+            let mut command = Command::new(&options.bridge_program);
+            command
+                .args(["--fc", &fc_port, "--radio", radio.a_path()])
+                .arg("--profile")
+                .arg(&options.bridge_profile)
+                .args(["--rate", &options.rate.to_string()])
+                .args(["--status-interval", "2"])
+                .env("NO_COLOR", "1");
+            if options.compact {
+                command.arg("--compact");
+            }
+            bridge = Some(Process::spawn(
+                "mavlora-bridge",
+                command,
+                &dir.join("bridge.log"),
+            )?);
+            let port = free_udp_port(dir)?;
+            let mut command = Command::new(&options.router_program);
+            command
+                .args(["--radio", radio.b_path()])
+                .args(["--udp", &format!("127.0.0.1:{port}")])
+                .args(["--udp-bind", "127.0.0.1:0", "--status-interval", "2"])
+                .arg("--tlog")
+                .arg(dir.join("router.tlog"))
+                .env("NO_COLOR", "1");
+            router = Some(Process::spawn(
+                "mavlora-router",
+                command,
+                &dir.join("router.log"),
+            )?);
+            gcs_target = vec!["--udp".into(), format!("127.0.0.1:{port}")];
+        } else {
+            gcs_target = vec!["--serial".into(), radio.b_path().to_string()];
+        }
+
+        let p = &options.gcs;
+        let mut command = Command::new(&options.python);
+        command
+            .arg(options.fixtures_dir.join("mavlora_gcs.py"))
+            .args(&gcs_target)
+            .arg("--events")
+            .args(["--listen", &p.listen_s.to_string()])
+            .args(["--warmup", &p.warmup_s.to_string()])
+            .args(["--commands", &p.commands.to_string()])
+            .args(["--command-interval", &p.command_interval_s.to_string()])
+            .args(["--command-retry", &p.command_retry_s.to_string()])
+            .args(["--command-tries", &p.command_tries.to_string()])
+            .args(["--items", &p.items.to_string()])
+            .args(["--item-timeout", &p.item_timeout_s.to_string()])
+            .args(["--upload-timeout", &p.upload_timeout_s.to_string()]);
+        let mut gcs = Process::spawn("mavlora_gcs", command, &dir.join("gcs.log"))?;
+        let gcs_lines = LineReader::start(
+            "mavlora_gcs",
+            gcs.take_stdout().unwrap(),
+            Some(radio.clone()),
+        )?;
+
+        let mut session = MavloraSession {
+            telemetry_at: started,
+            started,
+            radio,
+            fc,
+            fc_lines,
+            bridge,
+            router,
+            gcs,
+            gcs_lines,
+            fc_summary,
+            options,
+        };
+        // Up when the vehicle's first message reaches the ground station.
+        let timeout = session.options.ready_timeout;
+        let Some(first) = session
+            .gcs_lines
+            .wait_for(timeout, |l| l.event() == Some("telemetry"))
+        else {
+            for p in [&mut session.bridge, &mut session.router]
+                .into_iter()
+                .flatten()
+            {
+                p.check_running()?;
+            }
+            session.fc.check_running()?;
+            return Err(SessionError::NoTelemetry {
+                timeout,
+                dir: session.options.out_dir.clone(),
+            });
+        };
+        session.telemetry_at = first.at;
+        tracing::info!(
+            session = %session.options.name,
+            after_ms = first.at.ms_since(started),
+            "telemetry at the GCS"
+        );
+        Ok(session)
+    }
+
+    /// The radio's counters now: (downlink, uplink).
+    pub fn radio_stats(&self) -> (LinkStats, LinkStats) {
+        (
+            self.radio.stats(RadioSetup::DOWNLINK),
+            self.radio.stats(RadioSetup::UPLINK),
+        )
+    }
+
+    /// Waits for the GCS to finish its plan, stops everything and collects the evidence.
+    pub fn finish(mut self) -> Result<SessionReport> {
+        let dir = self.options.out_dir.clone();
+        let budget = self.options.gcs.budget();
+        let gcs_status = self.gcs.wait_timeout(budget)?;
+        let gcs_status = match gcs_status {
+            Some(s) => Some(s),
+            None => {
+                self.stop_all();
+                return Err(SessionError::GcsTimeout {
+                    timeout: budget,
+                    log: self.gcs.log_path().to_path_buf(),
+                });
+            }
+        };
+        // The reader sees EOF after the exit; wait for its last line.
+        let _ = self
+            .gcs_lines
+            .wait_for(Duration::from_secs(2), |l| l.value.get("event").is_none());
+        let mut exits = vec![ExitRecord {
+            name: "mavlora_gcs".into(),
+            status: gcs_status,
+            accepted: vec![GCS_PHASE_FAILED],
+            log: self.gcs.log_path().to_path_buf(),
+        }];
+        let grace = Duration::from_secs(5);
+        // Bridge first, so the FC is not left talking to nobody mid-frame; router; FC last
+        // (it writes its summary on SIGTERM).
+        for p in [self.bridge.as_mut(), self.router.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            exits.push(ExitRecord {
+                name: p.name().to_string(),
+                status: p.terminate(grace)?,
+                accepted: Vec::new(),
+                log: p.log_path().to_path_buf(),
+            });
+        }
+        exits.push(ExitRecord {
+            name: "mavlora_fc".into(),
+            status: self.fc.terminate(grace)?,
+            accepted: Vec::new(),
+            log: self.fc.log_path().to_path_buf(),
+        });
+        let (downlink, uplink) = self.radio_stats();
+        let summary_err = |what: &Path, reason: String| SessionError::Summary {
+            what: what.display().to_string(),
+            reason,
+        };
+        let fc_text = std::fs::read_to_string(&self.fc_summary)
+            .map_err(|e| summary_err(&self.fc_summary, e.to_string()))?;
+        let fc: Value = serde_json::from_str(&fc_text)
+            .map_err(|e| summary_err(&self.fc_summary, e.to_string()))?;
+        let lines = self.gcs_lines.all();
+        let gcs = lines
+            .iter()
+            .rev()
+            .find(|l| l.value.get("event").is_none())
+            .map(|l| l.value.clone())
+            .ok_or_else(|| {
+                summary_err(
+                    self.gcs.log_path(),
+                    "the GCS fixture printed no summary line".into(),
+                )
+            })?;
+        let gcs_events = lines
+            .into_iter()
+            .filter(|l| l.value.get("event").is_some())
+            .collect();
+        let fc_events = self.fc_lines.all();
+        let bridge_status = self.bridge.as_ref().and_then(|p| last_status(p.log_path()));
+        let router_status = self.router.as_ref().and_then(|p| last_status(p.log_path()));
+        let mut files: Vec<PathBuf> = exits.iter().map(|e| e.log.clone()).collect();
+        files.push(self.fc_summary.clone());
+        let tlog = dir.join("router.tlog");
+        if tlog.exists() {
+            files.push(tlog);
+        }
+        for e in &exits {
+            if !e.clean() {
+                tracing::warn!(program = %e.name, status = ?e.status, "did not exit cleanly");
+            }
+        }
+        Ok(SessionReport {
+            fc,
+            gcs,
+            gcs_events,
+            fc_events,
+            downlink,
+            uplink,
+            bridge_status,
+            router_status,
+            exits,
+            files,
+        })
+    }
+
+    fn stop_all(&mut self) {
+        let grace = Duration::from_secs(2);
+        self.gcs.stop(grace);
+        for p in [self.bridge.as_mut(), self.router.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            p.stop(grace);
+        }
+        self.fc.stop(grace);
+    }
+}
+
+/// A UDP port free now on loopback, for the router to send to.
+fn free_udp_port(dir: &Path) -> Result<u16> {
+    UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .map(|a| a.port())
+        .map_err(|source| SessionError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })
+}
