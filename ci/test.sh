@@ -2,13 +2,14 @@
 # Every test: formatting and lints, the Rust workspace (unit, property,
 # scenario and end-to-end tests over real ptys), the Python fixtures, the
 # SAMD21 firmware build with its size, the MultiRX core's and MavLora's
-# benchmarks, and finally the
-# full emulated rig suite.
+# benchmarks, and finally the full emulated rig suite. Each step says when it
+# started (seconds since the first).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash ci/setup.sh
 
-step() { printf '\n=== %s\n' "$*"; }
+started=$SECONDS
+step() { printf '\n=== %s (at %d s)\n' "$*" $((SECONDS - started)); }
 
 step "cargo fmt --check"
 cargo fmt --all -- --check
@@ -26,3 +27,4 @@ step "mavlora benchmark"
 cargo bench --locked -q -p mavlora --bench radio
 step "rig suite, emulated rig"
 bash ci/rig-emulated.sh --out target/rig-report
+step "done"
