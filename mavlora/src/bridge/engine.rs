@@ -18,9 +18,9 @@ use crate::filter::{
 use crate::mission::{MissionRelay, MissionStats};
 use crate::quality::LinkQuality;
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
-use crate::signing::{LinkSigner, SigningStats};
+use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Resequencer, Sender};
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender};
 
 /// Counters of one bridge, for the status line and tests.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -97,8 +97,8 @@ pub struct Bridge {
     fc_sender: Sender,
     to_fc: VecDeque<OwnedFrame>,
     /// Renumbers what leaves on the radio, so the router counts radio loss only.
-    radio_sequence: Resequencer,
-    signer: Option<LinkSigner>,
+    /// Renumbers and signs what leaves on the radio, verifies what arrives.
+    radio_leg: RadioLeg,
     config_state: ConfigState,
     stats: BridgeStats,
 }
@@ -127,8 +127,7 @@ impl Bridge {
             radio_sender: Sender::new(sys, comp, MavlinkVersion::V2),
             fc_sender: Sender::new(sys, comp, MavlinkVersion::V2),
             to_fc: VecDeque::new(),
-            radio_sequence: Resequencer::new(),
-            signer: config.signing.as_ref().map(|s| s.signer()),
+            radio_leg: RadioLeg::new(config.signing.as_ref()),
             config_state: ConfigState {
                 pending: Vec::new(),
                 acknowledged: true,
@@ -156,7 +155,7 @@ impl Bridge {
                 .unwrap_or_default(),
             mission: self.mission.stats(),
             commands: self.commands.stats(),
-            signing: self.signer.as_ref().map(|s| s.stats()).unwrap_or_default(),
+            signing: self.radio_leg.stats(),
             ..self.stats.clone()
         }
     }
@@ -366,15 +365,8 @@ impl Bridge {
     }
 
     fn radio_frame(&mut self, frame: OwnedFrame, now: Instant) {
-        let frame = match &mut self.signer {
-            None => frame,
-            Some(signer) => match signer.verify(&frame, now) {
-                Ok(plain) => plain,
-                Err(why) => {
-                    debug!(?why, msgid = frame.message_id(), "radio frame rejected");
-                    return;
-                }
-            },
+        let Some(frame) = self.radio_leg.incoming(frame, now) else {
+            return;
         };
         self.quality.handle_frame(&frame, now);
         let id = frame.message_id();
@@ -494,14 +486,9 @@ impl Bridge {
     pub fn poll_radio_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
         self.drain_mission(now);
         loop {
-            let mut frame = self.scheduler.poll_transmit(now, room)?;
-            self.radio_sequence.apply(&mut frame);
-            let Some(signer) = &mut self.signer else {
+            let frame = self.scheduler.poll_transmit(now, room)?;
+            if let Some(frame) = self.radio_leg.outgoing(frame, now) {
                 return Some(frame);
-            };
-            // a frame that cannot be signed would be rejected by the router anyway
-            if let Some(signed) = signer.sign(&frame, now) {
-                return Some(signed);
             }
         }
     }

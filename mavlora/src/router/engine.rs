@@ -12,9 +12,9 @@ use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::DuplicateSuppressor;
 use crate::quality::{LinkQuality, LinkQualityConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
-use crate::signing::{LinkSigner, SigningConfig, SigningStats};
+use crate::signing::{RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Resequencer, Sender, encode, known};
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, encode, known};
 
 /// Router settings.
 #[derive(Debug, Clone)]
@@ -108,8 +108,8 @@ pub struct Router {
     resequenced: HashMap<(u8, u8), u8>,
     to_gcs: VecDeque<OwnedFrame>,
     /// Renumbers what leaves on the radio (thinned heartbeats must not read as loss).
-    radio_sequence: Resequencer,
-    signer: Option<LinkSigner>,
+    /// Renumbers and signs what leaves on the radio, verifies what arrives.
+    radio_leg: RadioLeg,
     stats: RouterStats,
 }
 
@@ -142,8 +142,7 @@ impl Router {
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
-            radio_sequence: Resequencer::new(),
-            signer: config.signing.as_ref().map(|s| s.signer()),
+            radio_leg: RadioLeg::new(config.signing.as_ref()),
             stats: RouterStats::default(),
             config,
         })
@@ -158,7 +157,7 @@ impl Router {
             scheduler: self.scheduler.stats(),
             mission_duplicates: self.dedup.suppressed(),
             commands: self.commands.stats(),
-            signing: self.signer.as_ref().map(|s| s.stats()).unwrap_or_default(),
+            signing: self.radio_leg.stats(),
             ..self.stats.clone()
         }
     }
@@ -203,19 +202,8 @@ impl Router {
     pub fn handle_radio_bytes(&mut self, bytes: &[u8], now: Instant) {
         self.radio_reader.push(bytes);
         while let Some(rx) = self.radio_reader.next_frame() {
-            let frame = match &mut self.signer {
-                None => rx.frame,
-                Some(signer) => match signer.verify(&rx.frame, now) {
-                    Ok(plain) => plain,
-                    Err(why) => {
-                        tracing::debug!(
-                            ?why,
-                            msgid = rx.frame.message_id(),
-                            "radio frame rejected"
-                        );
-                        continue;
-                    }
-                },
+            let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
+                continue;
             };
             self.quality.handle_frame(&frame, now);
             match frame.message_id() {
@@ -305,13 +293,9 @@ impl Router {
     /// The next frame for the radio if the budget allows at `now` and it fits `room` bytes.
     pub fn poll_radio_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
         loop {
-            let mut frame = self.scheduler.poll_transmit(now, room)?;
-            self.radio_sequence.apply(&mut frame);
-            let Some(signer) = &mut self.signer else {
+            let frame = self.scheduler.poll_transmit(now, room)?;
+            if let Some(frame) = self.radio_leg.outgoing(frame, now) {
                 return Some(frame);
-            };
-            if let Some(signed) = signer.sign(&frame, now) {
-                return Some(signed);
             }
         }
     }

@@ -14,9 +14,11 @@
 //! as 32 raw bytes.
 
 mod key;
+mod radio_leg;
 mod signer;
 
 pub use key::{KeyError, SigningKey};
+pub use radio_leg::RadioLeg;
 pub use signer::{LinkSigner, Rejection, SigningStats};
 
 /// Signing settings of one radio link end.
