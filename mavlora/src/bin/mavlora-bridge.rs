@@ -13,14 +13,13 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use clap::Parser;
 use serde::Deserialize;
-use tracing::{error, info};
+use tracing::info;
 
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::io::{
-    Clock, Event, SerialEvent, SerialLink, init_logging, load_config, on_signal,
-    signing_from_key_file,
+    Clock, Event, SerialEvent, SerialLink, load_config, on_signal, run_main, signing_from_key_file,
 };
 use mavlora::schedule::SchedulerConfig;
 
@@ -94,14 +93,7 @@ struct FileConfig {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    init_logging();
-    match run(args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            error!("{e:#}");
-            ExitCode::from(1)
-        }
-    }
+    run_main(|| run(args))
 }
 
 fn run(args: Args) -> Result<()> {

@@ -14,11 +14,11 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use clap::Parser;
 use serde::Deserialize;
-use tracing::{error, info, warn};
+use tracing::{info, warn};
 
 use mavlora::io::{
-    Clock, Event, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, init_logging,
-    load_config, on_signal, signing_from_key_file,
+    Clock, Event, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, load_config, on_signal,
+    run_main, signing_from_key_file,
 };
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::SchedulerConfig;
@@ -89,14 +89,7 @@ struct FileConfig {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    init_logging();
-    match run(args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            error!("{e:#}");
-            ExitCode::from(1)
-        }
-    }
+    run_main(|| run(args))
 }
 
 fn run(args: Args) -> Result<()> {

@@ -35,8 +35,21 @@ pub fn on_signal(tx: std::sync::mpsc::Sender<Event>) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A binary's `main`: logging set up, then `run`; an error is logged and exits with status 1
+/// (clap has already exited with 2 on bad usage).
+pub fn run_main(run: impl FnOnce() -> anyhow::Result<()>) -> std::process::ExitCode {
+    init_logging();
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e:#}");
+            std::process::ExitCode::from(1)
+        }
+    }
+}
+
 /// `tracing` to stderr, level from `RUST_LOG` (default `info`).
-pub fn init_logging() {
+fn init_logging() {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
     tracing_subscriber::fmt()
