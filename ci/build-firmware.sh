@@ -8,13 +8,13 @@
 # rust-toolchain.toml pulls in) and python3's standard library: sizes come from
 # the ELF section headers, not from llvm-size or binutils.
 #
-# Usage: ci/build-firmware.sh [OUT_DIR]   (default: firmware/samd21/target/dist)
-# Environment: MULTIRX_CONFIG (see firmware/samd21/README.md) is passed through.
+# Usage: ci/build-firmware.sh [OUT_DIR]   (default: firmware/multirx/samd21/target/dist)
+# Environment: MULTIRX_CONFIG (see firmware/multirx/samd21/README.md) is passed through.
 # Exit codes: 0 built and measured; non-zero if a build or a measurement failed.
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-crate="$repo/firmware/samd21"
+crate="$repo/firmware/multirx/samd21"
 out="${1:-$crate/target/dist}"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"

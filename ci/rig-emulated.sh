@@ -6,5 +6,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash ci/setup.sh
 echo "rig: building (release)..."
-cargo build --release --locked -q -p rig -p multirx-emu -p mavlora --bins
+cargo build --release --locked -q -p harness -p multirx-emulator -p mavlora --bins
 exec target/release/rig run rigs/emulated.toml "$@"

@@ -9,14 +9,14 @@
 //! - [`measurement`]: a named value with a unit, limits and an outcome;
 //! - [`record`]: the saved record of a run, from which [`report`]s are rendered;
 //! - [`px4`]: how the flight controller reads what it is sent;
-//! - [`radio`]: a model of line-of-sight radios (airtime, loss, duty cycle) for the link emulator;
+//! - [`harness_radio`] (its own crate): the model of line-of-sight radios (airtime, loss, duty
+//!   cycle) that the radio emulator driver and the simulated worlds run;
 //! - [`runner`]: scenarios as libtest-mimic trials, and the run record.
 
 pub mod clock;
 pub mod driver;
 pub mod measurement;
 pub mod px4;
-pub mod radio;
 pub mod record;
 pub mod report;
 pub mod rigfile;

@@ -8,11 +8,11 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use rig::record::RunOutcome;
-use rig::report;
-use rig::rigfile::{DeviceSetup, Mode, RigFile};
-use rig::runner::{self, RunOptions};
-use rig::strategy::firmware;
+use harness::record::RunOutcome;
+use harness::report;
+use harness::rigfile::{DeviceSetup, Mode, RigFile};
+use harness::runner::{self, RunOptions};
+use harness::strategy::firmware;
 
 /// Test rig for SORA-grade drone C2 links (MultiRX, MavLora).
 #[derive(Debug, Parser)]
@@ -115,7 +115,7 @@ fn execute(command: Command) -> Result<ExitCode> {
             let rig = RigFile::load(&rig)?;
             if let Some(section) = &rig.multirx {
                 for (&mode, path) in &section.device.configs {
-                    let config = rig::strategy::multirx::load_config(&rig, mode)?;
+                    let config = harness::strategy::multirx::load_config(&rig, mode)?;
                     println!(
                         "{}: mode {mode}: {} receivers, ok",
                         path.display(),
@@ -165,7 +165,7 @@ fn execute(command: Command) -> Result<ExitCode> {
                     rig.path.display()
                 );
             };
-            rig::strategy::multirx::load_config(&rig, mode)?;
+            harness::strategy::multirx::load_config(&rig, mode)?;
             let config = section.config(mode).context("no config for this mode")?;
             eprintln!(
                 "rig: building {} with {}...",

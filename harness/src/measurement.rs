@@ -225,7 +225,7 @@ impl fmt::Display for Outcome {
 /// shows up as [`Outcome::Unset`] instead of being silently absent.
 ///
 /// ```
-/// use rig::measurement::{Measurement, Outcome};
+/// use harness::measurement::{Measurement, Outcome};
 /// let mut m = Measurement::new("multirx.parallel.handover_ms", "ms").at_most(50.0);
 /// assert_eq!(m.outcome, Outcome::Unset);
 /// assert_eq!(m.record(12.5), Outcome::Pass);

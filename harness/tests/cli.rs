@@ -75,7 +75,7 @@ fn handover_scenario_runs_and_writes_its_evidence() {
     let emulator = Path::new(RIG).with_file_name("multirx-emu");
     assert!(
         emulator.exists(),
-        "{} missing: run `cargo test --workspace` (or `cargo build -p multirx-emu`) first",
+        "{} missing: run `cargo test --workspace` (or `cargo build -p multirx-emulator`) first",
         emulator.display()
     );
     let dir = tempfile::tempdir().unwrap();

@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
-use rig::rigfile::ProbeSelector;
-use rig::strategy::firmware;
+use harness::rigfile::ProbeSelector;
+use harness::strategy::firmware;
 
 fn repo() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -13,7 +13,7 @@ fn repo() -> &'static Path {
 #[test]
 fn firmware_builds_with_a_rig_config_and_reports_its_size() {
     let image = firmware::build(
-        &repo().join("firmware/samd21"),
+        &repo().join("firmware/multirx/samd21"),
         &repo().join("rigs/multirx/bench-parallel.toml"),
     )
     .unwrap();
@@ -22,7 +22,7 @@ fn firmware_builds_with_a_rig_config_and_reports_its_size() {
     assert_eq!(image.sha256.len(), 64);
 
     // No debug probe on a CI machine: the error must say so, not hang or panic.
-    let driver = rig::driver::probe::ProbeDriver {
+    let driver = harness::driver::probe::ProbeDriver {
         selector: ProbeSelector::Auto,
         chip: "ATSAMD21G18A".into(),
     };
@@ -41,6 +41,6 @@ fn firmware_build_refuses_a_config_the_board_cannot_wire() {
         "mode = \"parallel\"\nreceivers = 6\n[ifs]\nchannels = [5]\n",
     )
     .unwrap();
-    let err = firmware::build(&repo().join("firmware/samd21"), &config).unwrap_err();
+    let err = firmware::build(&repo().join("firmware/multirx/samd21"), &config).unwrap_err();
     assert!(format!("{err:#}").contains("failed"), "{err:#}");
 }

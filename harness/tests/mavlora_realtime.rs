@@ -9,10 +9,10 @@ use std::process::Command;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use rig::measurement::Outcome;
-use rig::rigfile::RigFile;
-use rig::scenario::PhaseContext;
-use rig::scenario::mavlora::realtime::{SessionDefaults, scenarios};
+use harness::measurement::Outcome;
+use harness::rigfile::RigFile;
+use harness::scenario::PhaseContext;
+use harness::scenario::mavlora::realtime::{SessionDefaults, scenarios};
 
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
@@ -127,7 +127,7 @@ fn every_scenario_declares_measurements_under_mavlora_pty() {
 /// radio's. Everything PX4 streams goes on air.
 #[test]
 fn transparent_session_carries_unfiltered_telemetry() {
-    use rig::strategy::mavlora::{FcProfile, GcsPlan, MavloraSession, Variant};
+    use harness::strategy::mavlora::{FcProfile, GcsPlan, MavloraSession, Variant};
     let _serial = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let d = defaults();

@@ -6,7 +6,8 @@
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-use rig::radio::{Direction, LinkBudget, LinkConfig, Preset, Radio, RadioEmulator};
+use harness::driver::radio_emulator::RadioEmulator;
+use harness_radio::{Direction, LinkBudget, LinkConfig, Preset, Radio};
 use serialport::{SerialPort as _, TTYPort};
 
 fn open(path: &str) -> TTYPort {
@@ -38,8 +39,8 @@ fn a_lora_message_crosses_after_its_airtime() {
     let cfg = LinkConfig::default();
     let radio = Radio::new(&Preset::lora_sf7(), &cfg, &cfg).unwrap();
     let emulator = RadioEmulator::new("lora-test", radio).unwrap();
-    let mut a = open(emulator.a_path());
-    let mut b = open(emulator.b_path());
+    let mut a = open(emulator.air_path());
+    let mut b = open(emulator.ground_path());
     let message: Vec<u8> = (0u8..17)
         .map(|i| i.wrapping_mul(15).wrapping_add(0x0a))
         .collect();
@@ -58,8 +59,8 @@ fn a_lora_message_crosses_after_its_airtime() {
     let back = read_for(&mut a, 6, Duration::from_secs(3));
     assert_eq!(back, [0x0d, 0x03, 0x11, 0x13, 0x7f, 0xff]);
     let radio = emulator.finish();
-    assert_eq!(radio.link(Direction::AToB).stats().bytes_delivered, 17);
-    assert_eq!(radio.link(Direction::BToA).stats().bytes_delivered, 6);
+    assert_eq!(radio.link(Direction::Downlink).stats().bytes_delivered, 17);
+    assert_eq!(radio.link(Direction::Uplink).stats().bytes_delivered, 6);
 }
 
 /// 6 000 bytes each way through SiK at 64 kbit/s: everything offered is
@@ -71,8 +72,8 @@ fn sik_carries_both_directions_at_no_more_than_its_air_rate() {
     let cfg = LinkConfig::default();
     let radio = Radio::new(&Preset::sik_64k(), &cfg, &cfg).unwrap();
     let emulator = RadioEmulator::new("sik-test", radio).unwrap();
-    let mut a = open(emulator.a_path());
-    let mut b = open(emulator.b_path());
+    let mut a = open(emulator.air_path());
+    let mut b = open(emulator.ground_path());
     let start = Instant::now();
     let payload: Vec<u8> = (0..6000u32).map(|i| (i % 251) as u8).collect();
     // Written at once: far more than the 1850-byte buffer takes.
@@ -88,7 +89,7 @@ fn sik_carries_both_directions_at_no_more_than_its_air_rate() {
     }
     let elapsed = start.elapsed().as_secs_f64();
     let radio = emulator.finish();
-    for (dir, got) in [(Direction::AToB, &got_b), (Direction::BToA, &got_a)] {
+    for (dir, got) in [(Direction::Downlink, &got_b), (Direction::Uplink, &got_a)] {
         let s = radio.link(dir).stats();
         assert_eq!(s.bytes_offered, 6000, "{dir:?}: {s:?}");
         assert_eq!(s.bytes_delivered + s.bytes_dropped, 6000, "{dir:?}: {s:?}");
@@ -126,17 +127,17 @@ fn a_deep_fade_loses_the_packets() {
         budget: LinkBudget::attenuation(95.0),
         ..LinkConfig::default()
     };
-    let radio = Radio::new(&Preset::sik_64k(), &lossy, &LinkConfig::default()).unwrap();
+    let radio = Radio::new(&Preset::sik_64k(), &LinkConfig::default(), &lossy).unwrap();
     let emulator = RadioEmulator::new("fade-test", radio).unwrap();
-    let mut a = open(emulator.a_path());
-    let mut b = open(emulator.b_path());
+    let mut a = open(emulator.air_path());
+    let mut b = open(emulator.ground_path());
     for _ in 0..10 {
         a.write_all(&[0x42; 21]).unwrap();
         std::thread::sleep(Duration::from_millis(30));
     }
     let got = read_for(&mut b, usize::MAX, Duration::from_millis(800));
     let radio = emulator.finish();
-    let s = radio.link(Direction::AToB).stats();
+    let s = radio.link(Direction::Downlink).stats();
     assert!(s.packets_sent > 0, "{s:?}");
     assert_eq!(s.packets_lost, s.packets_sent, "{s:?}");
     assert!(got.is_empty());
@@ -161,7 +162,7 @@ fn between_two_devices_carries_both_ways() {
         57_600,
     )
     .unwrap();
-    assert_eq!(emulator.a_path(), drone_dev.name().unwrap());
+    assert_eq!(emulator.air_path(), drone_dev.name().unwrap());
     drone.write_all(b"telemetry").unwrap();
     assert_eq!(
         read_for(&mut ground, 9, Duration::from_secs(3)),
@@ -170,8 +171,8 @@ fn between_two_devices_carries_both_ways() {
     ground.write_all(b"command").unwrap();
     assert_eq!(read_for(&mut drone, 7, Duration::from_secs(3)), b"command");
     let radio = emulator.finish();
-    assert_eq!(radio.link(Direction::AToB).stats().bytes_offered, 9);
-    assert_eq!(radio.link(Direction::BToA).stats().bytes_offered, 7);
+    assert_eq!(radio.link(Direction::Downlink).stats().bytes_offered, 9);
+    assert_eq!(radio.link(Direction::Uplink).stats().bytes_offered, 7);
     // a device that is not there is an error naming it
     let cfg = LinkConfig::default();
     let radio = Radio::new(&Preset::sik_64k(), &cfg, &cfg).unwrap();

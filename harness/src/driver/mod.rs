@@ -6,6 +6,7 @@ pub mod fc;
 pub mod probe;
 pub mod process;
 pub mod pty;
+pub mod radio_emulator;
 pub mod realtime;
 pub mod receiver;
 pub mod status;

@@ -21,10 +21,10 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::{Checker, RigFileError};
-use crate::radio::{Preset, RadioSetup};
+use harness_radio::{Preset, RadioSetup};
 
 /// Profiles folder used when the rig file names none, relative to the rig file.
-pub const DEFAULT_PROFILES_DIR: &str = "../mavlora/profiles";
+pub const DEFAULT_PROFILES_DIR: &str = "../firmware/mavlora/profiles";
 
 /// Which MavLora scenario family runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Deserialize)]
@@ -304,7 +304,7 @@ c2 = "sik-bursty"
         let m = rig.mavlora.unwrap();
         assert_eq!(m.suites, vec![Suite::Simulated, Suite::Realtime]);
         assert_eq!(m.seed, 7);
-        assert_eq!(m.profiles, PathBuf::from("/r/mavlora/profiles"));
+        assert_eq!(m.profiles, PathBuf::from("/r/firmware/mavlora/profiles"));
         let names: Vec<_> = m.radios.mission.iter().map(|r| r.name.as_str()).collect();
         assert_eq!(names, ["lora-sf7", "sik-bursty"]);
         assert!(m.radios.c2.setup.uplink.burst.is_some());

@@ -34,7 +34,7 @@ pub const DEFAULT_PYTHON: &str = "python3";
 /// Fixture folder used when the rig file names none, relative to the rig file.
 pub const DEFAULT_FIXTURES_DIR: &str = "../fixtures";
 /// Firmware crate of a board rig that names none, relative to the rig file.
-pub const DEFAULT_FIRMWARE_DIR: &str = "../firmware/samd21";
+pub const DEFAULT_FIRMWARE_DIR: &str = "../firmware/multirx/samd21";
 /// Chip flashed when a board rig names none.
 pub const DEFAULT_CHIP: &str = "ATSAMD21G18A";
 /// Most receivers a MultiRX board has inputs for.
@@ -54,7 +54,7 @@ pub struct RigFile {
     /// `[multirx]`; `None` means no MultiRX scenarios on this rig.
     pub multirx: Option<MultirxSection>,
     /// `[radios]`: emulated radios by name, checked against the model.
-    pub radios: BTreeMap<String, crate::radio::RadioSetup>,
+    pub radios: BTreeMap<String, harness_radio::RadioSetup>,
     /// `[mavlora]`; `None` means no MavLora scenarios on this rig.
     pub mavlora: Option<MavloraSection>,
     /// `[limits]`: overrides of built-in SLA limits, by measurement name.

@@ -19,7 +19,7 @@ pub(super) struct RawFile {
     pub fixtures: RawFixtures,
     pub multirx: Option<RawMultirx>,
     #[serde(default)]
-    pub radios: BTreeMap<String, crate::radio::RadioSetup>,
+    pub radios: BTreeMap<String, harness_radio::RadioSetup>,
     pub mavlora: Option<super::mavlora::RawMavlora>,
     #[serde(default)]
     pub limits: BTreeMap<String, Limits>,

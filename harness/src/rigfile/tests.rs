@@ -163,7 +163,7 @@ fn checked_in_bench_example_loads() {
             probe: ProbeSelector::Auto,
             chip: "ATSAMD21G18A".into(),
             flash: true,
-            firmware: std::fs::canonicalize(format!("{RIGS}/../firmware/samd21")).unwrap(),
+            firmware: std::fs::canonicalize(format!("{RIGS}/../firmware/multirx/samd21")).unwrap(),
         })
     );
     assert_eq!(m.ports.receivers.len(), 2);
@@ -390,7 +390,7 @@ fn board_probe_and_defaults() {
             probe: ProbeSelector::Auto,
             chip: DEFAULT_CHIP.into(),
             flash: false,
-            firmware: PathBuf::from("/r/firmware/samd21"),
+            firmware: PathBuf::from("/r/firmware/multirx/samd21"),
         })
     );
     let m = board("probe = \"2E8A:000c:E66118\"")

@@ -453,7 +453,7 @@ fn default_emulator() -> Result<PathBuf> {
     let path = exe.with_file_name("multirx-emu");
     if !path.exists() {
         bail!(
-            "{} not found: build it with `cargo build -p multirx-emu` (same profile as rig), or set program in [multirx.device]",
+            "{} not found: build it with `cargo build -p multirx-emulator` (same profile as rig), or set program in [multirx.device]",
             path.display()
         );
     }

@@ -9,7 +9,8 @@ use serde_json::Value;
 
 use super::Result;
 use crate::clock::Mono;
-use crate::radio::{LinkStats, RadioEmulator, RadioSetup};
+use crate::driver::radio_emulator::RadioEmulator;
+use harness_radio::{Direction, LinkStats};
 
 /// One JSON line a fixture printed, with when the rig read it.
 #[derive(Debug, Clone)]
@@ -56,7 +57,7 @@ impl LineReader {
                     // Snapshot first: the point is the counters at this moment.
                     let radio = radio
                         .as_ref()
-                        .map(|r| (r.stats(RadioSetup::DOWNLINK), r.stats(RadioSetup::UPLINK)));
+                        .map(|r| (r.stats(Direction::Downlink), r.stats(Direction::Uplink)));
                     match serde_json::from_str::<Value>(&line) {
                         Ok(value) => {
                             sink.list

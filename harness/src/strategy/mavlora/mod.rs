@@ -60,7 +60,7 @@ pub enum SessionError {
     Summary { what: String, reason: String },
     /// The radio setup does not make a radio.
     #[error("radio setup: {0}")]
-    Radio(#[from] crate::radio::ConfigError),
+    Radio(#[from] harness_radio::ConfigError),
     /// Starting or talking to a program failed (the message names it).
     #[error(transparent)]
     Driver(#[from] anyhow::Error),
@@ -79,7 +79,7 @@ mod tests {
     use std::path::Path;
 
     use super::*;
-    use crate::radio::RadioSetup;
+    use harness_radio::RadioSetup;
 
     fn options(dir: &Path) -> SessionOptions {
         let repo = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
@@ -88,7 +88,7 @@ mod tests {
             fixtures_dir: repo.join("fixtures"),
             bridge_program: PathBuf::from("/bin/true"),
             router_program: PathBuf::from("/bin/true"),
-            profile_dir: repo.join("mavlora/profiles"),
+            profile_dir: repo.join("firmware/mavlora/profiles"),
             lossy_radio: sik_with_loss(0.1, 2.0).unwrap(),
             clean_radio: RadioSetup::builtin("sik-64k").unwrap(),
             c2_radio: sik_with_independent_loss(0.1).unwrap(),

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use super::{Result, SessionError};
-use crate::radio::{GilbertElliott, LinkConfig, RadioSetup};
+use harness_radio::{GilbertElliott, LinkConfig, RadioSetup};
 
 /// What sits between the flight controller and the radio.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -127,7 +127,7 @@ pub struct SessionDefaults {
 
 impl SessionDefaults {
     /// Defaults for a checkout at `repo`: `python3`, `fixtures/`,
-    /// `mavlora/profiles/`, the MavLora programs next to the running
+    /// `firmware/mavlora/profiles/`, the MavLora programs next to the running
     /// executable (or one folder up, for test binaries in `deps/`), SiK 64k
     /// loss-free and with 10 % bursty loss each way.
     pub fn for_repo(repo: &Path) -> Result<SessionDefaults> {
@@ -136,7 +136,7 @@ impl SessionDefaults {
             fixtures_dir: repo.join("fixtures"),
             bridge_program: program_near_exe("mavlora-bridge")?,
             router_program: program_near_exe("mavlora-router")?,
-            profile_dir: repo.join("mavlora/profiles"),
+            profile_dir: repo.join("firmware/mavlora/profiles"),
             lossy_radio: sik_with_loss(0.10, 2.0)?,
             clean_radio: RadioSetup::builtin("sik-64k")?,
             c2_radio: sik_with_independent_loss(0.10)?,

@@ -7,7 +7,7 @@ use std::process::ExitStatus;
 use serde_json::Value;
 
 use super::FixtureLine;
-use crate::radio::LinkStats;
+use harness_radio::LinkStats;
 
 /// `mavlora_gcs.py`'s exit status when it ran its plan to the end but a phase
 /// did not succeed (a lost command, a refused mission): the measurements say

@@ -14,7 +14,8 @@ use super::report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status};
 use super::{Result, SessionError, SessionOptions, Variant};
 use crate::clock::Mono;
 use crate::driver::process::Process;
-use crate::radio::{LinkStats, RadioEmulator, RadioSetup};
+use crate::driver::radio_emulator::RadioEmulator;
+use harness_radio::{Direction, LinkStats};
 
 /// A running MavLora link with its fixtures.
 pub struct MavloraSession {
@@ -61,7 +62,7 @@ impl MavloraSession {
             .arg(&fc_summary)
             .args(["--profile", options.fc_profile.as_str(), "--path", "route"]);
         if !bridged {
-            command.args(["--port", radio.a_path()]);
+            command.args(["--port", radio.air_path()]);
         }
         let mut fc = Process::spawn("mavlora_fc", command, &dir.join("fc.log"))?;
         let fc_lines = LineReader::start("mavlora_fc", fc.take_stdout().unwrap(), None)?;
@@ -82,7 +83,7 @@ impl MavloraSession {
         if bridged {
             let mut command = Command::new(&options.bridge_program);
             command
-                .args(["--fc", &fc_port, "--radio", radio.a_path()])
+                .args(["--fc", &fc_port, "--radio", radio.air_path()])
                 .arg("--profile")
                 .arg(&options.bridge_profile)
                 .args(["--rate", &options.rate.to_string()])
@@ -99,7 +100,7 @@ impl MavloraSession {
             let port = free_udp_port(dir)?;
             let mut command = Command::new(&options.router_program);
             command
-                .args(["--radio", radio.b_path()])
+                .args(["--radio", radio.ground_path()])
                 .args(["--udp", &format!("127.0.0.1:{port}")])
                 .args(["--udp-bind", "127.0.0.1:0", "--status-interval", "2"])
                 .arg("--tlog")
@@ -112,7 +113,7 @@ impl MavloraSession {
             )?);
             gcs_target = vec!["--udp".into(), format!("127.0.0.1:{port}")];
         } else {
-            gcs_target = vec!["--serial".into(), radio.b_path().to_string()];
+            gcs_target = vec!["--serial".into(), radio.ground_path().to_string()];
         }
 
         let p = &options.gcs;
@@ -180,8 +181,8 @@ impl MavloraSession {
     /// The radio's counters now: (downlink, uplink).
     pub fn radio_stats(&self) -> (LinkStats, LinkStats) {
         (
-            self.radio.stats(RadioSetup::DOWNLINK),
-            self.radio.stats(RadioSetup::UPLINK),
+            self.radio.stats(Direction::Downlink),
+            self.radio.stats(Direction::Uplink),
         )
     }
 

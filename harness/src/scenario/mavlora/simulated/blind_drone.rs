@@ -17,8 +17,8 @@ use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 use super::world::{Carrier, SimWorld, secs};
 use super::{Radios, Scenario, mavlora_configs};
 use crate::measurement::Measurement;
-use crate::radio::{LinkBudget, RadioSetup};
 use crate::scenario::PhaseContext;
+use harness_radio::{Direction, LinkBudget};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "blind_drone",
@@ -101,11 +101,11 @@ pub fn detect(radios: &Radios) -> Result<Detection> {
             before = before.max(v);
         }
     }
-    let up0 = w.link_stats(RadioSetup::UPLINK).unwrap_or_default();
+    let up0 = w.link_stats(Direction::Uplink).unwrap_or_default();
     let budget = setup.uplink.budget;
     let noise = noise_for_loss(&budget, &preset, UPLINK_LOSS);
     match &mut w.carrier {
-        Carrier::Radio(r) => r.link_mut(RadioSetup::UPLINK).set_budget(LinkBudget {
+        Carrier::Radio(r) => r.link_mut(Direction::Uplink).set_budget(LinkBudget {
             rx_noise_db: budget.rx_noise_db + noise,
             ..budget
         })?,
@@ -123,8 +123,8 @@ pub fn detect(radios: &Radios) -> Result<Detection> {
             }
         }
     }
-    let up = w.link_stats(RadioSetup::UPLINK).unwrap_or_default();
-    let down = w.link_stats(RadioSetup::DOWNLINK).unwrap_or_default();
+    let up = w.link_stats(Direction::Uplink).unwrap_or_default();
+    let down = w.link_stats(Direction::Downlink).unwrap_or_default();
     let ratio = |lost: u64, sent: u64| lost as f64 / sent.max(1) as f64;
     Ok(Detection {
         detect_s,
@@ -139,7 +139,7 @@ pub fn detect(radios: &Radios) -> Result<Detection> {
 }
 
 /// Extra receiver noise (dB) that makes a reference packet's loss `p` through `budget`.
-pub fn noise_for_loss(budget: &LinkBudget, preset: &crate::radio::Preset, p: f64) -> f64 {
+pub fn noise_for_loss(budget: &LinkBudget, preset: &harness_radio::Preset, p: f64) -> f64 {
     // PER = 1 / (1 + 99·exp(M/w))  ⇒  M = w·ln((1 − p) / (99·p))
     let target = preset.curve_width_db * ((1.0 - p) / (99.0 * p)).ln();
     budget.margin_db(preset) - target

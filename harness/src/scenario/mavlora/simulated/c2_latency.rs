@@ -15,8 +15,8 @@ use mavlora::sim::{CommandPlan, CommandStats, Flight, PX4_NORMAL, Px4Fc, Route};
 use super::world::{SimWorld, secs};
 use super::{Radios, Scenario, mavlora_configs, quantile};
 use crate::measurement::Measurement;
-use crate::radio::RadioSetup;
 use crate::scenario::PhaseContext;
+use harness_radio::Direction;
 
 pub const SCENARIO: Scenario = Scenario {
     name: "c2_latency",
@@ -87,7 +87,7 @@ pub fn measure_with(
         .collect();
     ms.sort_by(f64::total_cmp);
     let link = |d| w.link_stats(d).unwrap_or_default();
-    tracing::debug!(down = ?link(RadioSetup::DOWNLINK), up = ?link(RadioSetup::UPLINK), "c2 radio");
+    tracing::debug!(down = ?link(Direction::Downlink), up = ?link(Direction::Uplink), "c2 radio");
     Ok((ms, stats))
 }
 

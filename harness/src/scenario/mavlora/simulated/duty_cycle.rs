@@ -16,8 +16,8 @@ use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 use super::world::{Counts, SimWorld};
 use super::{Radios, Scenario, mavlora_configs};
 use crate::measurement::Measurement;
-use crate::radio::{LinkStats, RadioSetup};
 use crate::scenario::PhaseContext;
+use harness_radio::{Direction, LinkStats};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "duty_cycle",
@@ -91,8 +91,8 @@ pub fn measure_with(
     let mut w = SimWorld::new(fc, Some(mavlora), Some(&setup))?;
     w.run_until(Instant::ZERO + route.duration());
     let flight = route.duration().as_secs_f64();
-    let down = w.link_stats(RadioSetup::DOWNLINK).unwrap_or_default();
-    let up = w.link_stats(RadioSetup::UPLINK).unwrap_or_default();
+    let down = w.link_stats(Direction::Downlink).unwrap_or_default();
+    let up = w.link_stats(Direction::Uplink).unwrap_or_default();
     let pct = |s: &LinkStats| 100.0 * s.airtime.as_secs_f64() / flight;
     Ok(Duty {
         down_pct: pct(&down),

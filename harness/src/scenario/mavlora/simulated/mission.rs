@@ -26,8 +26,8 @@ use mavlora::sim::{Flight, GcsMock, PX4_NORMAL, Px4Fc, Route};
 use super::world::{Counts, SimWorld, secs};
 use super::{Radios, Scenario, mavlora_configs};
 use crate::measurement::Measurement;
-use crate::radio::{LinkStats, RadioSetup};
 use crate::scenario::PhaseContext;
+use harness_radio::{Direction, LinkStats, RadioSetup};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "mission_upload",
@@ -167,8 +167,8 @@ pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload
     let items_sent = w.gcs.items_sent;
     w.run_until(secs(RUN_S));
     let loss = (
-        loss_of(&w.link_stats(RadioSetup::DOWNLINK).unwrap_or_default()),
-        loss_of(&w.link_stats(RadioSetup::UPLINK).unwrap_or_default()),
+        loss_of(&w.link_stats(Direction::Downlink).unwrap_or_default()),
+        loss_of(&w.link_stats(Direction::Uplink).unwrap_or_default()),
     );
     Ok(Upload {
         upload_s: (accepted && stored).then(|| result.map_or(f64::NAN, |r| r.1)),
@@ -184,7 +184,7 @@ pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload
 }
 
 fn airtime(w: &SimWorld) -> Duration {
-    [RadioSetup::DOWNLINK, RadioSetup::UPLINK]
+    [Direction::Downlink, Direction::Uplink]
         .into_iter()
         .filter_map(|d| w.link_stats(d))
         .map(|s| s.airtime)

@@ -56,7 +56,7 @@ use serde::{Deserialize, Serialize};
 
 use super::super::PhaseContext;
 use crate::measurement::Measurement;
-use crate::radio::{Access, GilbertElliott, LinkConfig, Preset, RadioSetup};
+use harness_radio::{Access, GilbertElliott, LinkConfig, Preset, RadioSetup};
 
 /// One scenario: its measurements (with built-in limits) and its script.
 pub struct Scenario {
@@ -190,8 +190,8 @@ impl Radios {
                 .collect(),
             blind_drone: {
                 let mut s = setup("sik-64k", clean(61), clean(62));
-                let at = crate::radio::LinkBudget {
-                    path: crate::radio::PathLoss::DistanceM(400.0),
+                let at = harness_radio::LinkBudget {
+                    path: harness_radio::PathLoss::DistanceM(400.0),
                     ..Default::default()
                 };
                 s.downlink.budget = at;

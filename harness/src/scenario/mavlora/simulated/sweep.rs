@@ -18,9 +18,9 @@ use mavlora::sim::{Px4Fc, StreamSpec};
 use super::world::{SimWorld, secs};
 use super::{Radios, Scenario, evidence_dir};
 use crate::measurement::Measurement;
-use crate::radio::loss::free_space_range_km;
-use crate::radio::{LinkBudget, PathLoss, Preset, RadioSetup};
 use crate::scenario::PhaseContext;
+use harness_radio::loss::free_space_range_km;
+use harness_radio::{LinkBudget, PathLoss, Preset, RadioSetup};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "attenuation_sweep",

@@ -20,8 +20,8 @@ use mavlora::sim::{Flight, PX4_CONFIG, Px4Fc, Route};
 use super::world::SimWorld;
 use super::{Radios, Scenario, mavlora_configs};
 use crate::measurement::Measurement;
-use crate::radio::{Preset, RadioSetup};
 use crate::scenario::PhaseContext;
+use harness_radio::{Preset, RadioSetup};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "table_ii",

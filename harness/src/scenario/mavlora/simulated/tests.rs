@@ -132,7 +132,7 @@ fn wired_counts_equal_the_profile_rates_times_frame_sizes() {
 #[test]
 fn table_ii_over_a_clean_radio_counts_the_same_on_both_sides() {
     let radios = Radios {
-        table_ii: Some(crate::radio::RadioSetup::builtin("sik-64k").unwrap()),
+        table_ii: Some(harness_radio::RadioSetup::builtin("sik-64k").unwrap()),
         ..Radios::paper_defaults()
     };
     let row = table_ii::fly(&radios, "limit_filter").unwrap();
@@ -247,7 +247,7 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
     );
     // Each frame when ready: the airtime is that of one packet per frame.
     let d = duty_cycle::measure_with(&radios, None, std::time::Duration::ZERO).unwrap();
-    let lora = crate::radio::Preset::lora_sf7();
+    let lora = harness_radio::Preset::lora_sf7();
     let expected: f64 = d
         .down_sent
         .frames

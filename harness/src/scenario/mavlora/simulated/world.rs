@@ -21,7 +21,7 @@ use mavlora::schedule::ScheduleError;
 use mavlora::sim::{GcsMock, Px4Fc};
 use mavlora::wire::FrameReader;
 
-use crate::radio::{ConfigError, Direction, LinkStats, Radio, RadioSetup};
+use harness_radio::{ConfigError, Direction, LinkStats, Radio, RadioSetup};
 
 /// Why a world could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -204,7 +204,7 @@ impl SimWorld {
         }
     }
 
-    /// The radio's counters for one direction (`RadioSetup::DOWNLINK` or `UPLINK`).
+    /// The radio's counters for one direction (`Direction::Downlink` or `UPLINK`).
     pub fn link_stats(&self, direction: Direction) -> Option<LinkStats> {
         self.radio().map(|r| r.link(direction).stats().clone())
     }
@@ -268,7 +268,7 @@ impl SimWorld {
         let mut down: Vec<Vec<u8>> = Vec::new();
         let mut arrived = Vec::new();
         if let Carrier::Radio(radio) = &mut self.carrier {
-            while let Some(bytes) = radio.poll_output(at, RadioSetup::UPLINK) {
+            while let Some(bytes) = radio.poll_output(at, Direction::Uplink) {
                 arrived.push(bytes);
             }
         }
@@ -308,10 +308,10 @@ impl SimWorld {
             }
             Carrier::Radio(radio) => {
                 for bytes in &down {
-                    radio.handle_input(at, RadioSetup::DOWNLINK, bytes);
+                    radio.handle_input(at, Direction::Downlink, bytes);
                 }
                 let mut delivered = Vec::new();
-                while let Some(bytes) = radio.poll_output(at, RadioSetup::DOWNLINK) {
+                while let Some(bytes) = radio.poll_output(at, Direction::Downlink) {
                     delivered.push(bytes);
                 }
                 for bytes in &delivered {
@@ -355,7 +355,7 @@ impl SimWorld {
             }
             Carrier::Radio(radio) => {
                 for bytes in &up {
-                    radio.handle_input(at, RadioSetup::UPLINK, bytes);
+                    radio.handle_input(at, Direction::Uplink, bytes);
                 }
             }
         }

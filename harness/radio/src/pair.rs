@@ -1,7 +1,7 @@
 //! A radio: two directions of one preset, paired.
 //!
-//! TDM presets keep the directions apart by their windows (slot A sends
-//! A→B). Burst presets (LoRa, DMD) share one half-duplex channel: a direction
+//! The drone's radio is side A: the downlink (drone → ground) sends in TDM
+//! slot A, the uplink (ground → drone) in slot B. Burst presets (LoRa, DMD) share one half-duplex channel: a direction
 //! waits while the other is on air (ideal carrier sense, no collisions); when
 //! both are ready at once, the one that started least recently goes first,
 //! so a saturated direction cannot starve the other.
@@ -15,17 +15,25 @@ use super::preset::Preset;
 /// A direction through a [`Radio`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Direction {
-    /// From side A's serial port to side B's (TDM slot A).
-    AToB,
-    /// From side B's serial port to side A's (TDM slot B).
-    BToA,
+    /// Ground → drone: the pilot's commands, mission uploads (TDM slot B).
+    Uplink,
+    /// Drone → ground: telemetry (TDM slot A).
+    Downlink,
 }
 
 impl Direction {
     fn index(self) -> usize {
         match self {
-            Direction::AToB => 0,
-            Direction::BToA => 1,
+            Direction::Downlink => 0,
+            Direction::Uplink => 1,
+        }
+    }
+
+    /// The other direction.
+    pub fn reverse(self) -> Direction {
+        match self {
+            Direction::Uplink => Direction::Downlink,
+            Direction::Downlink => Direction::Uplink,
         }
     }
 }
@@ -42,13 +50,13 @@ impl Radio {
     /// seeds, duty rules).
     pub fn new(
         preset: &Preset,
-        a_to_b: &LinkConfig,
-        b_to_a: &LinkConfig,
+        uplink: &LinkConfig,
+        downlink: &LinkConfig,
     ) -> Result<Radio, ConfigError> {
         Ok(Radio {
             links: [
-                Link::new(preset, a_to_b, Slot::A)?,
-                Link::new(preset, b_to_a, Slot::B)?,
+                Link::new(preset, downlink, Slot::A)?,
+                Link::new(preset, uplink, Slot::B)?,
             ],
             half_duplex: preset.half_duplex(),
         })

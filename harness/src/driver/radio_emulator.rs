@@ -3,8 +3,9 @@
 //! ([`RadioEmulator::between`]: two USB-serial adapters, each null-modem wired
 //! to the bridge's or the router's radio port, in place of the radios).
 //!
-//! Side A's program opens [`RadioEmulator::a_path`], side B's opens
-//! [`RadioEmulator::b_path`]; bytes written on one side come out on the other
+//! The drone's program (the bridge) opens [`RadioEmulator::air_path`], the
+//! ground's (the router) [`RadioEmulator::ground_path`]; bytes written on one
+//! side come out on the other
 //! as the model decides (airtime, loss, buffer drops, duty cycle). One thread
 //! runs the small loop the sans-IO contract asks for: read what is
 //! available → `handle_input(now)`, `handle_timeout(now)`, write what
@@ -21,10 +22,9 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use serialport::{SerialPort, TTYPort};
 
-use super::link::LinkStats;
-use super::pair::{Direction, Radio};
 use crate::clock::Mono;
 use crate::driver::pty::PtyPair;
+use harness_radio::{Direction, LinkStats, Radio};
 
 /// Longest the loop sleeps without looking for input.
 pub const POLL: Duration = Duration::from_millis(1);
@@ -72,13 +72,13 @@ impl RadioEmulator {
         Self::start(name, radio, Side::Pty(a), Side::Pty(b), a_master, b_master)
     }
 
-    /// Starts `radio` between two serial devices at `baud` (8N1): side A is `a_device`
-    /// (wired to the drone's radio port), side B `b_device` (the ground's).
+    /// Starts `radio` between two serial devices at `baud` (8N1): `air_device` is
+    /// wired to the drone's radio port, `ground_device` to the ground's.
     pub fn between(
         name: &str,
         radio: Radio,
-        a_device: &str,
-        b_device: &str,
+        air_device: &str,
+        ground_device: &str,
         baud: u32,
     ) -> Result<RadioEmulator> {
         let open = |path: &str| {
@@ -86,13 +86,13 @@ impl RadioEmulator {
                 format!("radio emulator {name}: cannot open {path} at {baud} baud")
             })
         };
-        let a_port = open(a_device)?;
-        let b_port = open(b_device)?;
+        let a_port = open(air_device)?;
+        let b_port = open(ground_device)?;
         Self::start(
             name,
             radio,
-            Side::Device(a_device.to_string()),
-            Side::Device(b_device.to_string()),
+            Side::Device(air_device.to_string()),
+            Side::Device(ground_device.to_string()),
             a_port,
             b_port,
         )
@@ -130,13 +130,13 @@ impl RadioEmulator {
         })
     }
 
-    /// The serial port side A's program opens (a pty), or is wired to (a device).
-    pub fn a_path(&self) -> &str {
+    /// The serial port the drone's program opens (a pty), or is wired to (a device).
+    pub fn air_path(&self) -> &str {
         self.a.path()
     }
 
-    /// As [`RadioEmulator::a_path`], for side B.
-    pub fn b_path(&self) -> &str {
+    /// As [`RadioEmulator::air_path`], for the ground's program.
+    pub fn ground_path(&self) -> &str {
         self.b.path()
     }
 
@@ -200,7 +200,7 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
                 .lock()
                 .unwrap_or_else(|poisoned| poisoned.into_inner());
             let now = Mono::now().since(shared.epoch);
-            for (port, from) in [(&mut *a, Direction::AToB), (&mut *b, Direction::BToA)] {
+            for (port, from) in [(&mut *a, Direction::Downlink), (&mut *b, Direction::Uplink)] {
                 match read_available(port, &mut buf) {
                     Ok(0) => {}
                     Ok(n) => radio.handle_input(now, from, &buf[..n]),
@@ -211,7 +211,7 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
                 }
             }
             radio.handle_timeout(now);
-            for (port, to) in [(&mut *b, Direction::AToB), (&mut *a, Direction::BToA)] {
+            for (port, to) in [(&mut *b, Direction::Downlink), (&mut *a, Direction::Uplink)] {
                 while let Some(bytes) = radio.poll_output(now, to) {
                     if port.write_all(&bytes).is_err() {
                         shared

@@ -1,8 +1,8 @@
-//! Line-of-sight radio models for the link emulator (issue 4): airtime,
-//! loss, duty cycle, and a sans-IO engine per direction.
+//! Line-of-sight radio models for the rig's link emulator and the simulated
+//! worlds: airtime, loss, duty cycle, and a sans-IO engine per direction.
 //!
-//! Contract, after quinn-proto and smoltcp: no IO and no clock in the model
-//! (everything but [`emulator`]).
+//! Contract, after quinn-proto and smoltcp: no IO and no clock; the rig's
+//! radio emulator driver runs this model between two serial ports.
 //! Time is a [`Duration`](std::time::Duration) since an epoch the driver
 //! picks (the emulator: its start; a simulation: zero), passed to every call;
 //! it must not go backwards (earlier times are treated as the latest seen).
@@ -18,9 +18,8 @@
 //! - [`Link`]: one direction: `handle_input(now, bytes)`,
 //!   `poll_timeout()`, `handle_timeout(now)`, `poll_output(now)`, with
 //!   [`LinkStats`] for the evidence.
-//! - [`Radio`]: two directions of one preset, half duplex where the preset is.
-//! - [`RadioEmulator`]: the one IO part: a `Radio` between two pty pairs on
-//!   the real clock, for programs that open serial ports ([`emulator`]).
+//! - [`Radio`]: two directions of one preset, half duplex where the preset is:
+//!   [`Direction::Uplink`] (ground → drone) and [`Direction::Downlink`].
 //!
 //! A rig file carries a radio as a preset plus one [`LinkConfig`] per
 //! direction, e.g. the paper's blind drone on SiK:
@@ -41,7 +40,6 @@
 
 pub mod airtime;
 pub mod duty;
-pub mod emulator;
 mod error;
 pub mod link;
 pub mod loss;
@@ -51,7 +49,6 @@ pub mod setup;
 
 pub use airtime::{FskParams, LoraParams, Modulation};
 pub use duty::{DutyCycle, DutyTracker};
-pub use emulator::RadioEmulator;
 pub use error::ConfigError;
 pub use link::{AirPacket, Link, LinkConfig, LinkStats, Slot};
 pub use loss::{GilbertElliott, LinkBudget, LossModel, PathLoss};
@@ -71,7 +68,7 @@ mod tests {
             uplink: LinkConfig,
             downlink: LinkConfig,
         }
-        let example: String = include_str!("mod.rs")
+        let example: String = include_str!("lib.rs")
             .lines()
             .skip_while(|l| !l.starts_with("//! ```toml"))
             .skip(1)
@@ -84,7 +81,7 @@ mod tests {
         let radio = Radio::new(&Preset::sik_64k(), &e.uplink, &e.downlink).unwrap();
         // 400 m: FSPL ≈ 77.2 dB, 6.8 dB inside the SiK edge; the uplink's 12 dB
         // of noise puts it 5.2 dB past it.
-        assert!(radio.link(Direction::AToB).reference_per() > 0.5);
-        assert!(radio.link(Direction::BToA).reference_per() < 1e-3);
+        assert!(radio.link(Direction::Uplink).reference_per() > 0.5);
+        assert!(radio.link(Direction::Downlink).reference_per() < 1e-3);
     }
 }

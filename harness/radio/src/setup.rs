@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use super::error::ConfigError;
 use super::link::LinkConfig;
-use super::pair::{Direction, Radio};
+use super::pair::Radio;
 use super::preset::Preset;
 
 /// The preset of a [`RadioSetup`]: a built-in name or a full table.
@@ -70,13 +70,8 @@ impl RadioSetup {
     /// The two engines, side A = drone (its sends are the downlink).
     pub fn radio(&self) -> Result<Radio, ConfigError> {
         let preset = self.preset.resolve()?;
-        Radio::new(&preset, &self.downlink, &self.uplink)
+        Radio::new(&preset, &self.uplink, &self.downlink)
     }
-
-    /// Which [`Radio`] direction carries drone → ground.
-    pub const DOWNLINK: Direction = Direction::AToB;
-    /// Which [`Radio`] direction carries ground → drone.
-    pub const UPLINK: Direction = Direction::BToA;
 }
 
 #[cfg(test)]

@@ -42,7 +42,7 @@ struct Args {
     /// Radio baud rate [default: 57600].
     #[arg(long)]
     radio_baud: Option<u32>,
-    /// Profile file (stream rates and radio filter), e.g. mavlora/profiles/px4-normal.toml.
+    /// Profile file (stream rates and radio filter), e.g. firmware/mavlora/profiles/px4-normal.toml.
     #[arg(long)]
     profile: Option<PathBuf>,
     /// Radio budget in bytes per second [default: 683, a LoRa SF7 channel].

@@ -11,13 +11,13 @@
 
 use std::time::Duration;
 
-use proptest::prelude::*;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rig::radio::{
+use harness_radio::{
     Access, Direction, DutyCycle, GilbertElliott, Link, LinkBudget, LinkConfig, LoraParams,
     LossModel, Preset, Radio, Slot,
 };
+use proptest::prelude::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 const MS: Duration = Duration::from_millis(1);
 
@@ -53,7 +53,7 @@ fn run(
             next_input += 1;
         }
         radio.handle_timeout(now);
-        for dir in [Direction::AToB, Direction::BToA] {
+        for dir in [Direction::Uplink, Direction::Downlink] {
             while let Some(bytes) = radio.poll_output(now, dir) {
                 out.push((now, dir, bytes));
             }
@@ -276,12 +276,12 @@ fn directions_are_independent() {
     let mut radio = Radio::new(&Preset::sik_64k(), &up, &down).unwrap();
     let mut inputs = Vec::new();
     for i in 0..2000u32 {
-        inputs.push((300 * MS * i, Direction::AToB, vec![1; 21]));
-        inputs.push((300 * MS * i + 7 * MS, Direction::BToA, vec![2; 21]));
+        inputs.push((300 * MS * i, Direction::Uplink, vec![1; 21]));
+        inputs.push((300 * MS * i + 7 * MS, Direction::Downlink, vec![2; 21]));
     }
     run(&mut radio, &inputs, Duration::from_secs(3600));
-    let up = radio.link(Direction::AToB).stats();
-    let down = radio.link(Direction::BToA).stats();
+    let up = radio.link(Direction::Uplink).stats();
+    let down = radio.link(Direction::Downlink).stats();
     // 75 dB is 9 dB inside the SiK edge; 20 dB of noise puts the uplink 11 dB
     // past it: PER = 1/(1 + 99·e^−11) = 99.8 %.
     assert!(
@@ -333,12 +333,12 @@ proptest! {
         let preset = &presets()[which];
         let cfg = |s| LinkConfig { seed: s, jitter_ms: 3.0, ..LinkConfig::default() };
         let mut radio = Radio::new(preset, &cfg(seed), &cfg(seed ^ 1)).unwrap();
-        radio.link_mut(Direction::AToB).set_trace(true);
-        radio.link_mut(Direction::BToA).set_trace(true);
+        radio.link_mut(Direction::Uplink).set_trace(true);
+        radio.link_mut(Direction::Downlink).set_trace(true);
         let mut t = Duration::ZERO;
         let inputs: Vec<_> = writes.iter().map(|&(gap, len, ab)| {
             t += MS * gap as u32;
-            let dir = if ab { Direction::AToB } else { Direction::BToA };
+            let dir = if ab { Direction::Uplink } else { Direction::Downlink };
             (t, dir, vec![0xA5; len])
         }).collect();
         let t0 = inputs[0].0;
@@ -346,7 +346,7 @@ proptest! {
         let rate = best_rate(preset);
         let (mut ab, mut ba) = (0usize, 0usize);
         for (at, dir, bytes) in &out {
-            match dir { Direction::AToB => ab += bytes.len(), Direction::BToA => ba += bytes.len() }
+            match dir { Direction::Uplink => ab += bytes.len(), Direction::Downlink => ba += bytes.len() }
             let limit = rate * (*at - t0).as_secs_f64() + 1.0;
             prop_assert!((ab.max(ba)) as f64 <= limit, "{ab}/{ba} B by {at:?}, limit {limit}");
             if preset.half_duplex() {
@@ -354,12 +354,13 @@ proptest! {
             }
         }
         // Everything offered is delivered or dropped at the buffer (no loss here).
-        for dir in [Direction::AToB, Direction::BToA] {
+        for dir in [Direction::Uplink, Direction::Downlink] {
             let s = radio.link(dir).stats();
             prop_assert_eq!(s.bytes_offered, s.bytes_delivered + s.bytes_dropped);
         }
-        let a = radio.link_mut(Direction::AToB).take_trace();
-        let b = radio.link_mut(Direction::BToA).take_trace();
+        // Slot A is the drone's (downlink), slot B the ground's.
+        let a = radio.link_mut(Direction::Downlink).take_trace();
+        let b = radio.link_mut(Direction::Uplink).take_trace();
         match preset.access {
             Access::Tdm(tdm) => {
                 let window = tdm.window_ms / 1e3;
@@ -469,12 +470,12 @@ fn half_duplex_shares_the_channel_fairly() {
     let mut radio = Radio::new(&Preset::lora_sf7(), &cfg, &cfg).unwrap();
     let mut inputs = Vec::new();
     for i in 0..600u32 {
-        inputs.push((50 * MS * i, Direction::AToB, vec![1; 64]));
-        inputs.push((50 * MS * i, Direction::BToA, vec![2; 64]));
+        inputs.push((50 * MS * i, Direction::Uplink, vec![1; 64]));
+        inputs.push((50 * MS * i, Direction::Downlink, vec![2; 64]));
     }
     let out = run(&mut radio, &inputs, Duration::from_secs(30));
     let count = |d| -> usize { out.iter().filter(|o| o.1 == d).map(|o| o.2.len()).sum() };
-    let (ab, ba) = (count(Direction::AToB), count(Direction::BToA));
+    let (ab, ba) = (count(Direction::Uplink), count(Direction::Downlink));
     assert!(ab.abs_diff(ba) <= 251, "{ab} vs {ba}");
     // Together no more than one direction alone could move.
     assert!(((ab + ba) as f64 / 30.0) <= 630.0, "{ab} + {ba}");
@@ -492,13 +493,13 @@ fn lossy_run(seed: u64) -> (Vec<Delivery>, Vec<bool>) {
         ..LinkConfig::default()
     };
     let mut radio = Radio::new(&Preset::lora_sf7(), &cfg, &cfg).unwrap();
-    radio.link_mut(Direction::AToB).set_trace(true);
+    radio.link_mut(Direction::Uplink).set_trace(true);
     let inputs: Vec<_> = (0..500u32)
-        .map(|i| (130 * MS * i, Direction::AToB, vec![i as u8; 30]))
+        .map(|i| (130 * MS * i, Direction::Uplink, vec![i as u8; 30]))
         .collect();
     let out = run(&mut radio, &inputs, Duration::from_secs(120));
     let lost = radio
-        .link_mut(Direction::AToB)
+        .link_mut(Direction::Uplink)
         .take_trace()
         .iter()
         .map(|p| p.lost)

@@ -19,7 +19,7 @@ use serialport::{SerialPort, TTYPort};
 use mavlora::wire::{Frame, FrameReader, known};
 
 fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
 /// Kills a child on drop so a failing test leaves no processes behind.
@@ -177,7 +177,7 @@ fn pymavlink_telemetry_and_fifty_item_mission_through_bridge_and_router() {
             Command::new(env!("CARGO_BIN_EXE_mavlora-bridge"))
                 .args(["--fc", &fc_port, "--radio", &radio.air, "--compact"])
                 .arg("--profile")
-                .arg(root().join("mavlora/profiles/px4-compact.toml"))
+                .arg(root().join("firmware/mavlora/profiles/px4-compact.toml"))
                 .args(["--status-interval", "2"])
                 .arg("--key")
                 .arg(&key)
