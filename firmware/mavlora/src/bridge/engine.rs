@@ -20,7 +20,7 @@ use crate::quality::LinkQuality;
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
 use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender};
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, ids};
 
 /// Counters of one bridge, for the status line and tests.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -195,7 +195,13 @@ impl Bridge {
         let id = frame.message_id();
         let wants_decode = self.watch.wants(&frame)
             || (self.compactor.is_some() && REPLACED_IDS.contains(&id))
-            || matches!(id, 40 | 47 | 51 | 77);
+            || matches!(
+                id,
+                ids::MISSION_REQUEST
+                    | ids::MISSION_ACK
+                    | ids::MISSION_REQUEST_INT
+                    | ids::COMMAND_ACK
+            );
         let msg = if wants_decode {
             frame.decode::<MavMessage>().ok()
         } else {
@@ -241,7 +247,7 @@ impl Bridge {
                 self.config_ack(ack.result, now);
                 return;
             }
-            if id == 77 {
+            if id == ids::COMMAND_ACK {
                 self.commands.ack(frame.system_id(), &frame, msg, now);
             }
             if let Some(compactor) = &mut self.compactor
@@ -371,12 +377,12 @@ impl Bridge {
         self.quality.handle_frame(&frame, now);
         let id = frame.message_id();
         match id {
-            // LINK_QUALITY is for us; the flight controller does not know id 15.
-            15 => {
+            // LINK_QUALITY is for us; the flight controller does not know it.
+            ids::LINK_QUALITY => {
                 self.stats.link_quality_received += 1;
                 return;
             }
-            0 | 44 | 73 => {
+            ids::HEARTBEAT | ids::MISSION_COUNT | ids::MISSION_ITEM_INT => {
                 let Ok(msg) = frame.decode::<MavMessage>() else {
                     self.forward_to_fc(frame);
                     return;
@@ -389,12 +395,13 @@ impl Bridge {
                 let from = (frame.system_id(), frame.component_id());
                 // Uploads addressed to this vehicle are relayed; others pass through.
                 let for_vehicle = msg.target_system_id() == Some(self.radio_sender.system());
-                if id != 0 && for_vehicle && self.mission.handle_radio(from, &msg, now) {
+                if id != ids::HEARTBEAT && for_vehicle && self.mission.handle_radio(from, &msg, now)
+                {
                     return;
                 }
             }
             // Commands the router may have resent: each reaches the FC once.
-            75 | 76 => {
+            ids::COMMAND_INT | ids::COMMAND_LONG => {
                 if let Ok(msg) = frame.decode::<MavMessage>() {
                     match self.commands.command(&frame, &msg, now) {
                         CacheVerdict::Forward => {}

@@ -17,7 +17,7 @@ use mavlink::MavlinkVersion;
 
 use crate::dialect::{MavAutopilot, MavMessage};
 use crate::time::Instant;
-use crate::wire::Frame;
+use crate::wire::{Frame, ids};
 
 /// What the watch saw.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -39,7 +39,7 @@ pub struct FcWatch {
 }
 
 /// Message ids carrying `time_boot_ms` that the watch decodes.
-const UPTIME_IDS: [u32; 3] = [2, 30, 33];
+const UPTIME_IDS: [u32; 3] = [ids::SYSTEM_TIME, ids::ATTITUDE, ids::GLOBAL_POSITION_INT];
 
 impl FcWatch {
     /// A watch that has seen nothing.
@@ -78,7 +78,7 @@ impl FcWatch {
         now: Instant,
     ) -> Option<FcEvent> {
         let id = frame.message_id();
-        if id == 0 {
+        if id == ids::HEARTBEAT {
             let Some(MavMessage::HEARTBEAT(hb)) = msg else {
                 return None;
             };
@@ -126,6 +126,6 @@ impl FcWatch {
 
     /// Whether the watch wants `frame` decoded (heartbeats and uptime carriers).
     pub fn wants<T: AsRef<[u8]>>(&self, frame: &Frame<T>) -> bool {
-        frame.message_id() == 0 || UPTIME_IDS.contains(&frame.message_id())
+        frame.message_id() == ids::HEARTBEAT || UPTIME_IDS.contains(&frame.message_id())
     }
 }

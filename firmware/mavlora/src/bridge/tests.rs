@@ -15,7 +15,7 @@ use crate::dialect::{
 use crate::filter::Profile;
 use crate::schedule::SchedulerConfig;
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, Sender};
+use crate::wire::{FrameReader, OwnedFrame, Sender, ids};
 
 const PROFILE: &str = r#"
 [messages.ATTITUDE]
@@ -190,7 +190,7 @@ fn radio_traffic_reaches_the_fc_and_link_quality_goes_both_ways() {
     assert!(b.quality().peer().is_some());
     // our own report leaves every period (5 s by default)
     let out = to_radio(&mut b, ms(5000));
-    assert!(out.iter().any(|f| f.message_id() == 15));
+    assert!(out.iter().any(|f| f.message_id() == ids::LINK_QUALITY));
     let mut r = FrameReader::new();
     r.push(out[0].as_bytes());
     let MavMessage::LINK_QUALITY(report) = r.next_frame().unwrap().frame.decode().unwrap() else {
@@ -214,7 +214,7 @@ fn ground_heartbeat_is_regenerated_while_the_ground_is_heard() {
     for t in (0..20_000).step_by(100) {
         b.handle_timeout(ms(t));
         while let Some(f) = b.poll_fc_transmit(ms(t)) {
-            if f.message_id() == 0 {
+            if f.message_id() == ids::HEARTBEAT {
                 heartbeats += 1;
                 seqs.push(f.sequence());
             }
@@ -379,7 +379,12 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
         result: MavResult::MAV_RESULT_ACCEPTED,
     });
     b.handle_fc_bytes(fc.frame(&ack).as_bytes(), ms(120));
-    let acks = |frames: Vec<OwnedFrame>| frames.iter().filter(|f| f.message_id() == 77).count();
+    let acks = |frames: Vec<OwnedFrame>| {
+        frames
+            .iter()
+            .filter(|f| f.message_id() == ids::COMMAND_ACK)
+            .count()
+    };
     assert_eq!(acks(to_radio(&mut b, ms(120))), 1);
     // the ack was lost on the radio and the router resends the command
     b.handle_radio_bytes(gcs.frame(&cmd).as_bytes(), ms(1100));
@@ -407,7 +412,7 @@ fn compact_mode_keeps_replaced_messages_off_the_radio_before_the_fc_is_known() {
     assert!(
         to_radio(&mut b, ms(10))
             .iter()
-            .all(|f| f.message_id() != 33)
+            .all(|f| f.message_id() != ids::GLOBAL_POSITION_INT)
     );
     assert_eq!(b.stats().held_before_fc, 1);
     // without compact telemetry the same frame goes (the filter allows 3 Hz)
@@ -416,6 +421,6 @@ fn compact_mode_keeps_replaced_messages_off_the_radio_before_the_fc_is_known() {
     assert!(
         to_radio(&mut b, ms(10))
             .iter()
-            .any(|f| f.message_id() == 33)
+            .any(|f| f.message_id() == ids::GLOBAL_POSITION_INT)
     );
 }

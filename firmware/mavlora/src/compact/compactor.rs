@@ -7,10 +7,17 @@ use crate::dialect::{
     GLOBAL_POSITION_INT_DATA, MAVLORA_POSITION_BATCH_DATA, MAVLORA_STATUS_DATA, MavMessage,
 };
 use crate::time::Instant;
+use crate::wire::ids;
 
-/// Message ids the compactor replaces on the radio: HEARTBEAT (of the autopilot), SYS_STATUS,
-/// GPS_RAW_INT, GLOBAL_POSITION_INT, MISSION_CURRENT, VFR_HUD.
-pub const REPLACED_IDS: [u32; 6] = [0, 1, 24, 33, 42, 74];
+/// Message ids the compactor replaces on the radio (the heartbeat: of the autopilot).
+pub const REPLACED_IDS: [u32; 6] = [
+    ids::HEARTBEAT,
+    ids::SYS_STATUS,
+    ids::GPS_RAW_INT,
+    ids::GLOBAL_POSITION_INT,
+    ids::MISSION_CURRENT,
+    ids::VFR_HUD,
+];
 
 /// Settings of a [`Compactor`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -68,6 +68,7 @@ pub fn request_data_stream_requests(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::ids::{ATTITUDE, GLOBAL_POSITION_INT};
 
     #[test]
     fn requests_follow_the_profile() {
@@ -89,8 +90,12 @@ mod tests {
                 other => panic!("unexpected {other:?}"),
             })
             .collect();
-        // ATTITUDE (30) stopped, GLOBAL_POSITION_INT (33) every 333,333 µs; HEARTBEAT untouched
-        assert_eq!(params, vec![(30.0, -1.0), (33.0, 333_333.0)]);
+        // ATTITUDE stopped, GLOBAL_POSITION_INT every 333,333 µs; HEARTBEAT untouched
+        let id = |id: u32| id as f32;
+        assert_eq!(
+            params,
+            vec![(id(ATTITUDE), -1.0), (id(GLOBAL_POSITION_INT), 333_333.0)]
+        );
     }
 
     #[test]

@@ -10,6 +10,7 @@ use std::time::Duration;
 use super::rtt::RttEstimator;
 use crate::dialect::MavMessage;
 use crate::time::Instant;
+use crate::wire::ids;
 
 /// Sans-IO duplicate suppressor for mission uploads passing through the router.
 #[derive(Debug)]
@@ -44,8 +45,8 @@ impl DuplicateSuppressor {
     /// A frame from the ground station: `false` if it is a retransmission to drop.
     pub fn from_ground(&mut self, msg: &MavMessage, now: Instant) -> bool {
         let key = match msg {
-            MavMessage::MISSION_COUNT(m) => (44, m.count),
-            MavMessage::MISSION_ITEM_INT(m) => (73, m.seq),
+            MavMessage::MISSION_COUNT(m) => (ids::MISSION_COUNT, m.count),
+            MavMessage::MISSION_ITEM_INT(m) => (ids::MISSION_ITEM_INT, m.seq),
             _ => return true,
         };
         if let Some((id, n, at, _)) = self.last
@@ -73,13 +74,14 @@ impl DuplicateSuppressor {
             _ => return,
         };
         if let Some((id, n, at, retransmitted)) = self.last {
-            if id == 73 && seq == n {
+            if id == ids::MISSION_ITEM_INT && seq == n {
                 // The vehicle asks again for the item we forwarded (it was lost on the radio):
                 // the ground's answer is wanted, not a duplicate.
                 self.last = None;
                 return;
             }
-            let answers = (id == 44 && seq == 0) || (id == 73 && seq == n.wrapping_add(1));
+            let answers = (id == ids::MISSION_COUNT && seq == 0)
+                || (id == ids::MISSION_ITEM_INT && seq == n.wrapping_add(1));
             if answers && !retransmitted {
                 self.rtt.sample(now.saturating_duration_since(at));
                 self.last = Some((id, n, at, true));

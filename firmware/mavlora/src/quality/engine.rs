@@ -1,16 +1,15 @@
-//! The link-quality engine: reports what this side hears (id 15, periodically) and keeps what
+//! The link-quality engine: reports what this side hears (`LINK_QUALITY`, periodically) and keeps what
 //! the other side reports hearing. The paper's reason: a drone's own RF noise can blind its
 //! receiver while the ground still hears the drone, so the ground must be told.
 
 use std::time::Duration;
 
-use mavlink::MessageData;
 use tracing::debug;
 
 use super::rssi::RssiScale;
-use crate::dialect::{LINK_QUALITY_DATA, MavMessage, RADIO_STATUS_DATA};
+use crate::dialect::{LINK_QUALITY_DATA, MavMessage};
 use crate::time::Instant;
-use crate::wire::{Frame, ReaderStats};
+use crate::wire::{Frame, ReaderStats, ids};
 
 /// Settings of a [`LinkQuality`] engine.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -105,12 +104,12 @@ impl LinkQuality {
     /// radio's `RADIO_STATUS` are decoded; other frames are ignored by header.
     pub fn handle_frame<T: AsRef<[u8]>>(&mut self, frame: &Frame<T>, now: Instant) {
         match frame.message_id() {
-            LINK_QUALITY_DATA::ID => {
+            ids::LINK_QUALITY => {
                 if let Ok(MavMessage::LINK_QUALITY(report)) = frame.decode::<MavMessage>() {
                     self.peer_report(report, now);
                 }
             }
-            RADIO_STATUS_DATA::ID => {
+            ids::RADIO_STATUS => {
                 let Some(scale) = self.config.radio_status else {
                     return;
                 };

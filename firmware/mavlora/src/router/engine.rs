@@ -14,7 +14,7 @@ use crate::quality::{LinkQuality, LinkQualityConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
 use crate::signing::{RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, encode, known};
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, encode, ids, known};
 
 /// Router settings.
 #[derive(Debug, Clone)]
@@ -179,16 +179,16 @@ impl Router {
         while let Some(rx) = self.gcs_reader.next_frame() {
             let frame = rx.frame;
             let id = frame.message_id();
-            if id == 0 {
+            if id == ids::HEARTBEAT {
                 if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
                     continue;
                 }
-            } else if matches!(id, 44 | 73)
+            } else if matches!(id, ids::MISSION_COUNT | ids::MISSION_ITEM_INT)
                 && let Ok(msg) = frame.decode::<MavMessage>()
                 && !self.dedup.from_ground(&msg, now)
             {
                 continue;
-            } else if matches!(id, 75 | 76)
+            } else if matches!(id, ids::COMMAND_INT | ids::COMMAND_LONG)
                 && let Ok(msg) = frame.decode::<MavMessage>()
                 && !self.commands.from_ground(&frame, &msg, now)
             {
@@ -207,18 +207,18 @@ impl Router {
             };
             self.quality.handle_frame(&frame, now);
             match frame.message_id() {
-                17 | 18 => {
+                ids::MAVLORA_POSITION_BATCH | ids::MAVLORA_STATUS => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.expand(frame.system_id(), &msg);
                     }
                 }
-                40 | 51 => {
+                ids::MISSION_REQUEST | ids::MISSION_REQUEST_INT => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.dedup.from_radio(&msg, now);
                     }
                     self.push_gcs(frame);
                 }
-                77 => {
+                ids::COMMAND_ACK => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.commands.from_radio(frame.system_id(), &msg, now);
                     }

@@ -8,7 +8,7 @@ use crate::dialect::{
 };
 use crate::schedule::SchedulerConfig;
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, Sender, known};
+use crate::wire::{FrameReader, OwnedFrame, Sender, ids, known};
 
 fn router() -> Router {
     Router::new(
@@ -89,7 +89,7 @@ fn ground_heartbeats_are_thinned_towards_the_radio() {
     for t in 0..20 {
         r.handle_gcs_bytes(gcs.frame(&hb).as_bytes(), ms(t * 1000));
         while let Some(f) = r.poll_radio_transmit(ms(t * 1000), usize::MAX) {
-            sent += usize::from(f.message_id() == 0);
+            sent += usize::from(f.message_id() == ids::HEARTBEAT);
         }
     }
     assert_eq!(sent, 4);
@@ -139,7 +139,7 @@ fn item_requested_again_by_the_vehicle_is_not_a_duplicate() {
     r.handle_radio_bytes(bridge.frame(&again).as_bytes(), ms(600));
     r.handle_gcs_bytes(gcs.frame(&item).as_bytes(), ms(601));
     let items = std::iter::from_fn(|| r.poll_radio_transmit(ms(700), usize::MAX))
-        .filter(|f| f.message_id() == 73)
+        .filter(|f| f.message_id() == ids::MISSION_ITEM_INT)
         .count();
     assert_eq!(items, 2);
     assert_eq!(r.stats().mission_duplicates, 1);
@@ -183,7 +183,11 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
         result: MavResult::MAV_RESULT_ACCEPTED,
     });
     r.handle_radio_bytes(fc.frame(&ack).as_bytes(), ms(1700));
-    assert!(gcs_out(&mut r).iter().any(|f| f.message_id() == 77));
+    assert!(
+        gcs_out(&mut r)
+            .iter()
+            .any(|f| f.message_id() == ids::COMMAND_ACK)
+    );
     assert_eq!(commands(&radio_out(&mut r, ms(20_000))), 0);
     let s = r.stats().commands;
     assert_eq!(

@@ -160,6 +160,7 @@ impl LinkSigner {
 mod tests {
     use super::*;
     use crate::testutil::frame;
+    use crate::wire::ids::{GLOBAL_POSITION_INT, HEARTBEAT};
 
     fn pair() -> (LinkSigner, LinkSigner) {
         let key = SigningKey([7; 32]);
@@ -172,7 +173,7 @@ mod tests {
     #[test]
     fn signed_frame_verifies_and_comes_back_plain() {
         let (mut a, mut b) = pair();
-        let f = frame(33, 1, 1, 9);
+        let f = frame(GLOBAL_POSITION_INT, 1, 1, 9);
         let signed = a.sign(&f, Instant::ZERO).unwrap();
         assert!(signed.is_signed());
         assert_eq!(signed.as_bytes().len(), f.as_bytes().len() + 13);
@@ -184,7 +185,7 @@ mod tests {
     #[test]
     fn tampered_unsigned_and_replayed_frames_are_rejected() {
         let (mut a, mut b) = pair();
-        let signed = a.sign(&frame(0, 1, 1, 0), Instant::ZERO).unwrap();
+        let signed = a.sign(&frame(HEARTBEAT, 1, 1, 0), Instant::ZERO).unwrap();
         let mut bytes = signed.as_bytes().to_vec();
         bytes[12] ^= 1; // payload bit
         let tampered = Frame::new_unchecked(bytes);
@@ -193,7 +194,7 @@ mod tests {
             Err(Rejection::BadSignature)
         );
         assert_eq!(
-            b.verify(&frame(0, 1, 1, 0), Instant::ZERO),
+            b.verify(&frame(HEARTBEAT, 1, 1, 0), Instant::ZERO),
             Err(Rejection::Unsigned)
         );
         assert!(b.verify(&signed, Instant::ZERO).is_ok());
@@ -203,7 +204,7 @@ mod tests {
         );
         // a wrong key fails too
         let mut c = LinkSigner::new(SigningKey([8; 32]), 3, 1_000_000);
-        let later = a.sign(&frame(0, 1, 1, 1), Instant::ZERO).unwrap();
+        let later = a.sign(&frame(HEARTBEAT, 1, 1, 1), Instant::ZERO).unwrap();
         assert_eq!(
             c.verify(&later, Instant::ZERO),
             Err(Rejection::BadSignature)
@@ -219,7 +220,7 @@ mod tests {
     fn timestamps_increase_even_within_one_tick() {
         let (mut a, mut b) = pair();
         for seq in 0..5 {
-            let s = a.sign(&frame(0, 1, 1, seq), Instant::ZERO).unwrap();
+            let s = a.sign(&frame(HEARTBEAT, 1, 1, seq), Instant::ZERO).unwrap();
             assert!(b.verify(&s, Instant::ZERO).is_ok(), "frame {seq}");
         }
     }
@@ -229,7 +230,7 @@ mod tests {
         let key = SigningKey([7; 32]);
         let mut old = LinkSigner::new(key.clone(), 1, 0);
         let mut now = LinkSigner::new(key, 2, 10 * NEW_STREAM_SLACK);
-        let s = old.sign(&frame(0, 1, 1, 0), Instant::ZERO).unwrap();
+        let s = old.sign(&frame(HEARTBEAT, 1, 1, 0), Instant::ZERO).unwrap();
         assert_eq!(now.verify(&s, Instant::ZERO), Err(Rejection::Replayed));
     }
 }

@@ -4,6 +4,7 @@
 //! never decoded unless a caller asks ([`Frame::decode`]).
 
 mod frame;
+pub mod ids;
 pub mod known;
 mod reader;
 mod resequence;

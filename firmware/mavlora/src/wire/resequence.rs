@@ -46,6 +46,7 @@ mod tests {
     use super::*;
     use crate::testutil::frame;
     use crate::wire::FrameReader;
+    use crate::wire::ids::{GLOBAL_POSITION_INT, HEARTBEAT};
 
     #[test]
     fn thinned_stream_reads_as_gap_free() {
@@ -53,8 +54,8 @@ mod tests {
         let mut reader = FrameReader::new();
         // every third frame of sender 1/1 survives a filter; sender 2/1 is interleaved
         for seq in (0..60u8).step_by(3) {
-            let mut a = frame(33, 1, 1, seq);
-            let mut b = frame(0, 2, 1, seq.wrapping_mul(7));
+            let mut a = frame(GLOBAL_POSITION_INT, 1, 1, seq);
+            let mut b = frame(HEARTBEAT, 2, 1, seq.wrapping_mul(7));
             assert!(r.apply(&mut a) && r.apply(&mut b));
             reader.push(a.as_bytes());
             reader.push(b.as_bytes());

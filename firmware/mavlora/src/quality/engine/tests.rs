@@ -5,7 +5,7 @@ use crate::dialect::{MavMessage, RADIO_STATUS_DATA};
 use crate::testutil::frame;
 use crate::wire::{FrameReader, Sender};
 
-const HEARTBEAT: u32 = 0;
+use crate::wire::ids::HEARTBEAT;
 
 /// One report a second, peer missing after 3 s.
 fn config() -> LinkQualityConfig {

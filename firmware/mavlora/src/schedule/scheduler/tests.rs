@@ -3,10 +3,8 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::testutil::raw_frame;
+use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT};
 
-const HEARTBEAT: u32 = 0;
-const GLOBAL_POSITION_INT: u32 = 33;
-const COMMAND_LONG: u32 = 76;
 const ROOM: usize = usize::MAX;
 
 fn config(rate: u32) -> SchedulerConfig {

@@ -3,11 +3,9 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::testutil::{frame, raw_frame};
+use crate::wire::ids::{ATTITUDE, GLOBAL_POSITION_INT, HEARTBEAT};
 use crate::wire::known;
 
-const HEARTBEAT: u32 = 0;
-const ATTITUDE: u32 = 30;
-const GLOBAL_POSITION_INT: u32 = 33;
 const S11: StreamId = StreamId {
     system: 1,
     component: 1,

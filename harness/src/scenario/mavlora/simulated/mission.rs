@@ -22,6 +22,7 @@ use mavlora::dialect::MavMissionResult;
 use mavlora::filter::Profile;
 use mavlora::sim::profiles::PX4_COMPACT_TOML;
 use mavlora::sim::{Flight, GcsMock, PX4_NORMAL, Px4Fc, Route};
+use mavlora::wire::ids;
 
 use super::world::{Counts, SimWorld, secs};
 use super::{Radios, Scenario, mavlora_configs};
@@ -45,9 +46,15 @@ pub const CUT_OFF_S: f64 = 300.0;
 /// The run goes on this long in any case, so the radio's measured loss rests on enough
 /// packets to compare with the configured mean.
 pub const RUN_S: f64 = WARM_UP_S + CUT_OFF_S;
-/// Mission protocol messages: MISSION_REQUEST, MISSION_COUNT, MISSION_ACK, MISSION_REQUEST_INT,
-/// MISSION_ITEM_INT (and MISSION_ITEM, MISSION_CURRENT is telemetry).
-pub const MISSION_IDS: [u32; 6] = [39, 40, 44, 47, 51, 73];
+/// Mission protocol messages (not MISSION_CURRENT: that is telemetry).
+pub const MISSION_IDS: [u32; 6] = [
+    ids::MISSION_ITEM,
+    ids::MISSION_REQUEST,
+    ids::MISSION_COUNT,
+    ids::MISSION_ACK,
+    ids::MISSION_REQUEST_INT,
+    ids::MISSION_ITEM_INT,
+];
 
 fn name(radio: &str, what: &str) -> String {
     format!("mavlora.{radio}.{what}")

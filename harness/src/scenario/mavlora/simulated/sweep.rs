@@ -14,6 +14,7 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use mavlora::Instant;
 use mavlora::sim::{Px4Fc, StreamSpec};
+use mavlora::wire::ids;
 
 use super::world::{SimWorld, secs};
 use super::{Radios, Scenario, evidence_dir};
@@ -31,7 +32,7 @@ pub const SCENARIO: Scenario = Scenario {
 
 /// The bench's sender: one 21-byte frame every 500 ms.
 pub const SOURCE: &[StreamSpec] = &[StreamSpec {
-    id: 0,
+    id: ids::HEARTBEAT,
     hz: 2.0,
     payload_len: 9,
 }];
@@ -128,7 +129,7 @@ pub fn step(radios: &Radios, setup: &RadioSetup, db: f64) -> Result<Step> {
     let mut arrivals: Vec<Instant> = Vec::new();
     let mut seen = 0;
     w.run_until_or(end, |w| {
-        let n = w.gcs.received.get(&0).copied().unwrap_or(0);
+        let n = w.gcs.received.get(&ids::HEARTBEAT).copied().unwrap_or(0);
         if n > seen {
             seen = n;
             arrivals.push(w.now);
@@ -139,7 +140,7 @@ pub fn step(radios: &Radios, setup: &RadioSetup, db: f64) -> Result<Step> {
     w.fc = Px4Fc::new(&[], w.now, 0);
     let drain = w.now + Duration::from_secs(2);
     w.run_until_or(drain, |w| {
-        let n = w.gcs.received.get(&0).copied().unwrap_or(0);
+        let n = w.gcs.received.get(&ids::HEARTBEAT).copied().unwrap_or(0);
         if n > seen {
             seen = n;
             arrivals.push(w.now);
@@ -157,8 +158,8 @@ pub fn step(radios: &Radios, setup: &RadioSetup, db: f64) -> Result<Step> {
     };
     Ok(Step {
         attenuation_db: db,
-        sent: w.down_sent.frames_of(&[0]),
-        received: w.gcs.received.get(&0).copied().unwrap_or(0),
+        sent: w.down_sent.frames_of(&[ids::HEARTBEAT]),
+        received: w.gcs.received.get(&ids::HEARTBEAT).copied().unwrap_or(0),
         mean_period_ms: mean,
         max_period_ms: gaps.iter().copied().fold(f64::NAN, f64::max),
     })

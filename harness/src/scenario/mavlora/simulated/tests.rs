@@ -271,7 +271,12 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
     // Coalesced for 1.5 s: the same bytes in about one packet per two batches, under 10 %.
     let same_bytes = coalesced.down_sent.total_bytes() as f64 / d.down_sent.total_bytes() as f64;
     assert!((0.97..1.03).contains(&same_bytes), "{same_bytes}");
-    let batches = coalesced.down_sent.frames.get(&17).copied().unwrap_or(0);
+    let batches = coalesced
+        .down_sent
+        .frames
+        .get(&mavlora::wire::ids::MAVLORA_POSITION_BATCH)
+        .copied()
+        .unwrap_or(0);
     assert!(
         coalesced.down.packets_sent <= batches / 2 + 10,
         "{} packets for {batches} batches",
