@@ -52,14 +52,23 @@ enum Command {
         #[arg(default_value = "rigs/bench.example.toml")]
         rig: PathBuf,
         /// Which mode's MultiRX config to compile in.
-        #[arg(long, value_parser = ["parallel", "scan"], default_value = "parallel")]
-        mode: String,
+        #[arg(long, value_parser = mode_parser(), default_value = "parallel")]
+        mode: Mode,
         /// Build and print sizes only.
         #[arg(long)]
         no_flash: bool,
     },
     /// Render junit.xml and summary.txt again from a saved results.json.
     Report { results: PathBuf },
+}
+
+/// `--mode`: the core's mode names, listed in `--help` as before.
+fn mode_parser() -> impl clap::builder::TypedValueParser<Value = Mode> {
+    use clap::builder::TypedValueParser as _;
+    clap::builder::PossibleValuesParser::new(Mode::ALL.map(Mode::as_str)).map(|name| {
+        name.parse::<Mode>()
+            .expect("only the modes' names are possible")
+    })
 }
 
 fn main() -> ExitCode {
@@ -150,11 +159,6 @@ fn execute(command: Command) -> Result<ExitCode> {
             no_flash,
         } => {
             let rig = RigFile::load(&rig)?;
-            let mode = if mode == "scan" {
-                Mode::Scan
-            } else {
-                Mode::Parallel
-            };
             let section = rig
                 .multirx
                 .as_ref()

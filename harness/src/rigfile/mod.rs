@@ -106,34 +106,8 @@ impl MultirxSection {
     }
 }
 
-/// MultiRX operating mode; each has its own scenario suite and config file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Mode {
-    /// All receivers powered; the active one is forwarded.
-    Parallel,
-    /// One receiver powered at a time, cycling while no link is found.
-    Scan,
-}
-
-impl Mode {
-    /// Both modes, in the order suites run by default.
-    pub const ALL: [Mode; 2] = [Mode::Parallel, Mode::Scan];
-
-    /// Lower-case name, as in rig files and measurement names.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Mode::Parallel => "parallel",
-            Mode::Scan => "scan",
-        }
-    }
-}
-
-impl fmt::Display for Mode {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
+/// MultiRX operating mode (the core's); each has its own scenario suite and config file.
+pub use multirx_core::Mode;
 
 /// What the MultiRX under test is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

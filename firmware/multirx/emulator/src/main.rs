@@ -111,7 +111,7 @@ fn run(args: Args) -> Result<()> {
         .context("cannot install the SIGINT/SIGTERM handler")?;
 
     tracing::info!(
-        mode = config.mode.name(),
+        mode = config.mode.as_str(),
         receivers = config.receivers,
         period_ms = config.frame_period.total_millis(),
         "MultiRX emulated device running"

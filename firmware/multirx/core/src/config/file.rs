@@ -57,7 +57,7 @@ pub enum ConfigFileError {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct File {
-    mode: ModeName,
+    mode: Mode,
     receivers: u8,
     frame_period_ms: Option<u64>,
     #[serde(default)]
@@ -70,13 +70,6 @@ struct File {
     neutral: NeutralSection,
     #[serde(default)]
     ifs: IfsSection,
-}
-
-#[derive(Deserialize, Clone, Copy)]
-#[serde(rename_all = "lowercase")]
-enum ModeName {
-    Parallel,
-    Scan,
 }
 
 #[derive(Deserialize, Default)]
@@ -140,11 +133,7 @@ impl Config {
         };
         let from_config_error = |e: ConfigError| invalid(e.field(), strip_field(&e));
 
-        let mode = match file.mode {
-            ModeName::Parallel => Mode::Parallel,
-            ModeName::Scan => Mode::Scan,
-        };
-        let mut config = Config::new(mode, file.receivers);
+        let mut config = Config::new(file.mode, file.receivers);
         // Reject before indexing arrays by it.
         if !(1..=MAX_RECEIVERS as u8).contains(&file.receivers) {
             return Err(invalid(

@@ -16,8 +16,15 @@ use crate::wire::Channels;
 /// Receivers a MultiRX can multiplex: the SAMD21G18 has six SERCOM UARTs.
 pub const MAX_RECEIVERS: usize = 6;
 
-/// How receivers are used.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+/// How receivers are used. Named in config and rig files as `"parallel"` or `"scan"`
+/// ([`Mode::as_str`], [`Display`](core::fmt::Display), [`FromStr`](core::str::FromStr), and
+/// serde with feature `toml`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(
+    feature = "toml",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "lowercase")
+)]
 pub enum Mode {
     /// Every receiver powered and monitored on its own UART; hand over as soon
     /// as the active one reports failsafe or falls silent.
@@ -28,11 +35,37 @@ pub enum Mode {
 }
 
 impl Mode {
-    pub const fn name(self) -> &'static str {
+    /// Both modes, in the order the rig runs their suites by default.
+    pub const ALL: [Mode; 2] = [Mode::Parallel, Mode::Scan];
+
+    /// Lower-case name, as in config files, rig files and measurement names.
+    pub const fn as_str(self) -> &'static str {
         match self {
             Mode::Parallel => "parallel",
             Mode::Scan => "scan",
         }
+    }
+}
+
+impl core::fmt::Display for Mode {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A mode name that is neither `parallel` nor `scan`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("unknown mode, expected `parallel` or `scan`")]
+pub struct UnknownMode;
+
+impl core::str::FromStr for Mode {
+    type Err = UnknownMode;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Mode::ALL
+            .into_iter()
+            .find(|m| m.as_str() == s)
+            .ok_or(UnknownMode)
     }
 }
 
@@ -274,6 +307,15 @@ impl ConfigError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn mode_names_round_trip() {
+        for mode in Mode::ALL {
+            assert_eq!(mode.as_str().parse(), Ok(mode));
+            assert_eq!(format!("{mode}"), mode.as_str());
+        }
+        assert_eq!("Scan".parse::<Mode>(), Err(UnknownMode));
+    }
 
     #[test]
     fn defaults_are_valid_for_every_receiver_count() {
