@@ -18,42 +18,27 @@ use tracing::info;
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
-use mavlora::io::{
-    Clock, Event, SerialEvent, SerialLink, load_config, on_signal, run_main, signing_from_key_file,
-};
-use mavlora::schedule::SchedulerConfig;
+use mavlora::io::{Clock, Event, RadioOptions, SerialEvent, SerialLink, on_signal};
 
 /// MavLora bridge: flight controller serial port <-> radio serial port.
-#[derive(Parser, Debug)]
+#[derive(Parser, Deserialize, Default, Debug)]
 #[command(version)]
-struct Args {
-    /// TOML file with any of the options below (flags win).
-    #[arg(long)]
-    config: Option<PathBuf>,
+struct Options {
+    #[command(flatten)]
+    #[serde(skip)]
+    shared: RadioOptions,
     /// Flight controller serial device (or pty path).
     #[arg(long)]
     fc: Option<String>,
     /// Flight controller baud rate [default: 921600].
     #[arg(long)]
     fc_baud: Option<u32>,
-    /// Radio serial device (or pty path).
-    #[arg(long)]
-    radio: Option<String>,
-    /// Radio baud rate [default: 57600].
-    #[arg(long)]
-    radio_baud: Option<u32>,
     /// Profile file (stream rates and radio filter), e.g. firmware/mavlora/profiles/px4-normal.toml.
     #[arg(long)]
     profile: Option<PathBuf>,
-    /// Radio budget in bytes per second [default: 683, a LoRa SF7 channel].
-    #[arg(long)]
-    rate: Option<u32>,
-    /// Radio burst in bytes [default: 600].
-    #[arg(long)]
-    burst: Option<u32>,
     /// Replace periodic telemetry by compact frames (the router expands them).
-    #[arg(long)]
-    compact: bool,
+    #[arg(long, num_args = 0, default_missing_value = "true")]
+    compact: Option<bool>,
     /// With --compact: hold compact frames this many ms so they share one radio packet
     /// (LoRa under a duty-cycle rule: 1500 fits EU 433 MHz's 10 % at SF7/125 kHz) [default: 0].
     #[arg(long)]
@@ -61,60 +46,23 @@ struct Args {
     /// Vehicle system id, until the flight controller's heartbeat tells [default: 1].
     #[arg(long)]
     system_id: Option<u8>,
-    /// Seconds between LINK_QUALITY reports [default: 5].
-    #[arg(long)]
-    link_quality_period: Option<f64>,
-    /// Seconds between status lines [default: 5].
-    #[arg(long)]
-    status_interval: Option<f64>,
-    /// MAVLink 2 signing key file (64 hex characters or 32 bytes) for the radio link: our
-    /// radio frames are signed, unsigned or replayed ones from the radio are dropped.
-    #[arg(long)]
-    key: Option<PathBuf>,
-}
-
-#[derive(Deserialize, Default, Debug)]
-#[serde(deny_unknown_fields)]
-struct FileConfig {
-    fc: Option<String>,
-    fc_baud: Option<u32>,
-    radio: Option<String>,
-    radio_baud: Option<u32>,
-    profile: Option<PathBuf>,
-    rate: Option<u32>,
-    burst: Option<u32>,
-    compact: Option<bool>,
-    coalesce_ms: Option<u64>,
-    system_id: Option<u8>,
-    link_quality_period: Option<f64>,
-    status_interval: Option<f64>,
-    key: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
-    run_main(|| run(args))
+    mavlora::io::main(|o: &mut Options| &mut o.shared, run)
 }
 
-fn run(args: Args) -> Result<()> {
-    let file: FileConfig = load_config(args.config.as_deref())?;
-    let fc_path = args
-        .fc
-        .or(file.fc)
-        .context("no flight-controller port: --fc or `fc`")?;
-    let radio_path = args
-        .radio
-        .or(file.radio)
-        .context("no radio port: --radio or `radio`")?;
-    let profile = match args.profile.or(file.profile) {
+fn run(o: Options) -> Result<()> {
+    let fc_path = o.fc.context("no flight-controller port: --fc or `fc`")?;
+    let radio_path = o.shared.radio_port()?;
+    let profile = match o.profile {
         Some(p) => Profile::load(&p)?,
         None => Profile::parse("", "(no profile: everything passes)")?,
     };
-    let rate = args.rate.or(file.rate).unwrap_or(683);
-    let burst = args.burst.or(file.burst).unwrap_or(600);
-    let mut config = BridgeConfig::new(profile, SchedulerConfig::for_radio(rate, burst));
-    let coalesce_ms = args.coalesce_ms.or(file.coalesce_ms);
-    if args.compact || file.compact.unwrap_or(false) {
+    let (rate, burst) = (o.shared.rate(), o.shared.burst());
+    let mut config = BridgeConfig::new(profile, o.shared.scheduler());
+    let coalesce_ms = o.coalesce_ms;
+    if o.compact.unwrap_or(false) {
         config.compact = Some(CompactConfig {
             coalesce: Duration::from_millis(coalesce_ms.unwrap_or(0)),
             ..CompactConfig::default()
@@ -122,25 +70,21 @@ fn run(args: Args) -> Result<()> {
     } else if coalesce_ms.is_some() {
         anyhow::bail!("--coalesce-ms / `coalesce_ms` needs compact telemetry (--compact)");
     }
-    if let Some(id) = args.system_id.or(file.system_id) {
+    if let Some(id) = o.system_id {
         config.system_id = id;
     }
-    if let Some(p) = args.link_quality_period.or(file.link_quality_period) {
-        config.quality.period = Duration::from_secs_f64(p);
+    if let Some(period) = o.shared.link_quality_period() {
+        config.quality.period = period;
     }
-    if let Some(path) = args.key.or(file.key) {
-        config.signing = Some(signing_from_key_file(&path, 1)?);
-    }
-    let status_every =
-        Duration::from_secs_f64(args.status_interval.or(file.status_interval).unwrap_or(5.0));
+    config.signing = o.shared.signing(1)?;
+    let status_every = o.shared.status_every();
 
     let (tx, rx) = mpsc::channel();
     on_signal(tx.clone())?;
     let stop = Arc::new(AtomicBool::new(false));
-    let fc_baud = args.fc_baud.or(file.fc_baud).unwrap_or(921_600);
-    let radio_baud = args.radio_baud.or(file.radio_baud).unwrap_or(57_600);
+    let fc_baud = o.fc_baud.unwrap_or(921_600);
     let mut fc = SerialLink::spawn("fc", fc_path, fc_baud, tx.clone(), stop.clone());
-    let mut radio = SerialLink::spawn("radio", radio_path, radio_baud, tx, stop.clone());
+    let mut radio = SerialLink::spawn("radio", radio_path, o.shared.radio_baud(), tx, stop.clone());
     let clock = Clock::start();
     let compact = config.compact.is_some();
     let mut bridge = Bridge::new(config, clock.now())?;

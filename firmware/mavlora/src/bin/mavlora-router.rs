@@ -17,25 +17,17 @@ use serde::Deserialize;
 use tracing::{info, warn};
 
 use mavlora::io::{
-    Clock, Event, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, load_config, on_signal,
-    run_main, signing_from_key_file,
+    Clock, Event, RadioOptions, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, on_signal,
 };
 use mavlora::router::{Router, RouterConfig};
-use mavlora::schedule::SchedulerConfig;
 
 /// MavLora router: radio serial port <-> ground stations on UDP and TCP.
-#[derive(Parser, Debug)]
+#[derive(Parser, Deserialize, Default, Debug)]
 #[command(version)]
-struct Args {
-    /// TOML file with any of the options below (flags win).
-    #[arg(long)]
-    config: Option<PathBuf>,
-    /// Radio serial device (or pty path).
-    #[arg(long)]
-    radio: Option<String>,
-    /// Radio baud rate [default: 57600].
-    #[arg(long)]
-    radio_baud: Option<u32>,
+struct Options {
+    #[command(flatten)]
+    #[serde(skip)]
+    shared: RadioOptions,
     /// Where to send until a ground station talks to us [default: 127.0.0.1:14550].
     #[arg(long)]
     udp: Option<SocketAddr>,
@@ -49,70 +41,28 @@ struct Args {
     /// Write a MAVProxy-format telemetry log here.
     #[arg(long)]
     tlog: Option<PathBuf>,
-    /// Ground-to-air radio budget in bytes per second [default: 683].
-    #[arg(long)]
-    rate: Option<u32>,
-    /// Radio burst in bytes [default: 600].
-    #[arg(long)]
-    burst: Option<u32>,
     /// Seconds between ground heartbeats sent over the radio [default: 5].
     #[arg(long)]
     gcs_heartbeat_period: Option<f64>,
-    /// Seconds between LINK_QUALITY reports [default: 5].
-    #[arg(long)]
-    link_quality_period: Option<f64>,
-    /// Seconds between status lines [default: 5].
-    #[arg(long)]
-    status_interval: Option<f64>,
-    /// MAVLink 2 signing key file (64 hex characters or 32 bytes) for the radio link: our
-    /// radio frames are signed, unsigned or replayed ones from the radio are dropped.
-    #[arg(long)]
-    key: Option<PathBuf>,
-}
-
-#[derive(Deserialize, Default, Debug)]
-#[serde(deny_unknown_fields)]
-struct FileConfig {
-    radio: Option<String>,
-    radio_baud: Option<u32>,
-    udp: Option<SocketAddr>,
-    udp_bind: Option<SocketAddr>,
-    tcp_listen: Option<SocketAddr>,
-    tlog: Option<PathBuf>,
-    rate: Option<u32>,
-    burst: Option<u32>,
-    gcs_heartbeat_period: Option<f64>,
-    link_quality_period: Option<f64>,
-    status_interval: Option<f64>,
-    key: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
-    run_main(|| run(args))
+    mavlora::io::main(|o: &mut Options| &mut o.shared, run)
 }
 
-fn run(args: Args) -> Result<()> {
-    let file: FileConfig = load_config(args.config.as_deref())?;
-    let radio_path = args
-        .radio
-        .or(file.radio)
-        .context("no radio port: --radio or `radio`")?;
-    let rate = args.rate.or(file.rate).unwrap_or(683);
-    let burst = args.burst.or(file.burst).unwrap_or(600);
-    let mut config = RouterConfig::new(SchedulerConfig::for_radio(rate, burst));
-    if let Some(p) = args.gcs_heartbeat_period.or(file.gcs_heartbeat_period) {
+fn run(o: Options) -> Result<()> {
+    let radio_path = o.shared.radio_port()?;
+    let (rate, burst) = (o.shared.rate(), o.shared.burst());
+    let mut config = RouterConfig::new(o.shared.scheduler());
+    if let Some(p) = o.gcs_heartbeat_period {
         config.gcs_heartbeat_period = Duration::from_secs_f64(p);
     }
-    if let Some(p) = args.link_quality_period.or(file.link_quality_period) {
-        config.quality.period = Duration::from_secs_f64(p);
+    if let Some(period) = o.shared.link_quality_period() {
+        config.quality.period = period;
     }
-    if let Some(path) = args.key.or(file.key) {
-        config.signing = Some(signing_from_key_file(&path, 2)?);
-    }
-    let status_every =
-        Duration::from_secs_f64(args.status_interval.or(file.status_interval).unwrap_or(5.0));
-    let mut tlog = match args.tlog.or(file.tlog) {
+    config.signing = o.shared.signing(2)?;
+    let status_every = o.shared.status_every();
+    let mut tlog = match o.tlog {
         Some(p) => Some(Tlog::create(&p).with_context(|| format!("creating {}", p.display()))?),
         None => None,
     };
@@ -120,21 +70,14 @@ fn run(args: Args) -> Result<()> {
     let (tx, rx) = mpsc::channel();
     on_signal(tx.clone())?;
     let stop = Arc::new(AtomicBool::new(false));
-    let peer = args
-        .udp
-        .or(file.udp)
-        .unwrap_or(([127, 0, 0, 1], 14550).into());
-    let bind = args
-        .udp_bind
-        .or(file.udp_bind)
-        .unwrap_or(([0, 0, 0, 0], 14555).into());
+    let peer = o.udp.unwrap_or(([127, 0, 0, 1], 14550).into());
+    let bind = o.udp_bind.unwrap_or(([0, 0, 0, 0], 14555).into());
     let mut udp = UdpEndpoint::spawn(bind, peer, tx.clone(), stop.clone())?;
-    let tcp = match args.tcp_listen.or(file.tcp_listen) {
+    let tcp = match o.tcp_listen {
         Some(addr) => Some(TcpEndpoint::spawn(addr, tx.clone(), stop.clone())?),
         None => None,
     };
-    let radio_baud = args.radio_baud.or(file.radio_baud).unwrap_or(57_600);
-    let mut radio = SerialLink::spawn("radio", radio_path, radio_baud, tx, stop.clone());
+    let mut radio = SerialLink::spawn("radio", radio_path, o.shared.radio_baud(), tx, stop.clone());
     let clock = Clock::start();
     let mut router = Router::new(config, clock.now())?;
     info!(rate, burst, "router running");

@@ -3,12 +3,14 @@
 //! any of it: this module turns IO into `handle_*_bytes(bytes, now)` calls.
 
 mod clock;
+mod options;
 mod serial;
 mod tcp;
 mod tlog;
 mod udp;
 
 pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
+pub use options::{RadioOptions, main};
 pub use serial::{SerialEvent, SerialLink};
 pub use tcp::TcpEndpoint;
 pub use tlog::Tlog;
@@ -56,18 +58,4 @@ fn init_logging() {
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .init();
-}
-
-/// Reads a binary's TOML config file (unknown keys are errors naming the file and line);
-/// the default when no file is given.
-pub fn load_config<T: serde::de::DeserializeOwned + Default>(
-    path: Option<&std::path::Path>,
-) -> anyhow::Result<T> {
-    use anyhow::Context as _;
-    let Some(path) = path else {
-        return Ok(T::default());
-    };
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading config {}", path.display()))?;
-    toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
