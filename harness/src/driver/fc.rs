@@ -38,7 +38,7 @@ impl FcMonitor {
             .name("fc-monitor".into())
             .spawn(move || {
                 // Frame arrival times are what we measure: read promptly.
-                super::realtime::request("fc-monitor");
+                hostio::realtime::request("fc-monitor");
                 let mut stream = SbusStream::default();
                 let mut buf = [0u8; 512];
                 while !flag.load(Ordering::Relaxed) {

@@ -5,8 +5,8 @@
 pub mod fc;
 pub mod probe;
 pub mod process;
+pub mod program;
 pub mod pty;
 pub mod radio_emulator;
-pub mod realtime;
 pub mod receiver;
 pub mod status;

@@ -92,7 +92,7 @@ impl PtyLink {
 
 fn relay(name: &str, from: &mut TTYPort, to: &mut TTYPort, stop: &AtomicBool) {
     // A cable adds no delay; neither should the relay standing in for one.
-    super::realtime::request("pty-link");
+    hostio::realtime::request("pty-link");
     let mut buf = [0u8; 1024];
     let mut dropped = 0u64;
     while !stop.load(Ordering::Relaxed) {

@@ -191,7 +191,7 @@ impl Drop for RadioEmulator {
 
 fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
     // Airtime is the point of this thread: ask for the CPU when it is due.
-    crate::driver::realtime::request("radio-emulator");
+    hostio::realtime::request("radio-emulator");
     let mut buf = vec![0u8; 4096];
     while !shared.stop.load(Ordering::Relaxed) {
         let next = {

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use libtest_mimic::Trial;
 
 use super::{Phases, conclude, run_phase};
+use crate::driver::program::{MAVLORA_BRIDGE, MAVLORA_ROUTER};
 use crate::rigfile::{MavloraSection, RigFile, Suite};
 use crate::scenario::mavlora::realtime::{self, SessionDefaults};
 use crate::scenario::mavlora::simulated::{self, Radios};
@@ -85,13 +86,7 @@ pub fn add_trials(
                     &name,
                     scenario.summary,
                     (scenario.measurements)(),
-                    |ctx| {
-                        let defaults = defaults
-                            .as_ref()
-                            .as_ref()
-                            .map_err(|e| anyhow::anyhow!("{e}"))?;
-                        (scenario.run)(ctx, defaults)
-                    },
+                    |ctx| (scenario.run)(ctx, &defaults),
                 );
                 conclude(&phases, record)
             }));
@@ -102,26 +97,21 @@ pub fn add_trials(
 
 /// What the real-time sessions start, from the rig file: its Python and fixtures, the
 /// MavLora programs it names (else those next to the `rig` binary), its profiles and radios.
-fn session_defaults(rig: &RigFile, section: &MavloraSection) -> Result<SessionDefaults, String> {
-    let near_rig = |name: &str| {
-        std::env::current_exe()
-            .map(|e| e.with_file_name(name))
-            .map_err(|e| format!("cannot locate the rig binary to find {name}: {e}"))
-    };
-    Ok(SessionDefaults {
+fn session_defaults(rig: &RigFile, section: &MavloraSection) -> SessionDefaults {
+    SessionDefaults {
         python: rig.fixtures.python.clone(),
         fixtures_dir: rig.fixtures.dir.clone(),
         bridge_program: match &section.bridge {
             Some(p) => p.clone(),
-            None => near_rig("mavlora-bridge")?,
+            None => MAVLORA_BRIDGE.path(),
         },
         router_program: match &section.router {
             Some(p) => p.clone(),
-            None => near_rig("mavlora-router")?,
+            None => MAVLORA_ROUTER.path(),
         },
         profile_dir: section.profiles.clone(),
         lossy_radio: section.radios.realtime_lossy.setup.clone(),
         clean_radio: section.radios.realtime_ideal.setup.clone(),
         c2_radio: section.radios.realtime_c2.setup.clone(),
-    })
+    }
 }

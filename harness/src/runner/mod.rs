@@ -9,6 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use libtest_mimic::{Arguments, Failed, Trial};
 
+use crate::driver::program::MULTIRX_EMU;
 use crate::measurement::{Measurement, Outcome};
 use crate::record::{
     Attachment, DeviceIdentity, PhaseOutcome, PhaseRecord, RigIdentity, RunOutcome, RunRecord,
@@ -394,17 +395,13 @@ fn devices(rig: &RigFile, images: &[(Mode, FirmwareImage)]) -> Vec<DeviceIdentit
     let port = Some(section.ports.fc.to_string());
     match &section.device.setup {
         DeviceSetup::Emulated { program } => {
-            let path = program.clone().or_else(|| {
-                std::env::current_exe()
-                    .ok()
-                    .map(|e| e.with_file_name("multirx-emu"))
-            });
+            let path = program.clone().unwrap_or_else(|| MULTIRX_EMU.path());
             vec![DeviceIdentity {
                 role: "multirx".into(),
                 kind: "emulated".into(),
                 description: format!("multirx-emu (multirx-core {})", env!("CARGO_PKG_VERSION")),
                 port,
-                firmware_sha256: path.as_deref().and_then(|p| sha256_file(p).ok()),
+                firmware_sha256: sha256_file(&path).ok(),
             }]
         }
         DeviceSetup::Board(board) => {

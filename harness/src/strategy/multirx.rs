@@ -13,6 +13,7 @@ use serialport::TTYPort;
 use crate::clock::Mono;
 use crate::driver::fc::FcMonitor;
 use crate::driver::process::Process;
+use crate::driver::program::MULTIRX_EMU;
 use crate::driver::pty::{PtyLink, PtyPair};
 use crate::driver::receiver::{Loss, ReceiverFixture, ReceiverSpec};
 use crate::driver::status::StatusMonitor;
@@ -93,10 +94,7 @@ impl MultirxSession {
                     Ok((master, Some(path)))
                 }
                 PortSpec::Path(path) if !emulated => {
-                    let port = serialport::new(path.to_string_lossy(), 100_000)
-                        .data_bits(serialport::DataBits::Eight)
-                        .parity(serialport::Parity::Even)
-                        .stop_bits(serialport::StopBits::Two)
+                    let port = hostio::sbus::port(&path.to_string_lossy())
                         .open_native()
                         .with_context(|| format!("cannot open {name} port {}", path.display()))?;
                     Ok((port, None))
@@ -205,7 +203,9 @@ impl MultirxSession {
             DeviceSetup::Emulated { program } => {
                 let program = match program {
                     Some(p) => p.clone(),
-                    None => default_emulator()?,
+                    None => MULTIRX_EMU
+                        .find()
+                        .map_err(|e| anyhow::anyhow!("{e}, or set program in [multirx.device]"))?,
                 };
                 let mut command = Command::new(&program);
                 command.arg("--config").arg(config_path);
@@ -445,17 +445,4 @@ pub fn load_config(rig: &RigFile, mode: Mode) -> Result<multirx_core::Config> {
         );
     }
     Ok(config)
-}
-
-/// `multirx-emu` next to the running `rig` binary (both come from one `cargo build`).
-fn default_emulator() -> Result<PathBuf> {
-    let exe = std::env::current_exe()?;
-    let path = exe.with_file_name("multirx-emu");
-    if !path.exists() {
-        bail!(
-            "{} not found: build it with `cargo build -p multirx-emulator` (same profile as rig), or set program in [multirx.device]",
-            path.display()
-        );
-    }
-    Ok(path)
 }

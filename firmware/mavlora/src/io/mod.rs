@@ -40,7 +40,7 @@ pub fn on_signal(tx: std::sync::mpsc::Sender<Event>) -> anyhow::Result<()> {
 /// A binary's `main`: logging set up, then `run`; an error is logged and exits with status 1
 /// (clap has already exited with 2 on bad usage).
 pub fn run_main(run: impl FnOnce() -> anyhow::Result<()>) -> std::process::ExitCode {
-    init_logging();
+    hostio::logging::init("info");
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
@@ -48,14 +48,4 @@ pub fn run_main(run: impl FnOnce() -> anyhow::Result<()>) -> std::process::ExitC
             std::process::ExitCode::from(1)
         }
     }
-}
-
-/// `tracing` to stderr, level from `RUST_LOG` (default `info`).
-fn init_logging() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
-    tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .init();
 }

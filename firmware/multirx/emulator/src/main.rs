@@ -11,7 +11,6 @@
 
 mod device;
 mod ports;
-mod realtime;
 mod tap;
 
 use std::process::ExitCode;
@@ -53,13 +52,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
+    hostio::logging::init("info");
     let args = Args::parse();
     match run(args) {
         Ok(()) => ExitCode::SUCCESS,
@@ -116,7 +109,7 @@ fn run(args: Args) -> Result<()> {
         period_ms = config.frame_period.total_millis(),
         "MultiRX emulated device running"
     );
-    realtime::request("engine");
+    hostio::realtime::request("engine");
     let tap = args.tx_log.as_deref().map(tap::TxTap::create).transpose()?;
     let mut device = Device::new(config, fc, status, tap);
     let stats = device.run(rx, &stop);

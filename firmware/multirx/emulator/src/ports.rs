@@ -7,7 +7,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use serialport::{DataBits, Parity, StopBits, TTYPort};
+use serialport::TTYPort;
 
 /// Which input bytes came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -29,13 +29,9 @@ pub enum Input {
     Closed { source: Source, error: String },
 }
 
-/// Opens `path` with SBUS settings: 100000 baud, 8 data bits, even parity,
-/// two stop bits. On a pty these settings are accepted and ignored.
+/// Opens `path` with SBUS settings ([`hostio::sbus::port`]).
 pub fn open_sbus(path: &str, timeout: Duration) -> Result<TTYPort> {
-    serialport::new(path, 100_000)
-        .data_bits(DataBits::Eight)
-        .parity(Parity::Even)
-        .stop_bits(StopBits::Two)
+    hostio::sbus::port(path)
         .timeout(timeout)
         .open_native()
         .with_context(|| format!("cannot open serial port {path}"))
@@ -45,7 +41,7 @@ pub fn open_sbus(path: &str, timeout: Duration) -> Result<TTYPort> {
 pub fn spawn_reader(source: Source, mut port: TTYPort, tx: Sender<Input>) -> Result<()> {
     let name = format!("read-{source:?}");
     thread::Builder::new().name(name).spawn(move || {
-        crate::realtime::request("input");
+        hostio::realtime::request("input");
         let mut buf = [0u8; 256];
         loop {
             match port.read(&mut buf) {

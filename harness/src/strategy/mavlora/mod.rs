@@ -28,10 +28,12 @@ mod session;
 use std::path::PathBuf;
 use std::time::Duration;
 
+use crate::driver::program::ProgramMissing;
+
 pub use fixture_lines::FixtureLine;
 pub use options::{
-    FcProfile, GcsPlan, SessionDefaults, SessionOptions, Variant, program_near_exe,
-    sik_with_independent_loss, sik_with_loss,
+    FcProfile, GcsPlan, SessionDefaults, SessionOptions, Variant, sik_with_independent_loss,
+    sik_with_loss,
 };
 pub use report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status, status_field};
 pub use session::MavloraSession;
@@ -40,8 +42,8 @@ pub use session::MavloraSession;
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
     /// A program (bridge, router) is not where the options say.
-    #[error("{} not found: build it with `cargo build -p mavlora --bins` (same profile as rig)", .0.display())]
-    ProgramMissing(PathBuf),
+    #[error(transparent)]
+    ProgramMissing(#[from] ProgramMissing),
     /// A fixture did not print its `ready` line.
     #[error("{name} did not start within {timeout:?} (pymavlink and pyserial installed?); see {}", log.display())]
     FixtureStart {

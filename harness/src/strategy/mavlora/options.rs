@@ -4,7 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use super::{Result, SessionError};
+use super::Result;
+use crate::driver::program::{MAVLORA_BRIDGE, MAVLORA_ROUTER};
 use harness_radio::{GilbertElliott, LinkConfig, RadioSetup};
 
 /// What sits between the flight controller and the radio.
@@ -134,8 +135,8 @@ impl SessionDefaults {
         Ok(SessionDefaults {
             python: PathBuf::from("python3"),
             fixtures_dir: repo.join("fixtures"),
-            bridge_program: program_near_exe("mavlora-bridge")?,
-            router_program: program_near_exe("mavlora-router")?,
+            bridge_program: MAVLORA_BRIDGE.find()?,
+            router_program: MAVLORA_ROUTER.find()?,
             profile_dir: repo.join("firmware/mavlora/profiles"),
             lossy_radio: sik_with_loss(0.10, 2.0)?,
             clean_radio: RadioSetup::builtin("sik-64k")?,
@@ -199,21 +200,4 @@ pub fn sik_with_independent_loss(loss: f64) -> Result<RadioSetup> {
     setup.uplink = independent(4);
     setup.radio()?;
     Ok(setup)
-}
-
-/// `name` next to the running executable, or in its parent folder (a test
-/// binary runs from `target/<profile>/deps/`).
-pub fn program_near_exe(name: &str) -> Result<PathBuf> {
-    let exe = std::env::current_exe().map_err(|source| SessionError::Io {
-        path: PathBuf::from("/proc/self/exe"),
-        source,
-    })?;
-    let here = exe.with_file_name(name);
-    if here.exists() {
-        return Ok(here);
-    }
-    match exe.parent().and_then(Path::parent).map(|p| p.join(name)) {
-        Some(up) if up.exists() => Ok(up),
-        _ => Err(SessionError::ProgramMissing(here)),
-    }
 }

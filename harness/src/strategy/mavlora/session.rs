@@ -14,6 +14,7 @@ use super::report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status};
 use super::{Result, SessionError, SessionOptions, Variant};
 use crate::clock::Mono;
 use crate::driver::process::Process;
+use crate::driver::program::MAVLORA_BRIDGE;
 use crate::driver::radio_emulator::RadioEmulator;
 use harness_radio::{Direction, LinkStats};
 
@@ -46,7 +47,7 @@ impl MavloraSession {
         if bridged {
             for p in [&options.bridge_program, &options.router_program] {
                 if !p.exists() {
-                    return Err(SessionError::ProgramMissing(p.clone()));
+                    return Err(MAVLORA_BRIDGE.missing(p.clone()).into());
                 }
             }
         }

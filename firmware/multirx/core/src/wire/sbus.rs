@@ -25,6 +25,27 @@ mod field {
 /// First byte of every frame.
 pub const HEADER: u8 = 0x0F;
 
+/// The UART SBUS runs on, a protocol fact (every receiver, board and adapter uses it):
+/// 100000 baud, 8 data bits, even parity, 2 stop bits ("8E2"), on an inverted line.
+pub const BAUD: u32 = 100_000;
+/// Data bits of a UART character: see [`BAUD`].
+pub const DATA_BITS: u8 = 8;
+/// Parity of a UART character: see [`BAUD`].
+pub const PARITY: Parity = Parity::Even;
+/// Stop bits of a UART character: see [`BAUD`].
+pub const STOP_BITS: u8 = 2;
+
+/// UART parity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Parity {
+    /// No parity bit.
+    None,
+    /// Odd parity.
+    Odd,
+    /// Even parity.
+    Even,
+}
+
 const FLAG_CH17: u8 = 0x01;
 const FLAG_CH18: u8 = 0x02;
 const FLAG_FRAME_LOST: u8 = 0x04;

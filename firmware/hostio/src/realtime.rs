@@ -1,6 +1,7 @@
-//! On the board MultiRX owns its MCU; on a shared host the output cadence is
-//! only as steady as the scheduler lets it be. Asking for real-time priority
-//! approximates the board; without it (no CAP_SYS_NICE) we run as we can.
+//! On the board MultiRX owns its MCU; on a shared host the output cadence, and
+//! the rig's timestamps of it, are only as steady as the scheduler lets them be.
+//! Asking for real-time priority approximates the board; without it (no
+//! CAP_SYS_NICE) we run as we can.
 
 use thread_priority::unix::{
     RealtimeThreadSchedulePolicy, ThreadSchedulePolicy, set_thread_priority_and_policy,
