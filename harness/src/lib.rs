@@ -6,7 +6,8 @@
 //! - [`driver`]: binds a resource (a port, a program) and does things with it;
 //! - [`strategy`]: brings devices from files on disk to running and wired;
 //! - [`scenario`]: what is done to the devices and measured;
-//! - [`measurement`]: a named value with a unit, limits and an outcome;
+//! - [`measurement`]: a value with a unit, limits and an outcome, declared once with its
+//!   dimensions (device, mode, radio...) and recorded through its handle;
 //! - [`record`]: the saved record of a run, from which [`report`]s are rendered;
 //! - [`px4`]: how the flight controller reads what it is sent;
 //! - [`harness_radio`] (its own crate): the model of line-of-sight radios (airtime, loss, duty

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::measurement::{Measurement, Outcome};
+use crate::measurement::{Dimension, Measurement, Outcome, Selector};
 
 /// File name of the saved record inside an output folder.
 pub const RESULTS_FILE: &str = "results.json";
@@ -254,6 +254,11 @@ impl PhaseRecord {
             .iter()
             .filter(|m| matches!(m.outcome, Outcome::Fail | Outcome::Unset))
     }
+
+    /// This phase's measurements that `selector` matches.
+    pub fn select<'a>(&'a self, selector: &Selector) -> impl Iterator<Item = &'a Measurement> {
+        self.measurements.iter().filter(|m| selector.matches(m))
+    }
 }
 
 /// A file kept as evidence of a phase.
@@ -304,6 +309,26 @@ impl Attachment {
 }
 
 impl RunRecord {
+    /// Every measurement `selector` matches, with its phase, in run order.
+    pub fn select<'a>(
+        &'a self,
+        selector: &Selector,
+    ) -> impl Iterator<Item = (&'a PhaseRecord, &'a Measurement)> {
+        self.phases
+            .iter()
+            .flat_map(move |p| p.select(selector).map(move |m| (p, m)))
+    }
+
+    /// The first measurement named `base` with every dimension of `dims` at
+    /// that value, e.g. `find("bytes_per_s", &[(Dimension::Variant,
+    /// "compact"), (Dimension::Transport, "pty")])`.
+    pub fn find(&self, base: &str, dims: &[(Dimension, &str)]) -> Option<&Measurement> {
+        let selector = dims
+            .iter()
+            .fold(Selector::base(base), |s, (d, v)| s.dim(*d, *v));
+        self.select(&selector).map(|(_, m)| m).next()
+    }
+
     /// Writes `results.json` (pretty JSON) into `dir`, creating it, and
     /// returns its path. The file is written under a temporary name and
     /// renamed, so a crash never leaves a truncated record behind.
@@ -388,26 +413,51 @@ pub fn now_rfc3339() -> String {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::measurement::{Declarations, Spec};
 
     /// A small record with a passing phase, a failing one (one failed and
     /// one unset measurement), an errored one and a skipped one.
     pub(crate) fn sample_record() -> RunRecord {
-        let mut pass = Measurement::new("multirx.parallel.handover_ms", "ms")
-            .describe("time from the active TX off to the other receiver's frames at the FC")
-            .at_most(50.0);
-        pass.record(12.5);
-        let mut marginal = Measurement::new("multirx.scan.handover_ms", "ms")
-            .at_most(4500.0)
-            .marginal_above(4000.0);
-        marginal.record(4100.0);
-        let mut fail = Measurement::new("mavlora.bridge.bandwidth", "B/s").at_most(951.0);
-        fail.record(1200.0);
-        let unset = Measurement::new("mavlora.bridge.position_rate", "Hz").at_least(3.0);
+        let multirx = |base: &str, mode: &str, unit: &str| {
+            Spec::new(base, unit)
+                .dim(Dimension::Device, "multirx")
+                .dim(Dimension::Mode, mode)
+        };
+        let pty = |base: &str, unit: &str| {
+            Spec::new(base, unit)
+                .dim(Dimension::Device, "mavlora")
+                .dim(Dimension::Transport, "pty")
+        };
+        let mut d1 = Declarations::new();
+        let pass = d1.declare(
+            multirx("handover_ms", "parallel", "ms")
+                .describe("time from the active TX off to the other receiver's frames at the FC")
+                .at_most(50.0),
+        );
+        d1.record(pass, 12.5);
+        let marginal = d1.declare(
+            multirx("handover_ms", "scan", "ms")
+                .at_most(4500.0)
+                .marginal_above(4000.0),
+        );
+        d1.record(marginal, 4100.0);
+        let mut d2 = Declarations::new();
+        let fail = d2.declare(
+            pty("bytes_per_s", "B/s")
+                .dim(Dimension::Radio, "sik_64k")
+                .at_most(951.0),
+        );
+        d2.record(fail, 1200.0);
+        d2.declare(pty("position_rate", "Hz").at_least(3.0));
+        let mut d3 = Declarations::new();
+        d3.declare(pty("mission_upload_s", "s").at_most(60.0));
+        let mut d4 = Declarations::new();
+        d4.declare(multirx("loiter_entry_ms", "scan", "ms").at_most(100.0));
         let mut p1 = PhaseRecord::ran(
             "multirx.parallel.scenario_b",
             "2026-01-31T09:12:03.123Z",
             1.25,
-            vec![pass, marginal],
+            d1.into_measurements(),
             None,
         );
         p1.log.push("TX 1 off at t=2.000 s".into());
@@ -421,20 +471,20 @@ pub(crate) mod tests {
             "mavlora.bridge.bandwidth",
             "2026-01-31T09:12:05.000Z",
             30.0,
-            vec![fail, unset],
+            d2.into_measurements(),
             None,
         );
         let p3 = PhaseRecord::ran(
             "mavlora.mission_upload",
             "2026-01-31T09:12:35.000Z",
             0.5,
-            vec![Measurement::new("mavlora.mission_upload.s", "s").at_most(60.0)],
+            d3.into_measurements(),
             Some("router exited with status 1 <&>".into()),
         );
         let p4 = PhaseRecord::skipped(
             "multirx.scan.scenario_c",
             "2026-01-31T09:12:36.000Z",
-            vec![Measurement::new("multirx.scan.loiter_ms", "ms").at_most(100.0)],
+            d4.into_measurements(),
             "scan not in multirx.modes",
         );
         let phases = vec![p1, p2, p3, p4];
@@ -481,8 +531,12 @@ pub(crate) mod tests {
 
     #[test]
     fn unset_measurement_fails_phase() {
-        let m = Measurement::new("a", "ms").at_most(1.0);
-        assert_eq!(PhaseOutcome::judge(&[m], None), PhaseOutcome::Fail);
+        let mut d = Declarations::new();
+        d.declare(Spec::new("a", "ms").at_most(1.0));
+        assert_eq!(
+            PhaseOutcome::judge(d.measurements(), None),
+            PhaseOutcome::Fail
+        );
         assert_eq!(PhaseOutcome::judge(&[], None), PhaseOutcome::Pass);
     }
 
@@ -526,10 +580,11 @@ pub(crate) mod tests {
 
     #[test]
     fn nan_value_survives_as_failed_with_note() {
-        let mut m = Measurement::new("a", "ms").at_most(1.0);
-        m.record(f64::NAN);
+        let mut d = Declarations::new();
+        let h = d.declare(Spec::new("a", "ms").at_most(1.0));
+        d.record(h, f64::NAN);
         let mut r = sample_record();
-        r.phases[0].measurements.push(m);
+        r.phases[0].measurements.extend(d.into_measurements());
         let dir = tempfile::tempdir().unwrap();
         let back = RunRecord::load(&r.save(dir.path()).unwrap()).unwrap();
         let m = back.phases[0].measurements.last().unwrap();
@@ -563,5 +618,74 @@ pub(crate) mod tests {
         let now = now_rfc3339();
         assert!(now.ends_with('Z'), "{now}");
         chrono::DateTime::parse_from_rfc3339(&now).unwrap();
+    }
+
+    #[test]
+    fn saved_record_keeps_dimensions_and_is_selected_by_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = sample_record();
+        let back = RunRecord::load(&r.save(dir.path()).unwrap()).unwrap();
+        let text = fs::read_to_string(dir.path().join(RESULTS_FILE)).unwrap();
+        assert!(text.contains(r#""dimensions": {"#), "{text}");
+        let m = back
+            .find(
+                "bytes_per_s",
+                &[(Dimension::Radio, "sik_64k"), (Dimension::Transport, "pty")],
+            )
+            .unwrap();
+        assert_eq!(m.name, "mavlora.pty.sik_64k.bytes_per_s");
+        assert_eq!(m.value, Some(1200.0));
+        assert!(
+            back.find("bytes_per_s", &[(Dimension::Variant, "compact")])
+                .is_none()
+        );
+        let handovers: Vec<_> = back
+            .select(&Selector::base("handover_ms").dim(Dimension::Device, "multirx"))
+            .map(|(p, m)| (p.name.as_str(), m.dimensions.get(Dimension::Mode).unwrap()))
+            .collect();
+        assert_eq!(
+            handovers,
+            [
+                ("multirx.parallel.scenario_b", "parallel"),
+                ("multirx.parallel.scenario_b", "scan")
+            ]
+        );
+        let skipped: Vec<_> = back
+            .select(&Selector::any().dim(Dimension::Mode, "scan"))
+            .map(|(_, m)| m.outcome)
+            .collect();
+        assert_eq!(skipped, [Outcome::Marginal, Outcome::Skipped]);
+    }
+
+    /// `rig report` re-renders archived evidence: a record saved before
+    /// measurements had dimensions still loads, names and verdicts intact.
+    #[test]
+    fn a_record_saved_without_dimensions_loads() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = sample_record().save(dir.path()).unwrap();
+        let mut json: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(&path).unwrap()).unwrap();
+        for phase in json["phases"].as_array_mut().unwrap() {
+            for m in phase["measurements"].as_array_mut().unwrap() {
+                m.as_object_mut().unwrap().remove("dimensions").unwrap();
+            }
+        }
+        fs::write(&path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+        let old = RunRecord::load(&path).unwrap();
+        let new = sample_record();
+        assert_eq!(old.phases.len(), new.phases.len());
+        for (o, n) in old.phases.iter().zip(&new.phases) {
+            for (om, nm) in o.measurements.iter().zip(&n.measurements) {
+                assert!(om.dimensions.is_empty());
+                assert_eq!(
+                    (&om.name, om.value, om.outcome),
+                    (&nm.name, nm.value, nm.outcome)
+                );
+            }
+        }
+        assert!(
+            old.find("handover_ms", &[]).is_none(),
+            "nothing to select by"
+        );
     }
 }

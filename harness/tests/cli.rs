@@ -105,6 +105,10 @@ fn handover_scenario_runs_and_writes_its_evidence() {
         .iter()
         .find(|m| m["name"] == "multirx.parallel.handover_ms")
         .unwrap();
+    assert_eq!(
+        handover["dimensions"],
+        serde_json::json!({"device": "multirx", "mode": "parallel"})
+    );
     let ms = handover["value"].as_f64().unwrap();
     assert!(ms > 0.0 && ms <= 50.0, "{ms}");
     assert!(

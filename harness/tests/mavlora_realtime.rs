@@ -9,7 +9,7 @@ use std::process::Command;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use harness::measurement::Outcome;
+use harness::measurement::{Declarations, Dimension, Outcome, Selector};
 use harness::rigfile::RigFile;
 use harness::scenario::PhaseContext;
 use harness::scenario::mavlora::realtime::{SessionDefaults, scenarios};
@@ -56,12 +56,11 @@ fn run(scenario: &str) {
         .into_iter()
         .find(|s| s.name == scenario)
         .unwrap_or_else(|| panic!("no scenario {scenario}"));
-    let mut ctx = PhaseContext::new(&rig, &dir.path().join(scenario));
-    for m in (s.measurements)() {
-        ctx.declare(m);
-    }
+    let mut declared = Declarations::new();
+    let script = (s.plan)(&mut declared);
+    let mut ctx = PhaseContext::new(&rig, &dir.path().join(scenario), declared);
     let t0 = Instant::now();
-    let result = (s.run)(&mut ctx, &defaults);
+    let result = script(&mut ctx, &defaults);
     let wall = t0.elapsed();
     let (measurements, log, files) = ctx.into_parts();
     for line in &log {
@@ -112,11 +111,17 @@ fn c2_latency_over_lossy_sik() {
 }
 
 #[test]
-fn every_scenario_declares_measurements_under_mavlora_pty() {
+fn every_scenario_declares_measurements_of_mavlora_over_ptys() {
+    let pty = Selector::any()
+        .dim(Dimension::Device, "mavlora")
+        .dim(Dimension::Transport, "pty");
     for s in scenarios() {
-        let ms = (s.measurements)();
+        let mut declared = Declarations::new();
+        let _ = (s.plan)(&mut declared);
+        let ms = declared.measurements();
         assert!(!ms.is_empty(), "{}", s.name);
         for m in ms {
+            assert!(pty.matches(m), "{} {:?}", m.name, m.dimensions);
             assert!(m.name.starts_with("mavlora.pty."), "{}", m.name);
         }
     }

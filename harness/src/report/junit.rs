@@ -226,8 +226,8 @@ mod tests {
         assert_eq!(*kind, NonSuccessKind::Failure);
         assert_eq!(
             message.as_ref().unwrap().as_str(),
-            "mavlora.bridge.bandwidth = 1200 B/s (limit: x <= 951 B/s); \
-             mavlora.bridge.position_rate = unset (limit: x >= 3 Hz)"
+            "mavlora.pty.sik_64k.bytes_per_s = 1200 B/s (limit: x <= 951 B/s); \
+             mavlora.pty.position_rate = unset (limit: x >= 3 Hz)"
         );
         let TestCaseStatus::NonSuccess { kind, message, .. } = &suite.test_cases[2].status else {
             panic!("phase 3 should error");

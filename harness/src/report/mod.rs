@@ -80,9 +80,15 @@ mod tests {
             assert!(p.is_file(), "{} missing", p.display());
         }
         let summary = std::fs::read_to_string(&paths.summary).unwrap();
-        assert!(summary.contains("mavlora.bridge.bandwidth"), "{summary}");
+        assert!(
+            summary.contains("mavlora.pty.sik_64k.bytes_per_s"),
+            "{summary}"
+        );
         let xml = std::fs::read_to_string(&paths.junit).unwrap();
-        assert!(xml.contains("mavlora.bridge.bandwidth = 1200 B/s"), "{xml}");
+        assert!(
+            xml.contains("mavlora.pty.sik_64k.bytes_per_s = 1200 B/s"),
+            "{xml}"
+        );
     }
 
     #[test]

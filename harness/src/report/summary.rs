@@ -171,7 +171,7 @@ mod tests {
         let limits = col("x ");
         assert!(limits.iter().all(|&c| c == limits[0]), "{text}");
         assert!(
-            text.contains("mavlora.bridge.bandwidth      1200 B/s  x <= 951 B/s"),
+            text.contains("mavlora.pty.sik_64k.bytes_per_s  1200 B/s  x <= 951 B/s"),
             "{text}"
         );
         assert!(text.contains("UNSET"), "{text}");

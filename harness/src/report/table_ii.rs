@@ -1,22 +1,24 @@
 //! The paper's Table II next to this run's reproduction, for the summary: bytes and messages
-//! per second UAV→GCS per bandwidth mechanism, from the run's own measurements
-//! (`mavlora.<variant>.*` from the simulated full-length flight, `mavlora.pty.<variant>.*`
-//! from the real binaries over ptys).
+//! per second UAV→GCS per bandwidth mechanism, from the run's own measurements, selected by
+//! their `variant` and `transport` dimensions (the simulated full-length flight, and the
+//! real binaries over ptys).
 
 use std::fmt::Write as _;
 
+use crate::measurement::{Dimension, SIMULATED};
 use crate::record::RunRecord;
 use crate::scenario::mavlora::simulated::table_ii::paper_table;
 
 /// The table, or `None` when the run measured none of its rows.
 pub fn render(record: &RunRecord) -> Option<String> {
-    let value = |name: String| {
-        record
-            .phases
-            .iter()
-            .flat_map(|p| &p.measurements)
-            .find(|m| m.name == name)
-            .and_then(|m| m.value)
+    // `transport`: SIMULATED for the virtual-clock flight, `pty` for the real programs.
+    let value = |base: &str, transport: &str, variant: &str| {
+        let dims = [
+            (Dimension::Device, "mavlora"),
+            (Dimension::Transport, transport),
+            (Dimension::Variant, variant),
+        ];
+        record.find(base, &dims).and_then(|m| m.value)
     };
     let fmt = |v: Option<f64>| v.map_or("-".to_owned(), |v| format!("{v:.1}"));
     let mut any = false;
@@ -29,12 +31,12 @@ pub fn render(record: &RunRecord) -> Option<String> {
     for row in paper_table() {
         let v = row.variant;
         let sim = (
-            value(format!("mavlora.{v}.bytes_per_s")),
-            value(format!("mavlora.{v}.msgs_per_s")),
+            value("bytes_per_s", SIMULATED, v),
+            value("msgs_per_s", SIMULATED, v),
         );
         let pty = (
-            value(format!("mavlora.pty.{v}.bytes_per_s")),
-            value(format!("mavlora.pty.{v}.msgs_per_s")),
+            value("bytes_per_s", "pty", v),
+            value("msgs_per_s", "pty", v),
         );
         any |= sim.0.is_some() || pty.0.is_some();
         let paper_bytes = if row.bound {
@@ -57,4 +59,59 @@ pub fn render(record: &RunRecord) -> Option<String> {
          real binaries, msg/s as the ground station decoded them (compact frames expanded)\n",
     );
     any.then_some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measurement::{Declarations, Spec};
+    use crate::record::PhaseRecord;
+    use crate::record::tests::sample_record;
+
+    /// Rows come from the measurements' dimensions: which transport, which variant.
+    #[test]
+    fn rows_are_selected_by_variant_and_transport() {
+        let mut record = sample_record();
+        assert_eq!(
+            render(&record),
+            None,
+            "no Table II measurement in the sample"
+        );
+        let mut d = Declarations::new();
+        let table = |base: &str, transport: &str, variant: &str| {
+            Spec::new(base, "B/s")
+                .dim(Dimension::Device, "mavlora")
+                .dim(Dimension::Transport, transport)
+                .dim(Dimension::Variant, variant)
+        };
+        let sim = d.declare(table("bytes_per_s", SIMULATED, "compact"));
+        d.record(sim, 48.4);
+        let pty = d.declare(table("bytes_per_s", "pty", "compact"));
+        d.record(pty, 44.9);
+        let pty_msgs = d.declare(table("msgs_per_s", "pty", "limit_filter"));
+        d.record(pty_msgs, 9.7);
+        record.phases.push(PhaseRecord::ran(
+            "mavlora::simulated::table_ii",
+            "2026-01-31T09:12:37.000Z",
+            0.5,
+            d.into_measurements(),
+            None,
+        ));
+        let text = render(&record).unwrap();
+        let row = |v: &str| {
+            text.lines()
+                .find(|l| l.split_whitespace().next() == Some(v))
+                .unwrap()
+                .split_whitespace()
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            row("compact"),
+            ["compact", "<", "100", "-", "48.4", "-", "44.9", "-"]
+        );
+        assert_eq!(
+            row("limit_filter"),
+            ["limit_filter", "951", "35.23", "-", "-", "-", "9.7"]
+        );
+    }
 }

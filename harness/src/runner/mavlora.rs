@@ -8,6 +8,7 @@ use libtest_mimic::Trial;
 
 use super::{Phases, conclude, run_phase};
 use crate::driver::program::{MAVLORA_BRIDGE, MAVLORA_ROUTER};
+use crate::measurement::Declarations;
 use crate::rigfile::{MavloraSection, RigFile, Suite};
 use crate::scenario::mavlora::realtime::{self, SessionDefaults};
 use crate::scenario::mavlora::simulated::{self, Radios};
@@ -17,7 +18,7 @@ pub fn simulated_radios(section: &MavloraSection) -> Radios {
     let r = &section.radios;
     Radios {
         table_ii: r.table_ii.as_ref().map(|n| n.setup.clone()),
-        // Measurement keys are the rig file's radio names: `lora-sf7-bursty` → `lora_sf7_bursty`.
+        // The radio dimension is the rig file's radio name: `lora-sf7-bursty` → `lora_sf7_bursty`.
         mission: r
             .mission
             .iter()
@@ -46,8 +47,9 @@ pub fn add_trials(
     if section.suites.contains(&Suite::Simulated) {
         let radios = Arc::new(simulated_radios(section));
         for scenario in simulated::scenarios() {
-            let declared = (scenario.measurements)(&radios);
-            names.extend(declared.iter().map(|m| m.name.clone()));
+            let mut declared = Declarations::new();
+            let script = (scenario.plan)(&mut declared, &radios);
+            names.extend(super::names(&declared));
             let name = format!("mavlora::simulated::{}", scenario.name);
             let (rig, phases, out_dir, radios) = (
                 rig.clone(),
@@ -56,14 +58,9 @@ pub fn add_trials(
                 radios.clone(),
             );
             trials.push(Trial::test(name.clone(), move || {
-                let record = run_phase(
-                    &rig,
-                    &out_dir,
-                    &name,
-                    scenario.summary,
-                    (scenario.measurements)(&radios),
-                    |ctx| (scenario.run)(ctx, &radios),
-                );
+                let record = run_phase(&rig, &out_dir, &name, scenario.summary, declared, |ctx| {
+                    script(ctx, &radios)
+                });
                 conclude(&phases, record)
             }));
         }
@@ -71,7 +68,9 @@ pub fn add_trials(
     if section.suites.contains(&Suite::Realtime) {
         let defaults = Arc::new(session_defaults(rig, section));
         for scenario in realtime::scenarios() {
-            names.extend((scenario.measurements)().into_iter().map(|m| m.name));
+            let mut declared = Declarations::new();
+            let script = (scenario.plan)(&mut declared);
+            names.extend(super::names(&declared));
             let name = format!("mavlora::realtime::{}", scenario.name);
             let (rig, phases, out_dir, defaults) = (
                 rig.clone(),
@@ -80,14 +79,9 @@ pub fn add_trials(
                 defaults.clone(),
             );
             trials.push(Trial::test(name.clone(), move || {
-                let record = run_phase(
-                    &rig,
-                    &out_dir,
-                    &name,
-                    scenario.summary,
-                    (scenario.measurements)(),
-                    |ctx| (scenario.run)(ctx, &defaults),
-                );
+                let record = run_phase(&rig, &out_dir, &name, scenario.summary, declared, |ctx| {
+                    script(ctx, &defaults)
+                });
                 conclude(&phases, record)
             }));
         }

@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use libtest_mimic::{Arguments, Failed, Trial};
 
 use crate::driver::program::MULTIRX_EMU;
-use crate::measurement::{Measurement, Outcome};
+use crate::measurement::{Declarations, Dimension, Handle, Outcome, Selector, Spec};
 use crate::record::{
     Attachment, DeviceIdentity, PhaseOutcome, PhaseRecord, RigIdentity, RunOutcome, RunRecord,
     ToolIdentity, now_rfc3339, sha256_file,
@@ -18,7 +18,7 @@ use crate::record::{
 use crate::report::{self, ReportPaths};
 use crate::rigfile::{BoardSetup, DeviceSetup, Mode, RigFile};
 use crate::scenario::PhaseContext;
-use crate::scenario::multirx::{self, Limits, Scenario};
+use crate::scenario::multirx::{self, ModeLimits, Scenario, SessionMeasurements};
 use crate::strategy::firmware::{self, FirmwareImage};
 use crate::strategy::multirx::MultirxSession;
 
@@ -56,13 +56,20 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
             if let DeviceSetup::Board(board) = &section.device.setup
                 && board.flash
             {
-                known_names.extend(flash_measurements(mode).into_iter().map(|m| m.name));
-                trials.push(flash_trial(&rig, &phases, &images, mode, board.clone()));
+                let flash = declare_flash(mode);
+                known_names.extend(names(&flash.0));
+                trials.push(flash_trial(
+                    &rig,
+                    &phases,
+                    &images,
+                    mode,
+                    board.clone(),
+                    flash,
+                ));
             }
             for scenario in multirx::scenarios() {
-                let mut declared = (scenario.measurements)(&limits);
-                declared.extend(multirx::session_measurements(&limits, scenario.name));
-                known_names.extend(declared.iter().map(|m| m.name.clone()));
+                let plan = ScenarioPlan::declare(&scenario, &limits);
+                known_names.extend(names(&plan.declared));
                 trials.push(scenario_trial(
                     &rig,
                     &phases,
@@ -70,10 +77,12 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
                     mode,
                     scenario,
                     limits.clone(),
+                    plan,
                 ));
             }
-            known_names.extend(whole_run_measurements(&limits).into_iter().map(|m| m.name));
-            trials.push(whole_run_trial(&rig, &phases, mode, limits));
+            let whole_run = declare_whole_run(&limits);
+            known_names.extend(names(&whole_run.0));
+            trials.push(whole_run_trial(&rig, &phases, mode, limits, whole_run));
         }
     }
     known_names.extend(mavlora::add_trials(&rig, &phases, &out_dir, &mut trials));
@@ -115,8 +124,13 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
     })
 }
 
-fn mode_limits(rig: &RigFile, mode: Mode) -> Result<Limits> {
-    Ok(Limits::new(
+/// The flat names of declared measurements, for the `[limits]` check.
+fn names(declared: &Declarations) -> impl Iterator<Item = String> + '_ {
+    declared.measurements().iter().map(|m| m.name.clone())
+}
+
+fn mode_limits(rig: &RigFile, mode: Mode) -> Result<ModeLimits> {
+    Ok(ModeLimits::new(
         mode,
         &crate::strategy::multirx::load_config(rig, mode)?,
     ))
@@ -128,12 +142,13 @@ fn scenario_trial(
     out_dir: &Path,
     mode: Mode,
     scenario: Scenario,
-    limits: Limits,
+    limits: ModeLimits,
+    plan: ScenarioPlan,
 ) -> Trial {
     let name = format!("multirx::{}::{}", mode.as_str(), scenario.name);
     let (rig, phases, out_dir) = (rig.clone(), phases.clone(), out_dir.to_path_buf());
     Trial::test(name.clone(), move || {
-        let record = run_scenario(&rig, &out_dir, &name, mode, &scenario, &limits);
+        let record = run_scenario(&rig, &out_dir, &name, mode, &scenario, &limits, plan);
         conclude(&phases, record)
     })
 }
@@ -144,15 +159,19 @@ fn run_scenario(
     name: &str,
     mode: Mode,
     scenario: &Scenario,
-    limits: &Limits,
+    limits: &ModeLimits,
+    plan: ScenarioPlan,
 ) -> PhaseRecord {
-    let mut declared = (scenario.measurements)(limits);
-    declared.extend(multirx::session_measurements(limits, scenario.name));
+    let ScenarioPlan {
+        declared,
+        script,
+        session: session_measurements,
+    } = plan;
     let dir = phase_dir(out_dir, name);
     run_phase(rig, out_dir, name, scenario.summary, declared, |ctx| {
         let session = MultirxSession::start(rig, mode, scenario.options, &dir)?;
-        let result = (scenario.run)(&session, ctx, limits);
-        let recorded = multirx::record_session(&session, ctx, limits, scenario.name);
+        let result = script(&session, ctx, limits);
+        let recorded = multirx::record_session(&session, ctx, &session_measurements);
         for log in session.finish() {
             let label = log
                 .file_stem()
@@ -169,28 +188,46 @@ fn run_scenario(
     })
 }
 
+/// A MultiRX scenario's measurements, its own and its session's, and the
+/// script that records its own.
+struct ScenarioPlan {
+    declared: Declarations,
+    script: multirx::Script,
+    session: SessionMeasurements,
+}
+
+impl ScenarioPlan {
+    fn declare(scenario: &Scenario, limits: &ModeLimits) -> Self {
+        let mut declared = Declarations::new();
+        let script = (scenario.plan)(&mut declared, limits);
+        let session = SessionMeasurements::declare(&mut declared, limits, Some(scenario.name));
+        ScenarioPlan {
+            declared,
+            script,
+            session,
+        }
+    }
+}
+
 /// A phase's own folder in the output folder: `multirx::parallel::b_handover` →
 /// `multirx.parallel.b_handover`.
 fn phase_dir(out_dir: &Path, name: &str) -> PathBuf {
     out_dir.join(name.replace("::", "."))
 }
 
-/// One phase: declares `measurements`, runs `body` with the phase's context (its folder is
+/// One phase: takes the `measurements` it declared, runs `body` with the phase's context (its folder is
 /// [`phase_dir`]), and turns what it recorded, logged and attached into a [`PhaseRecord`].
 fn run_phase(
     rig: &RigFile,
     out_dir: &Path,
     name: &str,
     summary: &str,
-    measurements: Vec<Measurement>,
+    measurements: Declarations,
     body: impl FnOnce(&mut PhaseContext) -> Result<()>,
 ) -> PhaseRecord {
     let started = now_rfc3339();
     let clock = Instant::now();
-    let mut ctx = PhaseContext::new(rig, &phase_dir(out_dir, name));
-    for m in measurements {
-        ctx.declare(m);
-    }
+    let mut ctx = PhaseContext::new(rig, &phase_dir(out_dir, name), measurements);
     ctx.log(summary);
     let error = body(&mut ctx).err().map(|e| format!("{e:#}"));
     let (measurements, log, files) = ctx.into_parts();
@@ -217,15 +254,26 @@ fn run_phase(
 const CHIP_FLASH: f64 = 256.0 * 1024.0;
 const CHIP_RAM: f64 = 32.0 * 1024.0;
 
-fn flash_measurements(mode: Mode) -> Vec<Measurement> {
-    vec![
-        Measurement::new(format!("firmware.{}.flash_bytes", mode.as_str()), "B")
+/// The firmware image's flash and RAM use with this mode's config.
+fn declare_flash(mode: Mode) -> (Declarations, [Handle; 2]) {
+    let image = |base: &str| {
+        Spec::new(base, "B")
+            .dim(Dimension::Artifact, "firmware")
+            .dim(Dimension::Device, "multirx")
+            .dim(Dimension::Mode, mode.as_str())
+    };
+    let mut declared = Declarations::new();
+    let flash = declared.declare(
+        image("flash_bytes")
             .describe("flash the firmware image takes with this mode's config")
             .at_most(CHIP_FLASH),
-        Measurement::new(format!("firmware.{}.ram_bytes", mode.as_str()), "B")
+    );
+    let ram = declared.declare(
+        image("ram_bytes")
             .describe("static RAM (.data + .bss); the stack has the rest")
             .at_most(CHIP_RAM),
-    ]
+    );
+    (declared, [flash, ram])
 }
 
 /// Built → flashed: the board gets the firmware with this mode's config.
@@ -235,16 +283,14 @@ fn flash_trial(
     images: &Images,
     mode: Mode,
     board: BoardSetup,
+    (declared, [flash_bytes, ram_bytes]): (Declarations, [Handle; 2]),
 ) -> Trial {
     let name = format!("multirx::{}::flash", mode.as_str());
     let (rig, phases, images) = (rig.clone(), phases.clone(), images.clone());
     Trial::test(name.clone(), move || {
         let started = now_rfc3339();
         let clock = Instant::now();
-        let mut ctx = PhaseContext::new(&rig, Path::new(""));
-        for m in flash_measurements(mode) {
-            ctx.declare(m);
-        }
+        let mut ctx = PhaseContext::new(&rig, Path::new(""), declared);
         let result = (|| -> Result<()> {
             crate::strategy::multirx::load_config(&rig, mode)?;
             let config = rig
@@ -258,14 +304,8 @@ fn flash_trial(
                 config.display()
             ));
             let image = firmware::build(&board.firmware, config)?;
-            ctx.record(
-                &format!("firmware.{}.flash_bytes", mode.as_str()),
-                image.flash_bytes as f64,
-            );
-            ctx.record(
-                &format!("firmware.{}.ram_bytes", mode.as_str()),
-                image.ram_bytes as f64,
-            );
+            ctx.record(flash_bytes, image.flash_bytes as f64);
+            ctx.record(ram_bytes, image.ram_bytes as f64);
             ctx.log(format!(
                 "image {} sha256 {}",
                 image.elf.display(),
@@ -293,64 +333,53 @@ fn flash_trial(
     })
 }
 
-fn whole_run_measurements(l: &Limits) -> Vec<Measurement> {
-    vec![
-        Measurement::new(l.name("max_output_gap_ms"), "ms")
-            .describe(format!(
-                "{}, over every scenario of this mode",
-                multirx::OUTPUT_GAP
-            ))
-            .at_most(l.max_gap_ms()),
-        Measurement::new(l.name("fc_max_gap_ms"), "ms")
-            .describe(format!(
-                "{}, over every scenario of this mode",
-                multirx::FC_GAP
-            ))
-            .at_most(l.max_fc_gap_ms()),
-        Measurement::new(l.name("rc_losses"), "")
-            .describe("RC losses PX4 would have declared over every scenario of this mode")
-            .equal_to(0.0),
-    ]
+/// The whole run's session measurements of a mode.
+fn declare_whole_run(limits: &ModeLimits) -> (Declarations, SessionMeasurements) {
+    let mut declared = Declarations::new();
+    let whole = SessionMeasurements::declare(&mut declared, limits, None);
+    (declared, whole)
 }
 
 /// Folds the per-scenario session measurements of one mode into whole-run ones.
-fn whole_run_trial(rig: &Arc<RigFile>, phases: &Phases, mode: Mode, limits: Limits) -> Trial {
+fn whole_run_trial(
+    rig: &Arc<RigFile>,
+    phases: &Phases,
+    mode: Mode,
+    limits: ModeLimits,
+    (declared, whole): (Declarations, SessionMeasurements),
+) -> Trial {
     let name = format!("multirx::{}::whole_run", mode.as_str());
     let (rig, phases) = (rig.clone(), phases.clone());
     Trial::test(name.clone(), move || {
         let started = now_rfc3339();
-        let mut ctx = PhaseContext::new(&rig, Path::new(""));
-        for m in whole_run_measurements(&limits) {
-            ctx.declare(m);
-        }
-        let prefix = format!("multirx::{}::", mode.as_str());
-        let (mut gap, mut fc_gap, mut losses, mut count) = (0.0f64, 0.0f64, 0.0, 0usize);
-        for phase in phases
-            .lock()
-            .unwrap()
-            .iter()
-            .filter(|p| p.name.starts_with(&prefix))
-        {
-            for m in &phase.measurements {
-                let Some(v) = m.value else { continue };
-                if m.name.ends_with(".max_output_gap_ms") {
-                    gap = gap.max(v);
-                    count += 1;
-                } else if m.name.ends_with(".fc_max_gap_ms") {
-                    fc_gap = fc_gap.max(v);
-                } else if m.name.ends_with(".rc_losses") {
-                    losses += v;
-                }
-            }
-        }
+        let mut ctx = PhaseContext::new(&rig, Path::new(""), declared);
+        // Each whole-run measurement is the same measurement of every scenario of this mode,
+        // which the scenario dimension tells apart.
+        let [gap, fc_gap, losses] = multirx::session_specs(&limits, None)
+            .map(|spec| Selector::like(&spec).has(Dimension::Scenario));
+        let (gaps, fc_gaps, losses) = {
+            let ran = phases.lock().unwrap();
+            let values = |selector: &Selector| -> Vec<f64> {
+                ran.iter()
+                    .flat_map(|p| p.select(selector))
+                    .filter_map(|m| m.value)
+                    .collect()
+            };
+            (values(&gap), values(&fc_gap), values(&losses))
+        };
+        let count = gaps.len();
         let record = if count == 0 {
             let (measurements, _, _) = ctx.into_parts();
             PhaseRecord::skipped(&name, started, measurements, "no scenario of this mode ran")
         } else {
             ctx.log(format!("{count} scenarios"));
-            ctx.record(&limits.name("max_output_gap_ms"), gap);
-            ctx.record(&limits.name("fc_max_gap_ms"), fc_gap);
-            ctx.record(&limits.name("rc_losses"), losses);
+            let worst = |v: Vec<f64>| v.into_iter().fold(0.0, f64::max);
+            whole.record(
+                &mut ctx,
+                worst(gaps),
+                worst(fc_gaps),
+                losses.into_iter().fold(0.0, |sum, v| sum + v),
+            );
             let (measurements, log, _) = ctx.into_parts();
             let mut r = PhaseRecord::ran(&name, started, 0.0, measurements, None);
             r.log = log;

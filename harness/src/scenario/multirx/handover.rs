@@ -6,10 +6,10 @@
 
 use anyhow::{Context, Result};
 
-use super::{Limits, SETTLE, Scenario, SessionOptions};
+use super::{ModeLimits, SETTLE, Scenario, Script, SessionOptions};
 use crate::clock::Mono;
 use crate::driver::receiver::Loss;
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::multirx::MultirxSession;
 
@@ -19,41 +19,41 @@ pub const FAILSAFE: Scenario = Scenario {
     options: SessionOptions {
         loss: Loss::Failsafe,
     },
-    measurements: failsafe_measurements,
-    run: run_failsafe,
+    plan: plan_failsafe,
 };
 
 pub const SILENT: Scenario = Scenario {
     name: "b_handover_silent",
     summary: "B: active pilot off (receiver falls silent), other pilot on; control passes, 6 times back and forth",
     options: SessionOptions { loss: Loss::Silent },
-    measurements: silent_measurements,
-    run: run_silent,
+    plan: plan_silent,
 };
 
 /// Handovers per scenario: two receivers, so two frame phases per session.
 const ROUNDS: usize = 6;
 
-fn failsafe_measurements(l: &Limits) -> Vec<Measurement> {
-    vec![
-        Measurement::new(l.name("handover_ms"), "ms")
+fn plan_failsafe(d: &mut Declarations, l: &ModeLimits) -> Script {
+    let worst = d.declare(
+        l.spec("handover_ms", "ms")
             .describe(
                 "worst of 6 handovers: first failsafe frame from the active pilot's receiver → \
                  the other pilot's sticks and pilot value at the flight controller",
             )
             .at_most(l.handover_ms),
-    ]
+    );
+    Box::new(move |s, ctx, _| run(s, ctx, failsafe_mark, worst))
 }
 
-fn silent_measurements(l: &Limits) -> Vec<Measurement> {
-    vec![
-        Measurement::new(l.name("handover_silent_ms"), "ms")
+fn plan_silent(d: &mut Declarations, l: &ModeLimits) -> Script {
+    let worst = d.declare(
+        l.spec("handover_silent_ms", "ms")
             .describe(
                 "worst of 6 handovers: last frame from the active pilot's receiver → \
                  the other pilot's sticks and pilot value at the flight controller",
             )
             .at_most(l.handover_silent_ms),
-    ]
+    );
+    Box::new(move |s, ctx, _| run(s, ctx, silent_mark, worst))
 }
 
 /// When the active pilot's receiver told (or stopped telling) MultiRX that
@@ -99,12 +99,12 @@ fn handovers(s: &MultirxSession, ctx: &mut PhaseContext, mark: LossMark) -> Resu
     Ok(samples)
 }
 
-fn record_worst(ctx: &mut PhaseContext, name: &str, mut samples: Vec<f64>) {
+fn record_worst(ctx: &mut PhaseContext, m: Handle, mut samples: Vec<f64>) {
     samples.sort_by(f64::total_cmp);
     let worst = samples.last().copied().unwrap_or(f64::NAN);
-    ctx.record(name, worst);
+    ctx.record(m, worst);
     ctx.annotate(
-        name,
+        m,
         &format!(
             "worst of {}; median {:.3} ms, best {:.3} ms",
             samples.len(),
@@ -114,14 +114,8 @@ fn record_worst(ctx: &mut PhaseContext, name: &str, mut samples: Vec<f64>) {
     );
 }
 
-fn run_failsafe(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
-    let samples = handovers(s, ctx, failsafe_mark)?;
-    record_worst(ctx, &l.name("handover_ms"), samples);
-    Ok(())
-}
-
-fn run_silent(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
-    let samples = handovers(s, ctx, silent_mark)?;
-    record_worst(ctx, &l.name("handover_silent_ms"), samples);
+fn run(s: &MultirxSession, ctx: &mut PhaseContext, mark: LossMark, worst: Handle) -> Result<()> {
+    let samples = handovers(s, ctx, mark)?;
+    record_worst(ctx, worst, samples);
     Ok(())
 }

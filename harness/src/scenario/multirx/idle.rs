@@ -5,9 +5,9 @@ use std::time::Duration;
 
 use anyhow::Result;
 
-use super::{Limits, Scenario, SessionOptions};
+use super::{ModeLimits, Scenario, Script, SessionOptions};
 use crate::clock::Mono;
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::multirx::MultirxSession;
 
@@ -17,23 +17,23 @@ pub const SCENARIO: Scenario = Scenario {
     options: SessionOptions {
         loss: crate::driver::receiver::Loss::Failsafe,
     },
-    measurements,
-    run,
+    plan,
 };
 
 const WATCH: Duration = Duration::from_secs(3);
 
-fn measurements(l: &Limits) -> Vec<Measurement> {
-    vec![
-        Measurement::new(l.name("idle_takeovers"), "")
+fn plan(d: &mut Declarations, l: &ModeLimits) -> Script {
+    let takeovers = d.declare(
+        l.spec("idle_takeovers", "")
             .describe(
                 "frames at the flight controller showing pilot 2 while pilot 1 still had a link",
             )
             .equal_to(0.0),
-    ]
+    );
+    Box::new(move |s, ctx, _| run(s, ctx, takeovers))
 }
 
-fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
+fn run(s: &MultirxSession, ctx: &mut PhaseContext, idle_takeovers: Handle) -> Result<()> {
     s.fly(0)?;
     ctx.log("pilot 1 in control");
     let on = Mono::now();
@@ -45,6 +45,6 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
             .filter(|f| f.at >= on && f.channels[s.pilot_index()] != s.pilot_value(0))
             .count();
     ctx.log(format!("watched {WATCH:?} after pilot 2 switched on"));
-    ctx.record(&l.name("idle_takeovers"), takeovers as f64);
+    ctx.record(idle_takeovers, takeovers as f64);
     Ok(())
 }

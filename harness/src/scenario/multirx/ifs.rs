@@ -5,9 +5,9 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 
-use super::{Limits, Scenario, SessionOptions};
+use super::{ModeLimits, Scenario, Script, SessionOptions};
 use crate::driver::receiver::Loss;
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::multirx::MultirxSession;
 
@@ -17,25 +17,32 @@ pub const SCENARIO: Scenario = Scenario {
     options: SessionOptions {
         loss: Loss::Failsafe,
     },
-    measurements,
-    run,
+    plan,
 };
 
 /// A value no pilot sends, so the override is unmistakable.
 const IFS_VALUE: u16 = 250;
 
-fn measurements(l: &Limits) -> Vec<Measurement> {
-    vec![
-        Measurement::new(l.name("ifs_override_ms"), "ms")
+fn plan(d: &mut Declarations, l: &ModeLimits) -> Script {
+    let override_ms = d.declare(
+        l.spec("ifs_override_ms", "ms")
             .describe("IFS starts sending → its channel values at the flight controller")
             .at_most(50.0),
-        Measurement::new(l.name("ifs_release_ms"), "ms")
+    );
+    let release_ms = d.declare(
+        l.spec("ifs_release_ms", "ms")
             .describe("IFS stops sending → the pilot's values back at the flight controller")
             .at_most(200.0),
-    ]
+    );
+    Box::new(move |s, ctx, _| run(s, ctx, override_ms, release_ms))
 }
 
-fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
+fn run(
+    s: &MultirxSession,
+    ctx: &mut PhaseContext,
+    override_ms: Handle,
+    release_ms: Handle,
+) -> Result<()> {
     let ifs = s.ifs.as_ref().context(
         "this rig's MultiRX config names no [ifs] channels, or [multirx.ports] has no ifs port",
     )?;
@@ -53,7 +60,7 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
         s.fc.wait_for(t0, Duration::from_secs(1), "the IFS override", |f| {
             f.channels[usize::from(ch)] == IFS_VALUE && s.shows_pilot(f, 0)
         })?;
-    ctx.record(&l.name("ifs_override_ms"), f.at.ms_since(t0));
+    ctx.record(override_ms, f.at.ms_since(t0));
     std::thread::sleep(Duration::from_millis(300));
     let off = ifs.set_tx(false)?;
     let t1 = off.fields["last_frame"]
@@ -64,6 +71,6 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
         s.fc.wait_for(t1, Duration::from_secs(1), "the IFS release", |f| {
             f.channels[usize::from(ch)] != IFS_VALUE && s.shows_pilot(f, 0)
         })?;
-    ctx.record(&l.name("ifs_release_ms"), f.at.ms_since(t1));
+    ctx.record(release_ms, f.at.ms_since(t1));
     Ok(())
 }

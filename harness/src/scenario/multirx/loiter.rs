@@ -6,10 +6,10 @@ use std::time::Duration;
 
 use anyhow::Result;
 
-use super::{Limits, SETTLE, Scenario, SessionOptions};
+use super::{ModeLimits, SETTLE, Scenario, Script, SessionOptions};
 use crate::clock::Mono;
 use crate::driver::receiver::Loss;
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::multirx::{MultirxSession, POSITION_MODE};
 
@@ -19,19 +19,19 @@ pub const SCENARIO: Scenario = Scenario {
     options: SessionOptions {
         loss: Loss::Failsafe,
     },
-    measurements,
-    run,
+    plan,
 };
 
-fn measurements(l: &Limits) -> Vec<Measurement> {
-    vec![
-        Measurement::new(l.name("loiter_entry_ms"), "ms")
+fn plan(d: &mut Declarations, l: &ModeLimits) -> Script {
+    let entry = d.declare(
+        l.spec("loiter_entry_ms", "ms")
             .describe("first failsafe frame from the last transmitter → flight-mode channel at auto-loiter and pilot channel at 'none'")
             .at_most(100.0),
-    ]
+    );
+    Box::new(move |s, ctx, _| run(s, ctx, entry))
 }
 
-fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
+fn run(s: &MultirxSession, ctx: &mut PhaseContext, entry: Handle) -> Result<()> {
     let fm = s.config.flight_mode_channel + 1;
     for rx in [0, 1] {
         s.receiver(rx).set_channels(&[(fm, POSITION_MODE)])?;
@@ -53,7 +53,7 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
             f.channels[mode] == s.config.auto_loiter_value
                 && f.channels[pilot] == s.config.no_receiver_value
         })?;
-    ctx.record(&l.name("loiter_entry_ms"), f.at.ms_since(t0));
+    ctx.record(entry, f.at.ms_since(t0));
     // Stay a while with nobody in control: the output must go on.
     std::thread::sleep(Duration::from_secs(1));
     Ok(())

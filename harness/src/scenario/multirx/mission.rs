@@ -7,10 +7,10 @@ use std::time::Duration;
 
 use anyhow::Result;
 
-use super::{Limits, SETTLE, Scenario, SessionOptions};
+use super::{ModeLimits, SETTLE, Scenario, Script, SessionOptions};
 use crate::clock::Mono;
 use crate::driver::receiver::Loss;
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Handle};
 use crate::px4::rc_input::mode_slot;
 use crate::scenario::PhaseContext;
 use crate::strategy::multirx::{MultirxSession, POSITION_MODE};
@@ -21,28 +21,41 @@ pub const SCENARIO: Scenario = Scenario {
     options: SessionOptions {
         loss: Loss::Failsafe,
     },
-    measurements,
-    run,
+    plan,
 };
 
-fn measurements(l: &Limits) -> Vec<Measurement> {
-    vec![
-        Measurement::new(l.name("takeover_ms"), "ms")
-            .describe("pilot 2's transmitter on → pilot 2 in control at the flight controller")
-            .at_most(match l.mode {
-                crate::rigfile::Mode::Parallel => 500.0,
-                crate::rigfile::Mode::Scan => l.handover_ms,
-            }),
-        Measurement::new(l.name("mode_changes_on_takeover"), "")
-            .describe("flight-mode slot changes PX4 saw while control passed to the pilot")
-            .equal_to(0.0),
-        Measurement::new(l.name("mode_switch_ms"), "ms")
-            .describe("pilot moves the mode switch → new mode slot at the flight controller")
-            .at_most(50.0),
-    ]
+/// The measurements [`run`] records.
+struct Measured {
+    takeover_ms: Handle,
+    mode_changes: Handle,
+    mode_switch_ms: Handle,
 }
 
-fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
+fn plan(d: &mut Declarations, l: &ModeLimits) -> Script {
+    let m = Measured {
+        takeover_ms: d.declare(
+            l.spec("takeover_ms", "ms")
+                .describe("pilot 2's transmitter on → pilot 2 in control at the flight controller")
+                .at_most(match l.mode {
+                    crate::rigfile::Mode::Parallel => 500.0,
+                    crate::rigfile::Mode::Scan => l.handover_ms,
+                }),
+        ),
+        mode_changes: d.declare(
+            l.spec("mode_changes_on_takeover", "")
+                .describe("flight-mode slot changes PX4 saw while control passed to the pilot")
+                .equal_to(0.0),
+        ),
+        mode_switch_ms: d.declare(
+            l.spec("mode_switch_ms", "ms")
+                .describe("pilot moves the mode switch → new mode slot at the flight controller")
+                .at_most(50.0),
+        ),
+    };
+    Box::new(move |s, ctx, _| run(s, ctx, &m))
+}
+
+fn run(s: &MultirxSession, ctx: &mut PhaseContext, m: &Measured) -> Result<()> {
     // Nobody in control yet: the mission flies on MultiRX's auto-loiter value.
     std::thread::sleep(SETTLE);
     let on = Mono::now();
@@ -51,10 +64,10 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
         s.fc.wait_for(on, s.acquire_timeout(), "pilot 2 in control", |f| {
             s.shows_pilot(f, 1)
         })?;
-    ctx.record(&l.name("takeover_ms"), f.at.ms_since(tx.t));
+    ctx.record(m.takeover_ms, f.at.ms_since(tx.t));
     std::thread::sleep(SETTLE);
     let changes = s.px4_report().mode_changes.len();
-    ctx.record(&l.name("mode_changes_on_takeover"), changes as f64);
+    ctx.record(m.mode_changes, changes as f64);
 
     let fm = s.config.flight_mode_channel + 1;
     let set = s.receiver(1).set_channels(&[(fm, POSITION_MODE)])?;
@@ -65,6 +78,6 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
         "the pilot's mode switch",
         |f| mode_slot(f.channels[s.mode_index()]) == slot,
     )?;
-    ctx.record(&l.name("mode_switch_ms"), f.at.ms_since(set.t));
+    ctx.record(m.mode_switch_ms, f.at.ms_since(set.t));
     Ok(())
 }

@@ -16,7 +16,7 @@ use anyhow::Result;
 use multirx_core::Config;
 
 use super::PhaseContext;
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Dimension, Handle, Spec};
 use crate::rigfile::Mode;
 use crate::strategy::multirx::{MultirxSession, SessionOptions};
 
@@ -27,14 +27,18 @@ pub struct Scenario {
     /// What it shows, for the report.
     pub summary: &'static str,
     pub options: SessionOptions,
-    /// Measurements with their built-in limits for this mode and config.
-    pub measurements: fn(&Limits) -> Vec<Measurement>,
-    pub run: fn(&MultirxSession, &mut PhaseContext, &Limits) -> Result<()>,
+    /// Declares the measurements, with their built-in limits for this mode
+    /// and config, and returns the script that records them.
+    pub plan: fn(&mut Declarations, &ModeLimits) -> Script,
 }
+
+/// A scenario's script, holding the handles of the measurements it declared.
+pub type Script =
+    Box<dyn FnOnce(&MultirxSession, &mut PhaseContext, &ModeLimits) -> Result<()> + Send>;
 
 /// Everything limits depend on, derived once per mode from its config.
 #[derive(Debug, Clone)]
-pub struct Limits {
+pub struct ModeLimits {
     pub mode: Mode,
     pub receivers: u8,
     pub frame_period_ms: f64,
@@ -43,8 +47,8 @@ pub struct Limits {
     pub handover_silent_ms: f64,
 }
 
-impl Limits {
-    pub fn new(mode: Mode, config: &Config) -> Limits {
+impl ModeLimits {
+    pub fn new(mode: Mode, config: &Config) -> ModeLimits {
         let period = config.frame_period.total_micros() as f64 / 1000.0;
         let window = config.scan_window.total_micros() as f64 / 1000.0;
         let silence = config.silence_timeout.total_micros() as f64 / 1000.0;
@@ -53,7 +57,7 @@ impl Limits {
             Mode::Parallel => (50.0, 100.0),
             Mode::Scan => (scan_bound, scan_bound + silence),
         };
-        Limits {
+        ModeLimits {
             mode,
             receivers: config.receivers,
             frame_period_ms: period,
@@ -62,9 +66,11 @@ impl Limits {
         }
     }
 
-    /// `multirx.<mode>.<what>`.
-    pub fn name(&self, what: &str) -> String {
-        format!("multirx.{}.{what}", self.mode.as_str())
+    /// A measurement of MultiRX in this mode.
+    pub fn spec(&self, base: &str, unit: &str) -> Spec {
+        Spec::new(base, unit)
+            .dim(Dimension::Device, "multirx")
+            .dim(Dimension::Mode, self.mode.as_str())
     }
 
     /// Largest output gap allowed: 1.5 frame periods.
@@ -92,18 +98,59 @@ pub fn scenarios() -> Vec<Scenario> {
     ]
 }
 
-/// Measurements every scenario records about the whole session.
-pub fn session_measurements(limits: &Limits, scenario: &str) -> Vec<Measurement> {
-    vec![
-        Measurement::new(limits.name(&format!("{scenario}.max_output_gap_ms")), "ms")
-            .describe(OUTPUT_GAP)
+/// What every scenario records about its whole session, and the whole-run
+/// phase about every scenario of a mode together.
+pub struct SessionMeasurements {
+    output_gap: Handle,
+    fc_gap: Handle,
+    rc_losses: Handle,
+}
+
+impl SessionMeasurements {
+    /// Declares them for `scenario`, or for the whole run of the mode (`None`).
+    pub fn declare(d: &mut Declarations, limits: &ModeLimits, scenario: Option<&str>) -> Self {
+        let [output_gap, fc_gap, rc_losses] = session_specs(limits, scenario).map(|s| d.declare(s));
+        SessionMeasurements {
+            output_gap,
+            fc_gap,
+            rc_losses,
+        }
+    }
+
+    /// Records the worst gaps and the total RC losses (the whole run's
+    /// figures over its scenarios').
+    pub fn record(&self, ctx: &mut PhaseContext, output_gap_ms: f64, fc_gap_ms: f64, losses: f64) {
+        ctx.record(self.output_gap, output_gap_ms);
+        ctx.record(self.fc_gap, fc_gap_ms);
+        ctx.record(self.rc_losses, losses);
+    }
+}
+
+/// The session measurements of `scenario`, or of the whole run (`None`): the
+/// same base names, told apart by the `scenario` dimension.
+pub fn session_specs(limits: &ModeLimits, scenario: Option<&str>) -> [Spec; 3] {
+    let (over, rc_losses) = match scenario {
+        Some(_) => (
+            "",
+            "times PX4 would have declared RC loss (0.5 s without frames, or the failsafe flag)",
+        ),
+        None => (
+            ", over every scenario of this mode",
+            "RC losses PX4 would have declared over every scenario of this mode",
+        ),
+    };
+    let spec = |base: &str, unit: &str| match scenario {
+        Some(s) => limits.spec(base, unit).dim(Dimension::Scenario, s),
+        None => limits.spec(base, unit),
+    };
+    [
+        spec("max_output_gap_ms", "ms")
+            .describe(format!("{OUTPUT_GAP}{over}"))
             .at_most(limits.max_gap_ms()),
-        Measurement::new(limits.name(&format!("{scenario}.fc_max_gap_ms")), "ms")
-            .describe(FC_GAP)
+        spec("fc_max_gap_ms", "ms")
+            .describe(format!("{FC_GAP}{over}"))
             .at_most(limits.max_fc_gap_ms()),
-        Measurement::new(limits.name(&format!("{scenario}.rc_losses")), "")
-            .describe("times PX4 would have declared RC loss (0.5 s without frames, or the failsafe flag)")
-            .equal_to(0.0),
+        spec("rc_losses", "").describe(rc_losses).equal_to(0.0),
     ]
 }
 
@@ -119,8 +166,7 @@ pub const FC_GAP: &str = "longest interval between frames as the flight-controll
 pub fn record_session(
     session: &MultirxSession,
     ctx: &mut PhaseContext,
-    limits: &Limits,
-    scenario: &str,
+    m: &SessionMeasurements,
 ) -> Result<()> {
     let report = session.px4_report();
     ctx.log(format!(
@@ -130,25 +176,18 @@ pub fn record_session(
         report.mode_changes.len()
     ));
     let fc_gap_ms = report.max_gap.as_secs_f64() * 1000.0;
-    ctx.record(
-        &limits.name(&format!("{scenario}.fc_max_gap_ms")),
-        fc_gap_ms,
-    );
-    let name = limits.name(&format!("{scenario}.max_output_gap_ms"));
+    ctx.record(m.fc_gap, fc_gap_ms);
     match session.device_max_gap()? {
-        Some(gap) => ctx.record(&name, gap.as_secs_f64() * 1000.0),
+        Some(gap) => ctx.record(m.output_gap, gap.as_secs_f64() * 1000.0),
         None => {
-            ctx.record(&name, fc_gap_ms);
+            ctx.record(m.output_gap, fc_gap_ms);
             ctx.annotate(
-                &name,
+                m.output_gap,
                 "no TX probe on a board: measured at the flight-controller adapter",
             );
         }
     }
-    ctx.record(
-        &limits.name(&format!("{scenario}.rc_losses")),
-        report.rc_losses.len() as f64,
-    );
+    ctx.record(m.rc_losses, report.rc_losses.len() as f64);
     Ok(())
 }
 

@@ -5,10 +5,10 @@ use std::time::Duration;
 
 use anyhow::Result;
 
-use super::{Limits, SETTLE, Scenario, SessionOptions};
+use super::{ModeLimits, SETTLE, Scenario, Script, SessionOptions};
 use crate::clock::Mono;
 use crate::driver::receiver::Loss;
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::multirx::MultirxSession;
 
@@ -18,24 +18,32 @@ pub const SCENARIO: Scenario = Scenario {
     options: SessionOptions {
         loss: Loss::Failsafe,
     },
-    measurements,
-    run,
+    plan,
 };
 
-fn measurements(l: &Limits) -> Vec<Measurement> {
-    vec![
-        Measurement::new(l.name("route_handover_max_ms"), "ms")
+fn plan(d: &mut Declarations, l: &ModeLimits) -> Script {
+    let slowest = d.declare(
+        l.spec("route_handover_max_ms", "ms")
             .describe(
                 "slowest handover along the route, first failsafe frame → next pilot in control",
             )
             .at_most(l.handover_ms),
-        Measurement::new(l.name("route_handovers"), "")
+    );
+    let handovers = d.declare(
+        l.spec("route_handovers", "")
             .describe("handovers completed along the route")
             .equal_to(f64::from(l.receivers.saturating_sub(1))),
-    ]
+    );
+    Box::new(move |s, ctx, l| run(s, ctx, l, slowest, handovers))
 }
 
-fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
+fn run(
+    s: &MultirxSession,
+    ctx: &mut PhaseContext,
+    l: &ModeLimits,
+    slowest: Handle,
+    handovers: Handle,
+) -> Result<()> {
     s.fly(0)?;
     let mut worst: f64 = 0.0;
     let mut done = 0;
@@ -58,7 +66,7 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, l: &Limits) -> Result<()> {
         worst = worst.max(ms);
         done += 1;
     }
-    ctx.record(&l.name("route_handover_max_ms"), worst);
-    ctx.record(&l.name("route_handovers"), f64::from(done));
+    ctx.record(slowest, worst);
+    ctx.record(handovers, f64::from(done));
     Ok(())
 }

@@ -5,16 +5,15 @@
 
 use anyhow::Result;
 
-use super::{Scenario, ensure_clean, name, run_session};
-use crate::measurement::Measurement;
+use super::{Scenario, Script, ensure_clean, run_session, spec};
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{GcsPlan, SessionDefaults};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "c2_latency",
     summary: "30 commands (DO_SET_MODE, REQUEST_MESSAGE) through bridge and router over SiK with 10 % bursty loss: ack latency",
-    measurements,
-    run,
+    plan,
 };
 
 const COMMANDS: u32 = 30;
@@ -22,28 +21,45 @@ const HOW: &str = "pymavlink GCS: COMMAND_LONG first send to the first matching 
      resent after 1.5 s without one (5 sends at most), one command at a time every 0.5 s; \
      nearest-rank percentile over the acked commands";
 
-fn measurements() -> Vec<Measurement> {
-    vec![
-        Measurement::new(name("c2_latency_p50_ms"), "ms")
-            .describe(format!("median, {COMMANDS} commands; {HOW}"))
-            .at_most(3000.0),
-        Measurement::new(name("c2_latency_p99_ms"), "ms")
-            .describe(format!(
-                "99th percentile, {COMMANDS} commands (= the slowest); {HOW}"
-            ))
-            .at_most(3000.0),
-        Measurement::new(name("c2_latency_max_ms"), "ms")
-            .describe(format!(
-                "slowest of {COMMANDS} commands, against SORA's low-robustness bound (< 5 s); {HOW}"
-            ))
-            .at_most(5000.0),
-        Measurement::new(name("c2_commands_lost"), "")
-            .describe(format!("commands of {COMMANDS} never acked after 5 sends"))
-            .equal_to(0.0),
-    ]
+/// The measurements [`run`] records.
+struct Measured {
+    p50_ms: Handle,
+    p99_ms: Handle,
+    max_ms: Handle,
+    lost: Handle,
 }
 
-fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
+fn plan(d: &mut Declarations) -> Script {
+    let m = Measured {
+        p50_ms: d.declare(
+            spec("c2_latency_p50_ms", "ms")
+                .describe(format!("median, {COMMANDS} commands; {HOW}"))
+                .at_most(3000.0),
+        ),
+        p99_ms: d.declare(
+            spec("c2_latency_p99_ms", "ms")
+                .describe(format!(
+                    "99th percentile, {COMMANDS} commands (= the slowest); {HOW}"
+                ))
+                .at_most(3000.0),
+        ),
+        max_ms: d.declare(
+            spec("c2_latency_max_ms", "ms")
+                .describe(format!(
+                    "slowest of {COMMANDS} commands, against SORA's low-robustness bound (< 5 s); {HOW}"
+                ))
+                .at_most(5000.0),
+        ),
+        lost: d.declare(
+            spec("c2_commands_lost", "")
+                .describe(format!("commands of {COMMANDS} never acked after 5 sends"))
+                .equal_to(0.0),
+        ),
+    };
+    Box::new(move |ctx, defaults| run(ctx, defaults, &m))
+}
+
+fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> {
     let mut o = d.options("c2_latency", &d.c2_radio, &ctx.dir.join("c2_latency"));
     o.gcs = GcsPlan {
         listen_s: 2.0,
@@ -74,9 +90,9 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
         sends - fc_got,
         fc_got - num("acked")
     ));
-    ctx.record(&name("c2_latency_p50_ms"), num("p50_ms"));
-    ctx.record(&name("c2_latency_p99_ms"), num("p99_ms"));
-    ctx.record(&name("c2_latency_max_ms"), num("max_ms"));
-    ctx.record(&name("c2_commands_lost"), num("lost"));
+    ctx.record(m.p50_ms, num("p50_ms"));
+    ctx.record(m.p99_ms, num("p99_ms"));
+    ctx.record(m.max_ms, num("max_ms"));
+    ctx.record(m.lost, num("lost"));
     ensure_clean(ctx, &report)
 }

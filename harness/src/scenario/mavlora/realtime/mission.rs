@@ -6,38 +6,45 @@
 use anyhow::Result;
 use serde_json::Value;
 
-use super::{Scenario, ensure_clean, name, run_session};
-use crate::measurement::Measurement;
+use super::{Scenario, Script, ensure_clean, run_session, spec};
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{GcsPlan, SessionDefaults};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "mission",
     summary: "40-item mission upload through bridge and router over SiK with 10 % bursty loss; items intact at the FC",
-    measurements,
-    run,
+    plan,
 };
 
 const ITEMS: u32 = 40;
 
-fn measurements() -> Vec<Measurement> {
-    vec![
-        Measurement::new(name("mission_upload_s"), "s")
+fn plan(d: &mut Declarations) -> Script {
+    let upload_s = d.declare(
+        spec("mission_upload_s", "s")
             .describe(format!(
                 "{ITEMS} items, GCS MISSION_COUNT to MISSION_ACK (accepted) as the pymavlink GCS timed it; \
                  NaN when not accepted within 90 s"
             ))
             .at_most(60.0),
-        Measurement::new(name("mission_items_intact"), "")
+    );
+    let intact = d.declare(
+        spec("mission_items_intact", "")
             .describe(
                 "1 when the FC fixture's stored mission equals what the GCS sent, item for item \
                  (seq, command, frame, x, y, z, autocontinue, param1), else 0",
             )
             .equal_to(1.0),
-    ]
+    );
+    Box::new(move |ctx, defaults| run(ctx, defaults, upload_s, intact))
 }
 
-fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
+fn run(
+    ctx: &mut PhaseContext,
+    d: &SessionDefaults,
+    upload_time: Handle,
+    items_intact: Handle,
+) -> Result<()> {
     let mut o = d.options("mission", &d.lossy_radio, &ctx.dir.join("mission"));
     o.gcs = GcsPlan {
         listen_s: 2.0,
@@ -55,18 +62,12 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
         report.fc["item_requests"],
         report.fc["duplicate_items"]
     ));
-    ctx.record(
-        &name("mission_upload_s"),
-        if accepted { upload_s } else { f64::NAN },
-    );
+    ctx.record(upload_time, if accepted { upload_s } else { f64::NAN });
     let (intact, why) = compare(&report.gcs["mission"], &report.fc["mission"]);
     if let Some(why) = why {
         ctx.log(format!("mission differs: {why}"));
     }
-    ctx.record(
-        &name("mission_items_intact"),
-        if intact { 1.0 } else { 0.0 },
-    );
+    ctx.record(items_intact, if intact { 1.0 } else { 0.0 });
     ensure_clean(ctx, &report)
 }
 

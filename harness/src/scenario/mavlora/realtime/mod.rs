@@ -17,7 +17,7 @@ pub mod table_ii;
 
 use anyhow::{Result, bail};
 
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Dimension, Spec};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{MavloraSession, SessionOptions, SessionReport};
 
@@ -29,18 +29,24 @@ pub struct Scenario {
     pub name: &'static str,
     /// What it shows, for the report.
     pub summary: &'static str,
-    pub measurements: fn() -> Vec<Measurement>,
-    pub run: fn(&mut PhaseContext, &SessionDefaults) -> Result<()>,
+    /// Declares the measurements, with their built-in limits, and returns
+    /// the script that records them.
+    pub plan: fn(&mut Declarations) -> Script,
 }
+
+/// A scenario's script, holding the handles of the measurements it declared.
+pub type Script = Box<dyn FnOnce(&mut PhaseContext, &SessionDefaults) -> Result<()> + Send>;
 
 /// Every real-time scenario, in the order they run.
 pub fn scenarios() -> Vec<Scenario> {
     vec![table_ii::SCENARIO, mission::SCENARIO, c2_latency::SCENARIO]
 }
 
-/// `mavlora.pty.<what>`.
-pub fn name(what: &str) -> String {
-    format!("mavlora.pty.{what}")
+/// A measurement of the MavLora programs over ptys (`mavlora.pty.<base>`).
+pub fn spec(base: &str, unit: &str) -> Spec {
+    Spec::new(base, unit)
+        .dim(Dimension::Device, "mavlora")
+        .dim(Dimension::Transport, "pty")
 }
 
 /// Runs one session to the end of its GCS plan and keeps its evidence: logs,

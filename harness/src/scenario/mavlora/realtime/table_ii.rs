@@ -5,16 +5,15 @@
 
 use anyhow::{Context, Result};
 
-use super::{Scenario, ensure_clean, name, run_sessions};
-use crate::measurement::Measurement;
+use super::{Scenario, Script, ensure_clean, run_sessions, spec};
+use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{FcProfile, GcsPlan, SessionDefaults};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "table_ii",
     summary: "Table II over ptys: radio B/s of compact telemetry (<= 50) and of limiting + filtering (<= 951), loss-free SiK",
-    measurements,
-    run,
+    plan,
 };
 
 /// (variant, profile file, `--compact`, B/s limit)
@@ -43,24 +42,34 @@ const HOW: &str = "UAV→GCS bytes the emulated radio put on air (its LinkStats,
      traffic (configuration commands and acks, PX4's boot rates) is outside it. \
      FC fixture on PX4's USB Config profile flying the 4 km route; bridge --rate 3000";
 
-fn measurements() -> Vec<Measurement> {
-    VARIANTS
-        .iter()
-        .flat_map(|(v, _, _, limit)| {
-            [
-                Measurement::new(name(&format!("{v}.bytes_per_s")), "B/s")
-                    .describe(format!("{v}: {HOW}"))
-                    .at_most(*limit),
-                Measurement::new(name(&format!("{v}.msgs_per_s")), "msg/s").describe(format!(
-                    "{v}: messages the pymavlink GCS decoded per second over the same window \
-                     (after the router's expansion of compact frames; paper: 35.23 with limiting + filtering)"
-                )),
-            ]
-        })
-        .collect()
+/// A variant's measurements: radio bytes and GCS messages per second.
+struct Measured {
+    bytes_per_s: Handle,
+    msgs_per_s: Handle,
 }
 
-fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
+fn plan(d: &mut Declarations) -> Script {
+    let measured: Vec<Measured> = VARIANTS
+        .iter()
+        .map(|(v, _, _, limit)| {
+            let variant = |base: &str, unit: &str| spec(base, unit).dim(Dimension::Variant, *v);
+            Measured {
+                bytes_per_s: d.declare(
+                    variant("bytes_per_s", "B/s")
+                        .describe(format!("{v}: {HOW}"))
+                        .at_most(*limit),
+                ),
+                msgs_per_s: d.declare(variant("msgs_per_s", "msg/s").describe(format!(
+                    "{v}: messages the pymavlink GCS decoded per second over the same window \
+                     (after the router's expansion of compact frames; paper: 35.23 with limiting + filtering)"
+                ))),
+            }
+        })
+        .collect();
+    Box::new(move |ctx, defaults| run(ctx, defaults, &measured))
+}
+
+fn run(ctx: &mut PhaseContext, d: &SessionDefaults, measured: &[Measured]) -> Result<()> {
     let mut options = Vec::new();
     for (variant, profile, compact, _) in VARIANTS {
         let mut o = d.options(
@@ -80,7 +89,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
         options.push(o);
     }
     let reports = run_sessions(ctx, options)?;
-    for ((variant, ..), report) in VARIANTS.iter().zip(&reports) {
+    for (((variant, ..), report), m) in VARIANTS.iter().zip(&reports).zip(measured) {
         let (bytes_per_s, secs) = report
             .downlink_rate("window_start", "window_end")
             .context("the GCS reported no counting window")?;
@@ -91,7 +100,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
             t["bytes_per_s"].as_f64().unwrap_or(f64::NAN),
             t["by_type"]
         ));
-        ctx.record(&name(&format!("{variant}.bytes_per_s")), bytes_per_s);
+        ctx.record(m.bytes_per_s, bytes_per_s);
         // Steady state means after the bridge's SET_MESSAGE_INTERVAL round: check it.
         let configured = report
             .fc_events
@@ -106,15 +115,15 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults) -> Result<()> {
                 w.since(c).as_secs_f64()
             )),
             (Some(_), Some(_)) => ctx.annotate(
-                &name(&format!("{variant}.bytes_per_s")),
+                m.bytes_per_s,
                 "the bridge was still configuring stream rates when the window opened",
             ),
             _ => ctx.annotate(
-                &name(&format!("{variant}.bytes_per_s")),
+                m.bytes_per_s,
                 "the bridge configured no stream rate (check bridge.log)",
             ),
         }
-        ctx.record(&name(&format!("{variant}.msgs_per_s")), msgs);
+        ctx.record(m.msgs_per_s, msgs);
     }
     for r in &reports {
         ensure_clean(ctx, r)?;

@@ -15,16 +15,15 @@ use mavlora::sim::profiles::PX4_COMPACT_TOML;
 use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 
 use super::world::{Carrier, SimWorld, secs};
-use super::{Radios, Scenario, mavlora_configs};
-use crate::measurement::Measurement;
+use super::{Radios, Scenario, Script, mavlora_configs, spec};
+use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::{Direction, LinkBudget};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "blind_drone",
     summary: "Blind drone: 40 % loss GCS→UAV only from t = 60 s; the ground sees it through the bridge's LINK_QUALITY reports",
-    measurements,
-    run,
+    plan,
 };
 
 /// When the drone's receiver goes deaf, s.
@@ -45,16 +44,18 @@ pub const DETECT_LIMIT_S: f64 = 15.5;
 /// The run ends this long after the onset.
 const AFTER_S: f64 = 60.0;
 
-fn measurements(_: &Radios) -> Vec<Measurement> {
-    vec![
-        Measurement::new("mavlora.blind_drone.detect_s", "s")
+fn plan(d: &mut Declarations, _: &Radios) -> Script {
+    let detect = d.declare(
+        spec("detect_s", "s")
+            .dim(Dimension::Scenario, SCENARIO.name)
             .describe(
                 "40 % loss starts on the GCS→UAV direction only → the ground's view of that \
                  loss (the router's reading of the bridge's LINK_QUALITY \
                  counters, report to report) crosses 20 %; a false alarm before the onset fails",
             )
             .at_most(DETECT_LIMIT_S),
-    ]
+    );
+    Box::new(move |ctx, radios| run(ctx, radios, detect))
 }
 
 /// What the ground saw.
@@ -145,9 +146,8 @@ pub fn noise_for_loss(budget: &LinkBudget, preset: &harness_radio::Preset, p: f6
     budget.margin_db(preset) - target
 }
 
-fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
+fn run(ctx: &mut PhaseContext, radios: &Radios, name: Handle) -> Result<()> {
     let d = detect(radios)?;
-    let name = "mavlora.blind_drone.detect_s";
     let views: Vec<String> = d
         .views
         .iter()

@@ -13,16 +13,15 @@ use mavlora::sim::profiles::PX4_COMPACT_TOML;
 use mavlora::sim::{CommandPlan, CommandStats, Flight, PX4_NORMAL, Px4Fc, Route};
 
 use super::world::{SimWorld, secs};
-use super::{Radios, Scenario, mavlora_configs, quantile};
-use crate::measurement::Measurement;
+use super::{Radios, Scenario, Script, mavlora_configs, quantile, spec};
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::Direction;
 
 pub const SCENARIO: Scenario = Scenario {
     name: "c2_latency",
     summary: "C2 latency: 200 commands (COMMAND_LONG → COMMAND_ACK, ground retries 1.5 s, router resends on the radio's round trip) through the relay at 10 % loss both ways",
-    measurements,
-    run,
+    plan,
 };
 
 /// Commands measured.
@@ -31,20 +30,23 @@ pub const COMMANDS: u64 = 200;
 pub const TMPR_MEDIUM_MS: f64 = 3000.0;
 const WARM_UP_S: f64 = 10.0;
 
-fn measurements(_: &Radios) -> Vec<Measurement> {
+fn plan(d: &mut Declarations, _: &Radios) -> Script {
     let what = "command → ack latency over 200 commands through bridge, radio (10 % loss both \
                 ways) and router (resending on the measured round trip), ground station \
                 resending after 1.5 s; unacknowledged commands count as infinite";
-    vec![
-        Measurement::new("mavlora.c2_latency_p50_ms", "ms")
+    let p50 = d.declare(
+        spec("c2_latency_p50_ms", "ms")
             .describe(format!("median {what}"))
             .at_most(TMPR_MEDIUM_MS),
-        Measurement::new("mavlora.c2_latency_p99_ms", "ms")
+    );
+    let p99 = d.declare(
+        spec("c2_latency_p99_ms", "ms")
             .describe(format!(
                 "99th percentile {what}; SORA medium robustness (TMPR) asks < 3 s"
             ))
             .at_most(TMPR_MEDIUM_MS),
-    ]
+    );
+    Box::new(move |ctx, radios| run(ctx, radios, [p50, p99]))
 }
 
 /// Latencies in ms, sorted, failures as infinity; and the loop's counters.
@@ -91,12 +93,12 @@ pub fn measure_with(
     Ok((ms, stats))
 }
 
-fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
+fn run(ctx: &mut PhaseContext, radios: &Radios, [p50_m, p99_m]: [Handle; 2]) -> Result<()> {
     let (ms, stats) = measure(radios)?;
     let p50 = quantile(&ms, 0.50);
     let p99 = quantile(&ms, 0.99);
-    ctx.record("mavlora.c2_latency_p50_ms", p50);
-    ctx.record("mavlora.c2_latency_p99_ms", p99);
+    ctx.record(p50_m, p50);
+    ctx.record(p99_m, p99);
     let retried = stats.copies - stats.started;
     let over = ms.iter().filter(|&&m| m > TMPR_MEDIUM_MS).count();
     let note = format!(
@@ -108,7 +110,7 @@ fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
         ms.first().copied().unwrap_or(f64::NAN),
         ms.last().copied().unwrap_or(f64::NAN)
     );
-    ctx.annotate("mavlora.c2_latency_p99_ms", &note);
+    ctx.annotate(p99_m, &note);
     ctx.log(note);
     // For the reader: the same link without the router's resends, the ground's 1.5 s
     // retries alone (the paper's setup), and with MAVSDK's 0.5 s retries alone.

@@ -14,34 +14,35 @@ use mavlora::sim::profiles::PX4_COMPACT_TOML;
 use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 
 use super::world::{Counts, SimWorld};
-use super::{Radios, Scenario, mavlora_configs};
-use crate::measurement::Measurement;
+use super::{Radios, Scenario, Script, mavlora_configs, spec};
+use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::{Direction, LinkStats};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "duty_cycle",
     summary: "Duty cycle: compact telemetry (px4-compact.toml, bridge --compact --coalesce-ms 1500) on LoRa SF7/125 kHz over the 513 s flight, airtime share per direction against EU 433 MHz SRD's 10 %",
-    measurements,
-    run,
+    plan,
 };
 
 /// EU 433 MHz SRD duty-cycle limit, %.
 pub const EU_SRD_PCT: f64 = 10.0;
 
-fn measurements(_: &Radios) -> Vec<Measurement> {
-    vec![
-        Measurement::new("mavlora.lora_sf7.duty_cycle_pct", "%")
+fn plan(d: &mut Declarations, _: &Radios) -> Script {
+    let lora = |base: &str| spec(base, "%").dim(Dimension::Radio, "lora_sf7");
+    let down = d.declare(
+        lora("duty_cycle_pct")
             .describe(
                 "UAV→GCS airtime ÷ flight time, compact telemetry through the bridge with \
                  frames coalesced for 1.5 s, whole 513 s flight; EU 433 MHz SRD allows 10 %",
             )
             .at_most(EU_SRD_PCT),
-        Measurement::new("mavlora.lora_sf7.uplink_duty_cycle_pct", "%").describe(
-            "GCS→UAV airtime ÷ flight time (the router's thinned ground heartbeats and \
-             LINK_QUALITY), same flight",
-        ),
-    ]
+    );
+    let up = d.declare(lora("uplink_duty_cycle_pct").describe(
+        "GCS→UAV airtime ÷ flight time (the router's thinned ground heartbeats and \
+         LINK_QUALITY), same flight",
+    ));
+    Box::new(move |ctx, radios| run(ctx, radios, down, up))
 }
 
 /// What the flight put on air.
@@ -104,13 +105,13 @@ pub fn measure_with(
     })
 }
 
-fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
+fn run(ctx: &mut PhaseContext, radios: &Radios, down: Handle, up: Handle) -> Result<()> {
     let d = measure(radios)?;
-    ctx.record("mavlora.lora_sf7.duty_cycle_pct", d.down_pct);
-    ctx.record("mavlora.lora_sf7.uplink_duty_cycle_pct", d.up_pct);
+    ctx.record(down, d.down_pct);
+    ctx.record(up, d.up_pct);
     let bytes_per_s = d.down_sent.total_bytes() as f64 / d.flight_s;
     ctx.annotate(
-        "mavlora.lora_sf7.duty_cycle_pct",
+        down,
         &format!(
             "{bytes_per_s:.1} B/s of frames in {} air packets",
             d.down.packets_sent

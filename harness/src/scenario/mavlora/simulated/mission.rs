@@ -25,16 +25,15 @@ use mavlora::sim::{Flight, GcsMock, PX4_NORMAL, Px4Fc, Route};
 use mavlora::wire::ids;
 
 use super::world::{Counts, SimWorld, secs};
-use super::{Radios, Scenario, mavlora_configs};
-use crate::measurement::Measurement;
+use super::{Radios, Scenario, Script, mavlora_configs, spec};
+use crate::measurement::{Declarations, Dimension, Handle, RELAY};
 use crate::scenario::PhaseContext;
 use harness_radio::{Direction, LinkStats, RadioSetup};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "mission_upload",
     summary: "100-item mission upload during flight over LoRa SF7 and SiK 64 kbps with 10 % bursty loss both ways: MavLora relay vs a transparent radio (PX4's 250 ms item retries)",
-    measurements,
-    run,
+    plan,
 };
 
 /// Items uploaded.
@@ -56,44 +55,57 @@ pub const MISSION_IDS: [u32; 6] = [
     ids::MISSION_ITEM_INT,
 ];
 
-fn name(radio: &str, what: &str) -> String {
-    format!("mavlora.{radio}.{what}")
+/// One radio's measurements, relayed and naive.
+struct Measured {
+    upload_s: Handle,
+    bytes_on_air: Handle,
+    efficiency: Handle,
+    naive_upload_s: Handle,
+    naive_bytes_on_air: Handle,
+    naive_duplicate_items: Handle,
 }
 
-fn measurements(radios: &Radios) -> Vec<Measurement> {
-    let mut out = Vec::new();
+fn plan(d: &mut Declarations, radios: &Radios) -> Script {
+    let mut measured = Vec::new();
     for (key, _) in &radios.mission {
-        out.extend([
-            Measurement::new(name(key, "mission_upload_s"), "s")
+        let on = |base: &str, unit: &str, variant: &str| {
+            spec(base, unit)
+                .dim(Dimension::Radio, key.as_str())
+                .dim(Dimension::Variant, variant)
+        };
+        measured.push(Measured {
+            upload_s: d.declare(
+                on("mission_upload_s", "s", RELAY)
                 .describe(
                     "100-item upload through the MavLora relay (compact profile) under 10 % bursty \
                      loss both ways, while flying: the ground station's MISSION_COUNT → its \
                      MISSION_ACK (accepted, and the flight controller holds the same 100 items)",
                 )
                 .at_most(CUT_OFF_S),
-            Measurement::new(name(key, "mission_bytes_on_air"), "B").describe(
+            ),
+            bytes_on_air: d.declare(on("mission_bytes_on_air", "B", RELAY).describe(
                 "mission-protocol bytes handed to the radio during the relayed upload, both \
                  directions (MISSION_COUNT, _REQUEST(_INT), _ITEM(_INT), _ACK), retries included",
-            ),
-            Measurement::new(name(key, "mission_efficiency"), "").describe(
+            )),
+            efficiency: d.declare(on("mission_efficiency", "", RELAY).describe(
                 "airtime 100 items need (one air packet each, no loss) ÷ airtime both radio \
                  directions used during the relayed upload, telemetry included",
-            ),
-            Measurement::new(name(key, "naive.mission_upload_s"), "s").describe(
+            )),
+            naive_upload_s: d.declare(on("mission_upload_s", "s", "naive").describe(
                 "same upload over a transparent radio (the ground station's protocol straight \
                  to PX4 and its 250 ms item retries); if it does not finish, the cut-off time",
-            ),
-            Measurement::new(name(key, "naive.mission_bytes_on_air"), "B").describe(
+            )),
+            naive_bytes_on_air: d.declare(on("mission_bytes_on_air", "B", "naive").describe(
                 "mission-protocol bytes handed to the radio during the naive upload, both \
                  directions",
-            ),
-            Measurement::new(name(key, "naive.duplicate_items"), "").describe(
+            )),
+            naive_duplicate_items: d.declare(on("duplicate_items", "", "naive").describe(
                 "items PX4 received again after storing them (its 250 ms re-requests crossing \
                  the radio's round trip)",
-            ),
-        ]);
+            )),
+        });
     }
-    out
+    Box::new(move |ctx, radios| run(ctx, radios, &measured))
 }
 
 /// What one upload did.
@@ -198,8 +210,8 @@ fn airtime(w: &SimWorld) -> Duration {
         .sum()
 }
 
-fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
-    for (key, setup) in &radios.mission {
+fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result<()> {
+    for ((key, setup), m) in radios.mission.iter().zip(measured) {
         let setup = radios.seeded(setup);
         let relay = upload(radios, &setup, true)?;
         let naive = upload(radios, &setup, false)?;
@@ -225,33 +237,30 @@ fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
             100.0 * relay.loss.0,
             100.0 * relay.loss.1
         );
-        let n = name(key, "mission_upload_s");
+        let n = m.upload_s;
         match relay.upload_s {
-            Some(s) => ctx.record(&n, s),
+            Some(s) => ctx.record(n, s),
             None => {
-                ctx.record(&n, f64::NAN);
+                ctx.record(n, f64::NAN);
                 ctx.annotate(
-                    &n,
+                    n,
                     &format!("not accepted by the cut-off: result {:?}", relay.result),
                 );
             }
         }
-        ctx.annotate(&n, &loss_note);
+        ctx.annotate(n, &loss_note);
+        ctx.record(m.bytes_on_air, relay.mission_bytes as f64);
         ctx.record(
-            &name(key, "mission_bytes_on_air"),
-            relay.mission_bytes as f64,
-        );
-        ctx.record(
-            &name(key, "mission_efficiency"),
+            m.efficiency,
             relay.needed_airtime.as_secs_f64() / relay.airtime.as_secs_f64(),
         );
-        let n = name(key, "naive.mission_upload_s");
+        let n = m.naive_upload_s;
         match naive.upload_s {
-            Some(s) => ctx.record(&n, s),
+            Some(s) => ctx.record(n, s),
             None => {
-                ctx.record(&n, CUT_OFF_S);
+                ctx.record(n, CUT_OFF_S);
                 ctx.annotate(
-                    &n,
+                    n,
                     &format!(
                         "did not finish: the ground station's upload ended {:?} (result, s after \
                          start); {CUT_OFF_S} s recorded",
@@ -261,21 +270,15 @@ fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
             }
         }
         ctx.annotate(
-            &n,
+            n,
             &format!(
                 "measured loss: UAV→GCS {:.1} %, GCS→UAV {:.1} %",
                 100.0 * naive.loss.0,
                 100.0 * naive.loss.1
             ),
         );
-        ctx.record(
-            &name(key, "naive.mission_bytes_on_air"),
-            naive.mission_bytes as f64,
-        );
-        ctx.record(
-            &name(key, "naive.duplicate_items"),
-            naive.duplicate_items as f64,
-        );
+        ctx.record(m.naive_bytes_on_air, naive.mission_bytes as f64);
+        ctx.record(m.naive_duplicate_items, naive.duplicate_items as f64);
     }
     Ok(())
 }

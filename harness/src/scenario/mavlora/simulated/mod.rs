@@ -14,6 +14,9 @@
 //! The runner takes [`scenarios`] and a [`Radios`] (built-ins from
 //! [`Radios::paper_defaults`], or the rig file's).
 //!
+//! Every measurement has dimensions `device = mavlora`, `transport = simulated`, and
+//! `variant`, `radio` or `scenario` where the name shows one.
+//!
 //! | phase | measurements (built-in limit) |
 //! |---|---|
 //! | `table_ii` | `mavlora.<variant>.bytes_per_s`, `.msgs_per_s` for `wired`, `limit`, `limit_filter` (≤ 951 B/s), `compact` (≤ 50 B/s) |
@@ -55,7 +58,7 @@ use mavlora::schedule::SchedulerConfig;
 use serde::{Deserialize, Serialize};
 
 use super::super::PhaseContext;
-use crate::measurement::Measurement;
+use crate::measurement::{Declarations, Dimension, SIMULATED, Spec};
 use harness_radio::{Access, GilbertElliott, LinkConfig, Preset, RadioSetup};
 
 /// One scenario: its measurements (with built-in limits) and its script.
@@ -64,10 +67,20 @@ pub struct Scenario {
     pub name: &'static str,
     /// What it shows, for the report.
     pub summary: &'static str,
-    /// Measurements with their built-in limits for these radios.
-    pub measurements: fn(&Radios) -> Vec<Measurement>,
-    /// Runs the scenario and records every declared measurement.
-    pub run: fn(&mut PhaseContext, &Radios) -> Result<()>,
+    /// Declares the measurements, with their built-in limits for these
+    /// radios, and returns the script that records every one of them.
+    pub plan: fn(&mut Declarations, &Radios) -> Script,
+}
+
+/// A scenario's script, holding the handles of the measurements it declared.
+pub type Script = Box<dyn FnOnce(&mut PhaseContext, &Radios) -> Result<()> + Send>;
+
+/// A measurement of MavLora in a simulated world (device `mavlora`,
+/// transport [`SIMULATED`], which stays out of the flat name).
+pub fn spec(base: &str, unit: &str) -> Spec {
+    Spec::new(base, unit)
+        .dim(Dimension::Device, "mavlora")
+        .dim(Dimension::Transport, SIMULATED)
 }
 
 /// Every simulated MavLora scenario, in the order they run.

@@ -17,8 +17,8 @@ use mavlora::sim::{Px4Fc, StreamSpec};
 use mavlora::wire::ids;
 
 use super::world::{SimWorld, secs};
-use super::{Radios, Scenario, evidence_dir};
-use crate::measurement::Measurement;
+use super::{Radios, Scenario, Script, evidence_dir, spec};
+use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::loss::free_space_range_km;
 use harness_radio::{LinkBudget, PathLoss, Preset, RadioSetup};
@@ -26,8 +26,7 @@ use harness_radio::{LinkBudget, PathLoss, Preset, RadioSetup};
 pub const SCENARIO: Scenario = Scenario {
     name: "attenuation_sweep",
     summary: "Fig. 1: HEARTBEAT at 2 Hz through each radio at 1 dB attenuation steps; loss and arrival period per step, nominal edge and its free-space range",
-    measurements,
-    run,
+    plan,
 };
 
 /// The bench's sender: one 21-byte frame every 500 ms.
@@ -61,18 +60,24 @@ pub fn key(preset: &str) -> String {
     preset.replace('-', "_")
 }
 
-fn measurements(radios: &Radios) -> Vec<Measurement> {
-    let mut out = Vec::new();
+/// A radio's edge and range; `None` for a radio whose preset does not resolve (the sweep
+/// fails on it before recording anything).
+type Measured = Option<(Handle, Handle)>;
+
+fn plan(d: &mut Declarations, radios: &Radios) -> Script {
+    let mut measured = Vec::new();
     for setup in &radios.sweep {
         let Ok(preset) = setup.preset.resolve() else {
+            measured.push(None);
             continue;
         };
-        let k = key(&preset.name);
-        let mut edge = Measurement::new(format!("mavlora.{k}.nominal_edge_db"), "dB").describe(
+        let radio =
+            |base: &str, unit: &str| spec(base, unit).dim(Dimension::Radio, key(&preset.name));
+        let mut edge = radio("nominal_edge_db", "dB").describe(
             "highest attenuation up to which every 1 dB step lost ≤ 1 % of 1000 HEARTBEATs sent \
              at 2 Hz with their mean arrival period within 5 % of 500 ms",
         );
-        let mut range = Measurement::new(format!("mavlora.{k}.nominal_range_m"), "m").describe(
+        let mut range = radio("nominal_range_m", "m").describe(
             "free-space distance at the preset's frequency whose path loss is the nominal edge \
              (0 dBi antennas): the paper's \"range in an ideal world\"",
         );
@@ -81,10 +86,9 @@ fn measurements(radios: &Radios) -> Vec<Measurement> {
             let f = 10f64.powf(EDGE_TOLERANCE_DB / 20.0);
             range = range.between((m / f).round(), (m * f).round());
         }
-        out.push(edge);
-        out.push(range);
+        measured.push(Some((d.declare(edge), d.declare(range))));
     }
-    out
+    Box::new(move |ctx, radios| run(ctx, radios, &measured))
 }
 
 /// One attenuation step.
@@ -184,13 +188,13 @@ pub fn nominal_edge(steps: &[Step]) -> Option<f64> {
         .map(|s| s.attenuation_db)
 }
 
-fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
+fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result<()> {
     let mut csv = String::from(
         "preset,attenuation_db,free_space_range_m,sent,received,loss_pct,mean_period_ms,max_period_ms,nominal\n",
     );
-    for setup in &radios.sweep {
+    for (setup, m) in radios.sweep.iter().zip(measured) {
         let (preset, steps) = sweep(radios, setup)?;
-        let k = key(&preset.name);
+        let (edge, range) = (*m).context("a radio without measurements")?;
         for s in &steps {
             writeln!(
                 csv,
@@ -206,25 +210,23 @@ fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
                 s.nominal()
             )?;
         }
-        let edge_name = format!("mavlora.{k}.nominal_edge_db");
-        let range_name = format!("mavlora.{k}.nominal_range_m");
         match nominal_edge(&steps) {
             Some(db) => {
-                ctx.record(&edge_name, db);
+                ctx.record(edge, db);
                 ctx.record(
-                    &range_name,
+                    range,
                     free_space_range_km(db, preset.frequency_mhz) * 1000.0,
                 );
             }
             None => {
-                ctx.record(&edge_name, f64::NAN);
-                ctx.record(&range_name, f64::NAN);
-                ctx.annotate(&edge_name, "not nominal even at the lowest step");
+                ctx.record(edge, f64::NAN);
+                ctx.record(range, f64::NAN);
+                ctx.annotate(edge, "not nominal even at the lowest step");
             }
         }
         if let Some((db, m)) = paper_edge(&preset.name) {
-            ctx.annotate(&edge_name, &format!("paper: {db} dB"));
-            ctx.annotate(&range_name, &format!("paper: {m} m"));
+            ctx.annotate(edge, &format!("paper: {db} dB"));
+            ctx.annotate(range, &format!("paper: {m} m"));
         }
     }
     let dir = evidence_dir(ctx)?;

@@ -18,16 +18,15 @@ use mavlora::sim::profiles::{PX4_COMPACT_TOML, PX4_NORMAL_TOML, stream_only};
 use mavlora::sim::{Flight, PX4_CONFIG, Px4Fc, Route};
 
 use super::world::SimWorld;
-use super::{Radios, Scenario, mavlora_configs};
-use crate::measurement::Measurement;
+use super::{Radios, Scenario, Script, mavlora_configs, spec};
+use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::{Preset, RadioSetup};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "table_ii",
     summary: "Table II: the paper's 513 s flight with PX4's default profile, wired / stream limiting / limiting + filtering / compact telemetry, UAV→GCS bytes and messages per second",
-    measurements,
-    run,
+    plan,
 };
 
 /// The variants, in the paper's order of decreasing traffic.
@@ -93,16 +92,19 @@ pub struct Row {
     pub steps: u64,
 }
 
-fn name(variant: &str, what: &str) -> String {
-    format!("mavlora.{variant}.{what}")
+/// A variant's measurements: bytes and messages per second.
+struct Measured {
+    variant: &'static str,
+    bytes_per_s: Handle,
+    msgs_per_s: Handle,
 }
 
-fn measurements(radios: &Radios) -> Vec<Measurement> {
+fn plan(d: &mut Declarations, radios: &Radios) -> Script {
     let carrier = match &radios.table_ii {
         None => "an ideal wire".to_string(),
         Some(s) => format!("the rig's {} radio", preset_name(s)),
     };
-    let mut out = Vec::new();
+    let mut measured = Vec::new();
     for row in paper_table() {
         let v = row.variant;
         let how = if v == "wired" {
@@ -115,7 +117,8 @@ fn measurements(radios: &Radios) -> Vec<Measurement> {
                  the paper counted what its GCS received, losses excluded)"
             )
         };
-        let bytes = Measurement::new(name(v, "bytes_per_s"), "B/s").describe(format!(
+        let variant = |base: &str, unit: &str| spec(base, unit).dim(Dimension::Variant, v);
+        let bytes = variant("bytes_per_s", "B/s").describe(format!(
             "UAV→GCS bytes per second over the paper's 513 s flight (4 km at 10 m/s, 100 m), \
              variant {v}: {how}; paper: {}{} B/s",
             if row.bound { "< " } else { "" },
@@ -126,17 +129,20 @@ fn measurements(radios: &Radios) -> Vec<Measurement> {
             "compact" => bytes.at_most(50.0),
             _ => bytes,
         };
-        out.push(bytes);
-        out.push(
-            Measurement::new(name(v, "msgs_per_s"), "msg/s").describe(format!(
-                "UAV→GCS MAVLink messages per second, same flight and counting, variant {v}; \
-                 paper: {}",
-                row.msgs_per_s
-                    .map_or("not given".to_string(), |m| format!("{m} msg/s"))
-            )),
-        );
+        let bytes_per_s = d.declare(bytes);
+        let msgs_per_s = d.declare(variant("msgs_per_s", "msg/s").describe(format!(
+            "UAV→GCS MAVLink messages per second, same flight and counting, variant {v}; \
+             paper: {}",
+            row.msgs_per_s
+                .map_or("not given".to_string(), |m| format!("{m} msg/s"))
+        )));
+        measured.push(Measured {
+            variant: v,
+            bytes_per_s,
+            msgs_per_s,
+        });
     }
-    out
+    Box::new(move |ctx, radios| run(ctx, radios, &measured))
 }
 
 fn preset_name(s: &RadioSetup) -> String {
@@ -223,13 +229,13 @@ pub fn render(rows: &[Row]) -> String {
     s
 }
 
-fn run(ctx: &mut PhaseContext, radios: &Radios) -> Result<()> {
+fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result<()> {
     let mut rows = Vec::new();
-    for variant in VARIANTS {
+    for m in measured {
         let wall = std::time::Instant::now();
-        let row = fly(radios, variant)?;
-        ctx.record(&name(row.variant, "bytes_per_s"), row.bytes_per_s);
-        ctx.record(&name(row.variant, "msgs_per_s"), row.msgs_per_s);
+        let row = fly(radios, m.variant)?;
+        ctx.record(m.bytes_per_s, row.bytes_per_s);
+        ctx.record(m.msgs_per_s, row.msgs_per_s);
         ctx.log(format!(
             "{}: {:.1} s flight, {} messages reached the ground side, {} clock steps, {:.2} s \
              wall",

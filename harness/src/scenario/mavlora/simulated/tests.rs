@@ -4,7 +4,7 @@ use std::time::Instant as Wall;
 use mavlora::sim::PX4_CONFIG;
 
 use super::*;
-use crate::measurement::Outcome;
+use crate::measurement::{Dimension, Measurement, Outcome, RELAY, Selector};
 use crate::rigfile::RigFile;
 
 fn rig() -> RigFile {
@@ -18,12 +18,11 @@ fn run_one(name: &str, radios: &Radios, dir: &Path) -> (Vec<Measurement>, Vec<St
         .find(|s| s.name == name)
         .expect("scenario exists");
     let rig = rig();
-    let mut ctx = PhaseContext::new(&rig, dir);
-    for m in (s.measurements)(radios) {
-        ctx.declare(m);
-    }
+    let mut declared = Declarations::new();
+    let script = (s.plan)(&mut declared, radios);
+    let mut ctx = PhaseContext::new(&rig, dir, declared);
     let t0 = Wall::now();
-    (s.run)(&mut ctx, radios).unwrap();
+    script(&mut ctx, radios).unwrap();
     let wall = t0.elapsed().as_secs_f64();
     let (ms, log, _) = ctx.into_parts();
     println!("--- {name}: {wall:.2} s wall");
@@ -58,11 +57,17 @@ fn assert_all_pass(ms: &[Measurement]) {
     }
 }
 
-fn value(ms: &[Measurement], name: &str) -> f64 {
-    ms.iter()
-        .find(|m| m.name == name)
-        .and_then(|m| m.value)
-        .unwrap_or_else(|| panic!("{name} not recorded"))
+/// The value of the one measurement named `base` with these dimensions.
+#[track_caller]
+fn value(ms: &[Measurement], base: &str, dims: &[(Dimension, &str)]) -> f64 {
+    let selector = dims
+        .iter()
+        .fold(Selector::base(base), |s, (d, v)| s.dim(*d, *v));
+    let found: Vec<_> = ms.iter().filter(|m| selector.matches(m)).collect();
+    match found[..] {
+        [m] => m.value.unwrap_or_else(|| panic!("{} not recorded", m.name)),
+        _ => panic!("{base} {dims:?}: {} measurements", found.len()),
+    }
 }
 
 /// Table II: every mechanism cuts traffic, limiting + filtering stays under the paper's
@@ -72,12 +77,13 @@ fn value(ms: &[Measurement], name: &str) -> f64 {
 #[test]
 fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
     let (ms, _, _) = run_one("table_ii", &Radios::paper_defaults(), Path::new(""));
-    let b = |v: &str| value(&ms, &format!("mavlora.{v}.bytes_per_s"));
+    let b = |v: &str| value(&ms, "bytes_per_s", &[(Dimension::Variant, v)]);
     assert!(b("wired") > b("limit") && b("limit") > b("limit_filter"));
     assert!(b("limit_filter") > b("compact"));
+    let compact_bytes = Selector::base("bytes_per_s").dim(Dimension::Variant, "compact");
     let passing: Vec<_> = ms
         .iter()
-        .filter(|m| m.name != "mavlora.compact.bytes_per_s")
+        .filter(|m| !compact_bytes.matches(m))
         .cloned()
         .collect();
     assert_all_pass(&passing);
@@ -155,16 +161,24 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
     let radios = Radios::paper_defaults();
     let (ms, log, _) = run_one("mission_upload", &radios, Path::new(""));
     assert_all_pass(&ms);
+    let on = |radio: &str, variant: &str, base: &str| {
+        value(
+            &ms,
+            base,
+            &[(Dimension::Radio, radio), (Dimension::Variant, variant)],
+        )
+    };
     for (key, _) in &radios.mission {
-        let relay = value(&ms, &format!("mavlora.{key}.mission_upload_s"));
+        let relay = on(key, RELAY, "mission_upload_s");
         assert!(relay > 0.0 && relay <= mission::CUT_OFF_S);
-        let e = value(&ms, &format!("mavlora.{key}.mission_efficiency"));
+        let e = on(key, RELAY, "mission_efficiency");
         assert!(e > 0.0 && e <= 1.0, "{key}: efficiency {e}");
     }
-    let v = |what: &str| value(&ms, &format!("mavlora.lora_sf7.{what}"));
-    assert!(v("naive.duplicate_items") >= 50.0);
-    assert!(v("naive.mission_bytes_on_air") > 2.0 * v("mission_bytes_on_air"));
-    assert!(v("naive.mission_upload_s") > v("mission_upload_s"));
+    let relay = |base: &str| on("lora_sf7", RELAY, base);
+    let naive = |base: &str| on("lora_sf7", "naive", base);
+    assert!(naive("duplicate_items") >= 50.0);
+    assert!(naive("mission_bytes_on_air") > 2.0 * relay("mission_bytes_on_air"));
+    assert!(naive("mission_upload_s") > relay("mission_upload_s"));
     // the relay's own uploads to PX4 never duplicate
     assert!(
         log.iter()
@@ -195,8 +209,8 @@ fn mission_radios_lose_ten_percent_on_average() {
 fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
     let radios = Radios::paper_defaults();
     let (ms, log, _) = run_one("c2_latency", &radios, Path::new(""));
-    let p50 = value(&ms, "mavlora.c2_latency_p50_ms");
-    let p99 = value(&ms, "mavlora.c2_latency_p99_ms");
+    let p50 = value(&ms, "c2_latency_p50_ms", &[]);
+    let p99 = value(&ms, "c2_latency_p99_ms", &[]);
     assert!(p50 < 500.0, "p50 {p50}: one round trip expected");
     assert!(p99 <= 3000.0, "p99 {p99} with the command relay");
     let (lat, stats) = c2_latency::measure(&radios).unwrap();
@@ -241,10 +255,8 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
     let radios = Radios::paper_defaults();
     let (ms, _, _) = run_one("duty_cycle", &radios, Path::new(""));
     let coalesced = duty_cycle::measure(&radios).unwrap();
-    assert_eq!(
-        value(&ms, "mavlora.lora_sf7.duty_cycle_pct"),
-        coalesced.down_pct
-    );
+    let on_lora = [(Dimension::Radio, "lora_sf7")];
+    assert_eq!(value(&ms, "duty_cycle_pct", &on_lora), coalesced.down_pct);
     // Each frame when ready: the airtime is that of one packet per frame.
     let d = duty_cycle::measure_with(&radios, None, std::time::Duration::ZERO).unwrap();
     let lora = harness_radio::Preset::lora_sf7();
@@ -283,7 +295,7 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
         coalesced.down.packets_sent
     );
     assert!(coalesced.down_pct < 10.0, "{}", coalesced.down_pct);
-    assert!(value(&ms, "mavlora.lora_sf7.uplink_duty_cycle_pct") < coalesced.down_pct);
+    assert!(value(&ms, "uplink_duty_cycle_pct", &on_lora) < coalesced.down_pct);
 }
 
 /// Same seed, same numbers; another seed, other numbers (the seed reaches the draws).
@@ -325,4 +337,59 @@ fn radios_round_trip_through_toml() {
     assert_eq!(partial.seed, 7);
     assert_eq!(partial.mission, radios.mission);
     assert!(toml::from_str::<Radios>("sede = 7\n").is_err());
+}
+
+/// Declared once with dimensions, the measurements keep the flat names reports, rig files'
+/// `[limits]` and readers of results.json have always used.
+#[test]
+fn flat_names_are_the_ones_readers_know() {
+    let radios = Radios::paper_defaults();
+    let mut declared = Declarations::new();
+    for s in scenarios() {
+        let _ = (s.plan)(&mut declared, &radios);
+    }
+    let names: Vec<&str> = declared
+        .measurements()
+        .iter()
+        .map(|m| m.name.as_str())
+        .collect();
+    let mut expected: Vec<String> = Vec::new();
+    for v in ["wired", "limit", "limit_filter", "compact"] {
+        expected.extend([
+            format!("mavlora.{v}.bytes_per_s"),
+            format!("mavlora.{v}.msgs_per_s"),
+        ]);
+    }
+    for r in ["lora_sf7", "sik_64k"] {
+        for what in [
+            "mission_upload_s",
+            "mission_bytes_on_air",
+            "mission_efficiency",
+            "naive.mission_upload_s",
+            "naive.mission_bytes_on_air",
+            "naive.duplicate_items",
+        ] {
+            expected.push(format!("mavlora.{r}.{what}"));
+        }
+    }
+    expected.extend([
+        "mavlora.c2_latency_p50_ms".into(),
+        "mavlora.c2_latency_p99_ms".into(),
+    ]);
+    for r in ["sik_64k", "lora_sf7", "dmd_dl1"] {
+        expected.extend([
+            format!("mavlora.{r}.nominal_edge_db"),
+            format!("mavlora.{r}.nominal_range_m"),
+        ]);
+    }
+    expected.extend([
+        "mavlora.blind_drone.detect_s".into(),
+        "mavlora.lora_sf7.duty_cycle_pct".into(),
+        "mavlora.lora_sf7.uplink_duty_cycle_pct".into(),
+    ]);
+    assert_eq!(names, expected);
+    let simulated = Selector::any()
+        .dim(Dimension::Device, "mavlora")
+        .dim(Dimension::Transport, SIMULATED);
+    assert!(declared.measurements().iter().all(|m| simulated.matches(m)));
 }
