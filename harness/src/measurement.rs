@@ -241,7 +241,7 @@ pub enum Dimension {
     Device,
     /// MultiRX mode: `parallel`, `scan`.
     Mode,
-    /// How the link is run: `pty` (the real programs on pty pairs, wall
+    /// How the link is run: [`PTY`] (the real programs on pty pairs, wall
     /// clock) or [`SIMULATED`] (in-process engines, virtual clock).
     Transport,
     /// A radio, by preset (`lora_sf7`) or by the rig file's name for it
@@ -277,6 +277,8 @@ impl fmt::Display for Dimension {
     }
 }
 
+/// [`Dimension::Transport`] of the real MavLora programs over pty pairs.
+pub const PTY: &str = "pty";
 /// [`Dimension::Transport`] of the virtual-clock reproductions. They were
 /// named before the pty runs existed, so it stays out of the flat name.
 pub const SIMULATED: &str = "simulated";

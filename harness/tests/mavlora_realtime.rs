@@ -9,7 +9,7 @@ use std::process::Command;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use harness::measurement::{Declarations, Dimension, Outcome, Selector};
+use harness::measurement::{Declarations, Dimension, Outcome, PTY, Selector};
 use harness::rigfile::RigFile;
 use harness::scenario::PhaseContext;
 use harness::scenario::mavlora::realtime::{SessionDefaults, scenarios};
@@ -114,7 +114,7 @@ fn c2_latency_over_lossy_sik() {
 fn every_scenario_declares_measurements_of_mavlora_over_ptys() {
     let pty = Selector::any()
         .dim(Dimension::Device, "mavlora")
-        .dim(Dimension::Transport, "pty");
+        .dim(Dimension::Transport, PTY);
     for s in scenarios() {
         let mut declared = Declarations::new();
         let _ = (s.plan)(&mut declared);

@@ -5,13 +5,12 @@
 
 use std::fmt::Write as _;
 
-use crate::measurement::{Dimension, SIMULATED};
+use crate::measurement::{Dimension, PTY, SIMULATED};
 use crate::record::RunRecord;
 use crate::scenario::mavlora::simulated::table_ii::paper_table;
 
 /// The table, or `None` when the run measured none of its rows.
 pub fn render(record: &RunRecord) -> Option<String> {
-    // `transport`: SIMULATED for the virtual-clock flight, `pty` for the real programs.
     let value = |base: &str, transport: &str, variant: &str| {
         let dims = [
             (Dimension::Device, "mavlora"),
@@ -34,10 +33,7 @@ pub fn render(record: &RunRecord) -> Option<String> {
             value("bytes_per_s", SIMULATED, v),
             value("msgs_per_s", SIMULATED, v),
         );
-        let pty = (
-            value("bytes_per_s", "pty", v),
-            value("msgs_per_s", "pty", v),
-        );
+        let pty = (value("bytes_per_s", PTY, v), value("msgs_per_s", PTY, v));
         any |= sim.0.is_some() || pty.0.is_some();
         let paper_bytes = if row.bound {
             format!("< {:.0}", row.bytes_per_s)
@@ -86,9 +82,9 @@ mod tests {
         };
         let sim = d.declare(table("bytes_per_s", SIMULATED, "compact"));
         d.record(sim, 48.4);
-        let pty = d.declare(table("bytes_per_s", "pty", "compact"));
+        let pty = d.declare(table("bytes_per_s", PTY, "compact"));
         d.record(pty, 44.9);
-        let pty_msgs = d.declare(table("msgs_per_s", "pty", "limit_filter"));
+        let pty_msgs = d.declare(table("msgs_per_s", PTY, "limit_filter"));
         d.record(pty_msgs, 9.7);
         record.phases.push(PhaseRecord::ran(
             "mavlora::simulated::table_ii",

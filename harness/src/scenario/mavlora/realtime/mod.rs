@@ -17,7 +17,7 @@ pub mod table_ii;
 
 use anyhow::{Result, bail};
 
-use crate::measurement::{Declarations, Dimension, Spec};
+use crate::measurement::{Declarations, Dimension, PTY, Spec};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{MavloraSession, SessionOptions, SessionReport};
 
@@ -46,7 +46,7 @@ pub fn scenarios() -> Vec<Scenario> {
 pub fn spec(base: &str, unit: &str) -> Spec {
     Spec::new(base, unit)
         .dim(Dimension::Device, "mavlora")
-        .dim(Dimension::Transport, "pty")
+        .dim(Dimension::Transport, PTY)
 }
 
 /// Runs one session to the end of its GCS plan and keeps its evidence: logs,
