@@ -8,8 +8,9 @@
 //! 2. compiles the MultiRX configuration into the image: reads the TOML file
 //!    named by `MULTIRX_CONFIG` (default `multirx.toml` here; relative paths
 //!    are taken from this folder), validates it with the same code the host
-//!    uses (`multirx_core::Config::from_toml`), checks what this board can
-//!    wire, and writes `OUT_DIR/config.rs` with `pub const CONFIG`.
+//!    uses (`multirx_core::Config::from_toml_for_board`), checks it fits this
+//!    board's UARTs (`multirx_core::board::SAMD21_UARTS`, the number the rig
+//!    checks too), and writes `OUT_DIR/config.rs` with `pub const CONFIG`.
 //!
 //! A bad configuration fails the build with `file:line:column: message`.
 
@@ -18,12 +19,10 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use multirx_core::Config;
+use multirx_core::board::SAMD21_UARTS;
 
 /// Configuration file used when `MULTIRX_CONFIG` is not set.
 const DEFAULT_CONFIG: &str = "multirx.toml";
-
-/// SERCOMs with a UART RX pad wired to a receiver or the IFS (`src/board.rs`).
-const SERCOM_RX_PADS: u8 = 6;
 
 fn main() {
     let manifest_dir = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("set by cargo"));
@@ -72,8 +71,8 @@ fn configuration(manifest_dir: &Path, out_dir: &Path) -> Result<(), String> {
 
     let text = fs::read_to_string(&path)
         .map_err(|e| format!("{shown}: cannot read the MultiRX configuration: {e}"))?;
-    let config = Config::from_toml(&text).map_err(|e| format!("{shown}:{e}"))?;
-    board_limits(&config, &text).map_err(|e| format!("{shown}:{e}"))?;
+    let config =
+        Config::from_toml_for_board(&text, SAMD21_UARTS).map_err(|e| format!("{shown}:{e}"))?;
 
     let mut literal = String::new();
     config
@@ -86,35 +85,4 @@ fn configuration(manifest_dir: &Path, out_dir: &Path) -> Result<(), String> {
     );
     let target = out_dir.join("config.rs");
     fs::write(&target, source).map_err(|e| format!("{}: {e}", target.display()))
-}
-
-/// What the SAMD21G18 board can wire beyond what `Config::validate` checks.
-/// Errors are `line:column: message` like `ConfigFileError`'s.
-fn board_limits(config: &Config, text: &str) -> Result<(), String> {
-    if !config.ifs_channels.is_empty() && config.receivers >= SERCOM_RX_PADS {
-        let (line, column) = key_position(text, "receivers");
-        return Err(format!(
-            "{line}:{column}: receivers: {} receivers and an [ifs] input need {} UART RX pads; \
-             this board has {SERCOM_RX_PADS} (one per SERCOM) and the IFS takes SERCOM5's, \
-             so at most {} receivers with [ifs]",
-            config.receivers,
-            config.receivers + 1,
-            SERCOM_RX_PADS - 1,
-        ));
-    }
-    Ok(())
-}
-
-/// 1-based line and column of a top-level `key = ...`, else 1:1.
-fn key_position(text: &str, key: &str) -> (usize, usize) {
-    text.lines()
-        .enumerate()
-        .find_map(|(i, line)| {
-            let trimmed = line.trim_start();
-            let rest = trimmed.strip_prefix(key)?;
-            rest.trim_start()
-                .starts_with('=')
-                .then(|| (i + 1, line.len() - trimmed.len() + 1))
-        })
-        .unwrap_or((1, 1))
 }

@@ -5,7 +5,8 @@
 //! - [`decoder::SbusDecoder`]: finds frames in a byte stream, resynchronising after garbage;
 //! - [`config::Config`]: receivers, channels, timeouts, mode; read from TOML with feature `toml`;
 //! - [`mux::Multiplexer`]: the engine deciding who is in control and what the flight controller gets;
-//! - [`event::TimedEvent`]: power, link and control changes, and their status-line form.
+//! - [`event::TimedEvent`]: power, link and control changes, and their status-line form;
+//! - [`board`]: how many UART inputs the board has ([`board::SAMD21_UARTS`]) and whether a config fits.
 //!
 //! The contract: no IO, no clock, no allocation, deterministic. Callers pass
 //! [`time::Instant`]s and move bytes; the same code runs in the SAMD21 firmware,
@@ -14,6 +15,7 @@
 #![deny(unsafe_code)]
 #![warn(missing_debug_implementations)]
 
+pub mod board;
 pub mod config;
 pub mod decoder;
 pub mod event;

@@ -51,9 +51,10 @@ pub const SBUS_BAUD: Hertz = Hertz::from_raw(100_000);
 /// gate is driven straight from the GPIO (only for a 3.3 V receiver supply).
 pub const POWER_ON_LEVEL: PinState = PinState::High;
 
-/// Receivers the pin map wires; receiver 5's pad is the IFS input when the
-/// configuration has an `[ifs]` section.
-pub const RECEIVER_PORTS: usize = 6;
+/// Receivers the pin map wires, one per SERCOM; receiver 5's pad is the IFS
+/// input when the configuration has an `[ifs]` section. The number is the
+/// core's, which the build script and the rig check configs against.
+pub const RECEIVER_PORTS: usize = multirx_core::board::SAMD21_UARTS as usize;
 
 /// SERCOM0: receiver 0 in (RX), flight-controller SBUS out (TX).
 pub type Sercom0Pads = uart::PadsFromIds<Sercom0, PA11, PA10>;

@@ -56,10 +56,10 @@ use panic_reset as _;
 /// Whether SERCOM5's RX pad is the independent fail-safe system's input
 /// rather than receiver 5's.
 const IFS: bool = !CONFIG.ifs_channels.is_empty();
-/// The SERCOM (and queue) the IFS uses when [`IFS`].
-const IFS_PORT: usize = 5;
+/// The SERCOM (and queue) the IFS uses when [`IFS`]: the last one.
+const IFS_PORT: usize = RECEIVER_PORTS - 1;
 const _: () = assert!(
-    CONFIG.receivers as usize <= if IFS { IFS_PORT } else { RECEIVER_PORTS },
+    multirx_core::board::uarts_needed(CONFIG.receivers, IFS) as usize <= RECEIVER_PORTS,
     "build.rs checks the board limits; this backs it up"
 );
 

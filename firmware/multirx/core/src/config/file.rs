@@ -197,6 +197,23 @@ impl Config {
         config.validate().map_err(from_config_error)?;
         Ok(config)
     }
+
+    /// [`Config::from_toml`], then whether it fits a board with `uarts` UART
+    /// inputs ([`Config::fits`]); a config that does not is refused at its
+    /// `receivers` key.
+    pub fn from_toml_for_board(text: &str, uarts: u8) -> Result<Config, ConfigFileError> {
+        let config = Config::from_toml(text)?;
+        config.fits(uarts).map_err(|e| {
+            let (line, column) = locate(text, "receivers");
+            ConfigFileError::Invalid {
+                line,
+                column,
+                field: "receivers".into(),
+                message: format!("receivers: {e}"),
+            }
+        })?;
+        Ok(config)
+    }
 }
 
 fn channel_index(one_based: u8) -> Option<u8> {
@@ -295,6 +312,17 @@ mod tests {
         assert_eq!(
             err.to_string(),
             "4:1: flight_mode.channel: 0 is outside 1..=16"
+        );
+    }
+
+    #[test]
+    fn a_config_too_large_for_the_board_names_receivers() {
+        let text = "mode = \"scan\"\nreceivers = 6\n[ifs]\nchannels = [5]\n";
+        Config::from_toml(text).unwrap();
+        let err = Config::from_toml_for_board(text, crate::board::SAMD21_UARTS).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "2:1: receivers: 6 receivers and an [ifs] input need 7 UART inputs; the board has 6, so at most 5 receivers with [ifs]"
         );
     }
 

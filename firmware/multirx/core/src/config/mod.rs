@@ -13,8 +13,9 @@ pub use file::ConfigFileError;
 use crate::time::Duration;
 use crate::wire::Channels;
 
-/// Receivers a MultiRX can multiplex: the SAMD21G18 has six SERCOM UARTs.
-pub const MAX_RECEIVERS: usize = 6;
+/// Receivers a MultiRX can multiplex: as many as the board has UARTs (with
+/// an IFS input, one fewer: see [`Config::fits`]).
+pub const MAX_RECEIVERS: usize = crate::board::SAMD21_UARTS as usize;
 
 /// How receivers are used. Named in config and rig files as `"parallel"` or `"scan"`
 /// ([`Mode::as_str`], [`Display`](core::fmt::Display), [`FromStr`](core::str::FromStr), and
