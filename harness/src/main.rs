@@ -117,12 +117,12 @@ fn execute(command: Command) -> Result<ExitCode> {
         Command::Check { rig } => {
             let rig = RigFile::load(&rig)?;
             if let Some(section) = &rig.multirx {
-                for (&mode, path) in &section.device.configs {
-                    let config = harness::strategy::multirx::load_config(&rig, mode)?;
+                // Read and checked by RigFile::load.
+                for (&mode, loaded) in &section.device.configs {
                     println!(
                         "{}: mode {mode}: {} receivers, ok",
-                        path.display(),
-                        config.receivers
+                        loaded.path.display(),
+                        loaded.config.receivers
                     );
                 }
             }
@@ -163,8 +163,10 @@ fn execute(command: Command) -> Result<ExitCode> {
                     rig.path.display()
                 );
             };
-            harness::strategy::multirx::load_config(&rig, mode)?;
-            let config = section.config(mode).context("no config for this mode")?;
+            let config = &section
+                .config(mode)
+                .context("no config for this mode")?
+                .path;
             eprintln!(
                 "rig: building {} with {}...",
                 board.firmware.display(),

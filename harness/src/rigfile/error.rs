@@ -4,6 +4,7 @@ use std::io;
 use std::ops::Range;
 use std::path::PathBuf;
 
+use multirx_core::config::ConfigFileError;
 use toml::de::{DeTable, DeValue};
 
 /// Why a rig file was rejected. Each variant's message starts with
@@ -51,6 +52,35 @@ pub enum RigFileError {
         field: String,
         /// What is wrong and what is accepted.
         message: String,
+    },
+    /// A MultiRX config file the rig file names cannot be read; the
+    /// location is the rig file's key that names it.
+    #[error("{}:{line}:{column}: {field}: cannot read {}: {source}", path.display(), config.display())]
+    ConfigRead {
+        /// The rig file, as given.
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        /// `multirx.device.configs.<mode>`.
+        field: String,
+        /// The config file.
+        config: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    /// A MultiRX config file is refused by the core (bad TOML, a value
+    /// MultiRX cannot fly with) or does not fit the board; the location is
+    /// the config file's line and key.
+    #[error("{}:{source} ({field} in {})", config.display(), path.display())]
+    Config {
+        /// The rig file, as given.
+        path: PathBuf,
+        /// `multirx.device.configs.<mode>`.
+        field: String,
+        /// The config file.
+        config: PathBuf,
+        #[source]
+        source: Box<ConfigFileError>,
     },
 }
 

@@ -4,12 +4,15 @@
 //! the same everywhere, only this file changes. [`RigFile::load`] checks the
 //! whole file before anything runs: unknown keys are rejected (a typo must not
 //! silently fall back to a default), values are range-checked, paths are made
-//! absolute relative to the rig file's folder, and every [`RigFileError`]
-//! names the file, line and dotted key.
+//! absolute relative to the rig file's folder, each MultiRX config it names is
+//! read and checked once ([`LoadedConfig`]: its mode, its receivers against
+//! the ports, and for a board [`multirx_core::board::SAMD21_UARTS`]), and
+//! every [`RigFileError`] names the file, line and dotted key.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::fs;
+use std::io;
 use std::path::{Component, Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
@@ -37,8 +40,8 @@ pub const DEFAULT_FIXTURES_DIR: &str = "../fixtures";
 pub const DEFAULT_FIRMWARE_DIR: &str = "../firmware/multirx/samd21";
 /// Chip flashed when a board rig names none.
 pub const DEFAULT_CHIP: &str = "ATSAMD21G18A";
-/// Most receivers a MultiRX board has inputs for.
-pub const MAX_RECEIVERS: usize = 6;
+/// Most receivers a MultiRX has inputs for (the core's number).
+pub const MAX_RECEIVERS: usize = multirx_core::config::MAX_RECEIVERS;
 /// Longest receiver boot silence accepted, in milliseconds.
 pub const MAX_BOOT_MS: u32 = 5000;
 
@@ -99,11 +102,21 @@ pub struct MultirxSection {
 }
 
 impl MultirxSection {
-    /// The MultiRX config file for `mode`; present for every mode in
+    /// The MultiRX config for `mode`; present for every mode in
     /// [`MultirxSection::modes`].
-    pub fn config(&self, mode: Mode) -> Option<&Path> {
-        self.device.configs.get(&mode).map(PathBuf::as_path)
+    pub fn config(&self, mode: Mode) -> Option<&LoadedConfig> {
+        self.device.configs.get(&mode)
     }
+}
+
+/// A MultiRX config file, read and checked when the rig file was loaded:
+/// everything in the rig uses this, none reads the file again (the emulated
+/// device and the firmware build are handed `path`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LoadedConfig {
+    /// Absolute path of the file.
+    pub path: PathBuf,
+    pub config: multirx_core::Config,
 }
 
 /// MultiRX operating mode (the core's); each has its own scenario suite and config file.
@@ -138,8 +151,8 @@ impl fmt::Display for DeviceKind {
 /// `[multirx.device]`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DeviceSection {
-    /// Absolute path of the MultiRX config file for each mode.
-    pub configs: BTreeMap<Mode, PathBuf>,
+    /// The MultiRX config for each mode.
+    pub configs: BTreeMap<Mode, LoadedConfig>,
     /// Kind-specific settings.
     pub setup: DeviceSetup,
 }
@@ -324,8 +337,19 @@ impl RigFile {
     }
 
     /// Checks rig file text; `path` is where it came from: relative paths in
-    /// the text are resolved against its folder, and errors name it.
+    /// the text are resolved against its folder, and errors name it. The
+    /// MultiRX configs it names are read from disk.
     pub fn from_str(text: &str, path: impl AsRef<Path>) -> Result<Self, RigFileError> {
+        Self::from_str_with(text, path, &|p| fs::read_to_string(p))
+    }
+
+    /// Like [`RigFile::from_str`], reading MultiRX configs with `read_config`
+    /// (tests give files that are not on disk).
+    pub fn from_str_with(
+        text: &str,
+        path: impl AsRef<Path>,
+        read_config: &dyn Fn(&Path) -> io::Result<String>,
+    ) -> Result<Self, RigFileError> {
         let given = path.as_ref();
         let syntax = |e: toml::de::Error, field: Option<String>| {
             let at = Location::of_offset(text, e.span().map_or(0, |s| s.start));
@@ -349,6 +373,7 @@ impl RigFile {
             given,
             loc: &loc,
             base: &base,
+            read_config,
         };
         check.rig_file(raw, file)
     }
@@ -397,6 +422,7 @@ struct Checker<'a> {
     given: &'a Path,
     loc: &'a Locator<'a>,
     base: &'a Path,
+    read_config: &'a dyn Fn(&Path) -> io::Result<String>,
 }
 
 impl Checker<'_> {
@@ -506,16 +532,16 @@ impl Checker<'_> {
         };
 
         let d = raw.device;
-        let mut configs = BTreeMap::new();
+        let mut config_paths = BTreeMap::new();
         for (mode, p) in [
             (Mode::Parallel, d.configs.parallel),
             (Mode::Scan, d.configs.scan),
         ] {
             if let Some(p) = p {
-                configs.insert(mode, self.resolve(&p));
+                config_paths.insert(mode, self.resolve(&p));
             }
         }
-        if let Some(mode) = modes.iter().find(|m| !configs.contains_key(m)) {
+        if let Some(mode) = modes.iter().find(|m| !config_paths.contains_key(m)) {
             return Err(self.invalid_named(
                 &["multirx", "device", "configs", mode.as_str()],
                 format!("multirx.device.configs.{mode}"),
@@ -608,12 +634,79 @@ impl Checker<'_> {
             ));
         }
 
+        let mut configs = BTreeMap::new();
+        for (mode, path) in config_paths {
+            let config = self.multirx_config(mode, path, &setup, &ports)?;
+            configs.insert(mode, config);
+        }
+
         Ok(MultirxSection {
             modes,
             device: DeviceSection { configs, setup },
             ports,
             receivers: ReceiversSection { period_ms, boot_ms },
         })
+    }
+
+    /// Reads the config for `mode` and checks it against the rig: its own
+    /// mode, one receiver per receiver port, and what a board can wire.
+    fn multirx_config(
+        &self,
+        mode: Mode,
+        path: PathBuf,
+        setup: &DeviceSetup,
+        ports: &PortsSection,
+    ) -> Result<LoadedConfig, RigFileError> {
+        let at = ["multirx", "device", "configs", mode.as_str()];
+        let field = dotted(&at);
+        let text = (self.read_config)(&path).map_err(|source| {
+            let l = self.loc.locate(&at);
+            RigFileError::ConfigRead {
+                path: self.given.to_path_buf(),
+                line: l.line,
+                column: l.column,
+                field: field.clone(),
+                config: path.clone(),
+                source,
+            }
+        })?;
+        let parsed = match setup {
+            DeviceSetup::Board(_) => {
+                multirx_core::Config::from_toml_for_board(&text, multirx_core::board::SAMD21_UARTS)
+            }
+            DeviceSetup::Emulated { .. } => multirx_core::Config::from_toml(&text),
+        };
+        let config = parsed.map_err(|source| RigFileError::Config {
+            path: self.given.to_path_buf(),
+            field: field.clone(),
+            config: path.clone(),
+            source: Box::new(source),
+        })?;
+        let says = match config.mode {
+            multirx_core::Mode::Parallel => Mode::Parallel,
+            multirx_core::Mode::Scan => Mode::Scan,
+        };
+        if says != mode {
+            return Err(self.invalid(
+                &at,
+                format!(
+                    "{} says mode = \"{says}\"; the {mode} suite needs a config with mode = \"{mode}\"",
+                    path.display()
+                ),
+            ));
+        }
+        if usize::from(config.receivers) != ports.receivers.len() {
+            return Err(self.invalid(
+                &at,
+                format!(
+                    "{} configures {} receivers but multirx.ports.receivers lists {} ports",
+                    path.display(),
+                    config.receivers,
+                    ports.receivers.len()
+                ),
+            ));
+        }
+        Ok(LoadedConfig { path, config })
     }
 
     fn ports(&self, raw: schema::RawPorts) -> Result<PortsSection, RigFileError> {

@@ -1,5 +1,7 @@
 use super::*;
 
+use std::io;
+
 const RIGS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../rigs");
 
 /// A valid emulated rig; tests replace one line to break it.
@@ -27,7 +29,16 @@ boot_ms = 300
 "#;
 
 fn load(text: &str) -> Result<RigFile, RigFileError> {
-    RigFile::from_str(text, "/r/rigs/t.toml")
+    RigFile::from_str_with(text, "/r/rigs/t.toml", &configs_next_to_good)
+}
+
+/// The MultiRX configs [`GOOD`] names, as if on disk next to it.
+fn configs_next_to_good(path: &Path) -> io::Result<String> {
+    match path.to_str() {
+        Some("/r/rigs/multirx/parallel.toml") => Ok("mode = \"parallel\"\nreceivers = 2\n".into()),
+        Some("/r/rigs/multirx/scan.toml") => Ok("mode = \"scan\"\nreceivers = 2\n".into()),
+        _ => Err(io::ErrorKind::NotFound.into()),
+    }
 }
 
 fn replace(from: &str, to: &str) -> String {
@@ -95,9 +106,11 @@ fn good_file_loads_with_defaults_and_absolute_paths() {
     assert_eq!(m.modes, [Mode::Parallel, Mode::Scan]);
     assert_eq!(m.device.kind(), DeviceKind::Emulated);
     assert_eq!(m.device.setup, DeviceSetup::Emulated { program: None });
+    let scan = m.config(Mode::Scan).unwrap();
+    assert_eq!(scan.path, Path::new("/r/rigs/multirx/scan.toml"));
     assert_eq!(
-        m.config(Mode::Scan),
-        Some(Path::new("/r/rigs/multirx/scan.toml"))
+        scan.config,
+        multirx_core::Config::new(multirx_core::Mode::Scan, 2)
     );
     assert_eq!(m.ports.receivers, [PortSpec::Pty, PortSpec::Pty]);
     assert_eq!(m.ports.ifs, None);
@@ -145,9 +158,12 @@ fn checked_in_emulated_rig_loads() {
     assert_eq!(m.ports.fc, PortSpec::Pty);
     assert_eq!(m.receivers.period_ms, 7);
     assert_eq!(m.receivers.boot_ms, 300);
+    let parallel = m.config(Mode::Parallel).unwrap();
+    assert_eq!(parallel.path, rigs.join("multirx/parallel.toml"));
+    assert_eq!(parallel.config.mode, multirx_core::Mode::Parallel);
     assert_eq!(
-        m.config(Mode::Parallel),
-        Some(rigs.join("multirx/parallel.toml").as_path())
+        m.config(Mode::Scan).unwrap().config.mode,
+        multirx_core::Mode::Scan
     );
     assert!(rig.limits.is_empty());
 }
@@ -214,6 +230,86 @@ fn mode_without_config_points_at_configs_table() {
         "",
     );
     assert_invalid(&text, 7, "multirx.device.configs.parallel", "\"parallel\"");
+}
+
+#[test]
+fn a_scan_config_under_the_parallel_key_is_named_by_file_and_key() {
+    let text = replace(
+        "parallel = \"multirx/parallel.toml\"",
+        "parallel = \"multirx/scan.toml\"",
+    );
+    assert_invalid(
+        &text,
+        11,
+        "multirx.device.configs.parallel",
+        "/r/rigs/multirx/scan.toml says mode = \"scan\"; the parallel suite needs a config with mode = \"parallel\"",
+    );
+}
+
+#[test]
+fn a_config_too_large_for_the_board_names_its_file_and_key() {
+    let six = "receivers = [\"pty\", \"pty\", \"pty\", \"pty\", \"pty\", \"pty\"]";
+    let text = replace("receivers = [\"pty\", \"pty\"]", six);
+    let six_with_ifs = |_: &Path| -> io::Result<String> {
+        Ok("mode = \"parallel\"\nreceivers = 6\n\n[ifs]\nchannels = [5]\n".into())
+    };
+    let text = text
+        .replace("modes = [\"parallel\", \"scan\"]", "modes = [\"parallel\"]")
+        .replace("scan = \"multirx/scan.toml\"\n", "");
+    // The emulated device has no SERCOMs to run out of.
+    RigFile::from_str_with(&text, "/r/rigs/t.toml", &six_with_ifs).unwrap();
+    let board = text.replace("kind = \"emulated\"", "kind = \"board\"");
+    let err = RigFile::from_str_with(&board, "/r/rigs/t.toml", &six_with_ifs).unwrap_err();
+    assert!(
+        matches!(&err, RigFileError::Config { field, .. } if field == "multirx.device.configs.parallel"),
+        "{err:?}"
+    );
+    assert_eq!(
+        err.to_string(),
+        "/r/rigs/multirx/parallel.toml:2:1: receivers: 6 receivers and an [ifs] input need 7 UART inputs; \
+         the board has 6, so at most 5 receivers with [ifs] (multirx.device.configs.parallel in /r/rigs/t.toml)"
+    );
+}
+
+#[test]
+fn config_errors_are_located_in_the_config_or_at_its_key() {
+    // Receivers that do not match the ports.
+    let three = |p: &Path| -> io::Result<String> {
+        configs_next_to_good(p).map(|t| t.replace("receivers = 2", "receivers = 3"))
+    };
+    let err = RigFile::from_str_with(GOOD, "/r/rigs/t.toml", &three).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "/r/rigs/t.toml:11:1: multirx.device.configs.parallel: /r/rigs/multirx/parallel.toml \
+         configures 3 receivers but multirx.ports.receivers lists 2 ports"
+    );
+    // A value MultiRX cannot fly with: the config's own line and key.
+    let bad = |p: &Path| -> io::Result<String> {
+        configs_next_to_good(p).map(|t| t + "\n[link]\nsilence_timeout_ms = 5\n")
+    };
+    let err = RigFile::from_str_with(GOOD, "/r/rigs/t.toml", &bad).unwrap_err();
+    assert!(
+        err.to_string().starts_with(
+            "/r/rigs/multirx/parallel.toml:5:1: link.silence_timeout_ms: 5 is outside 20..=1000"
+        ),
+        "{err}"
+    );
+    // Missing: the rig file's key that names it.
+    let text = replace(
+        "scan = \"multirx/scan.toml\"",
+        "scan = \"multirx/sacn.toml\"",
+    );
+    let err = load(&text).unwrap_err();
+    assert!(
+        matches!(err, RigFileError::ConfigRead { line: 12, .. }),
+        "{err:?}"
+    );
+    assert!(
+        err.to_string().starts_with(
+            "/r/rigs/t.toml:12:1: multirx.device.configs.scan: cannot read /r/rigs/multirx/sacn.toml: "
+        ),
+        "{err}"
+    );
 }
 
 #[test]

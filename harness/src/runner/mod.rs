@@ -130,10 +130,12 @@ fn names(declared: &Declarations) -> impl Iterator<Item = String> + '_ {
 }
 
 fn mode_limits(rig: &RigFile, mode: Mode) -> Result<ModeLimits> {
-    Ok(ModeLimits::new(
-        mode,
-        &crate::strategy::multirx::load_config(rig, mode)?,
-    ))
+    let loaded = rig
+        .multirx
+        .as_ref()
+        .and_then(|m| m.config(mode))
+        .with_context(|| format!("no MultiRX config for mode {mode}"))?;
+    Ok(ModeLimits::new(mode, &loaded.config))
 }
 
 fn scenario_trial(
@@ -292,12 +294,12 @@ fn flash_trial(
         let clock = Instant::now();
         let mut ctx = PhaseContext::new(&rig, Path::new(""), declared);
         let result = (|| -> Result<()> {
-            crate::strategy::multirx::load_config(&rig, mode)?;
-            let config = rig
+            let config = &rig
                 .multirx
                 .as_ref()
                 .and_then(|m| m.config(mode))
-                .context("config")?;
+                .context("config")?
+                .path;
             ctx.log(format!(
                 "building {} with {}",
                 board.firmware.display(),

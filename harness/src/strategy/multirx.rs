@@ -75,9 +75,14 @@ impl MultirxSession {
         options: SessionOptions,
         log_dir: &Path,
     ) -> Result<Self> {
-        let config = load_config(rig, mode)?;
-        let section = rig.multirx.as_ref().context("no [multirx]")?;
-        let config_path = section.config(mode).context("no config path")?;
+        let section = rig
+            .multirx
+            .as_ref()
+            .context("the rig file has no [multirx] section")?;
+        let loaded = section.config(mode).with_context(|| {
+            format!("no MultiRX config for mode {mode} in [multirx.device.configs]")
+        })?;
+        let config = loaded.config.clone();
         std::fs::create_dir_all(log_dir)?;
         let emulated = matches!(section.device.setup, DeviceSetup::Emulated { .. });
         let mut ptys = Vec::new();
@@ -208,7 +213,7 @@ impl MultirxSession {
                         .map_err(|e| anyhow::anyhow!("{e}, or set program in [multirx.device]"))?,
                 };
                 let mut command = Command::new(&program);
-                command.arg("--config").arg(config_path);
+                command.arg("--config").arg(&loaded.path);
                 for path in &device_inputs[..receiver_ports.len()] {
                     command.args(["--rx", path]);
                 }
@@ -406,43 +411,3 @@ impl MultirxSession {
 
 /// The emulated device's TX probe file, in the session's log folder.
 const TX_LOG: &str = "multirx-tx.log";
-
-/// Most receivers the SAMD21 board takes with the IFS input wired: it has six
-/// SERCOMs and the IFS takes one.
-pub const BOARD_RECEIVERS_WITH_IFS: u8 = 5;
-
-/// Loads and checks the MultiRX config `rig` names for `mode`: valid in
-/// itself, one receiver per receiver port, and (for a board) within what the
-/// board can wire.
-pub fn load_config(rig: &RigFile, mode: Mode) -> Result<multirx_core::Config> {
-    let section = rig
-        .multirx
-        .as_ref()
-        .context("the rig file has no [multirx] section")?;
-    let path = section.config(mode).with_context(|| {
-        format!("no MultiRX config for mode {mode} in [multirx.device.configs]")
-    })?;
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let config = multirx_core::Config::from_toml(&text)
-        .map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))?;
-    if usize::from(config.receivers) != section.ports.receivers.len() {
-        bail!(
-            "{} configures {} receivers but {} lists {} receiver ports in [multirx.ports]",
-            path.display(),
-            config.receivers,
-            rig.path.display(),
-            section.ports.receivers.len()
-        );
-    }
-    if matches!(section.device.setup, DeviceSetup::Board(_))
-        && !config.ifs_channels.is_empty()
-        && config.receivers > BOARD_RECEIVERS_WITH_IFS
-    {
-        bail!(
-            "{}: the board takes at most {BOARD_RECEIVERS_WITH_IFS} receivers with [ifs] channels (six SERCOMs)",
-            path.display()
-        );
-    }
-    Ok(config)
-}
