@@ -10,6 +10,7 @@
 //!   dimensions (device, mode, radio...) and recorded through its handle;
 //! - [`record`]: the saved record of a run, from which [`report`]s are rendered;
 //! - [`px4`]: how the flight controller reads what it is sent;
+//! - [`stats`]: percentiles and rates of the raw samples fixtures report;
 //! - [`harness_radio`] (its own crate): the model of line-of-sight radios (airtime, loss, duty
 //!   cycle) that the radio emulator driver and the simulated worlds run;
 //! - [`runner`]: scenarios as libtest-mimic trials, and the run record.
@@ -23,4 +24,5 @@ pub mod report;
 pub mod rigfile;
 pub mod runner;
 pub mod scenario;
+pub mod stats;
 pub mod strategy;

@@ -1,36 +1,15 @@
 //! Drives `fixtures/sbus_receiver.py`, which plays one RC receiver: the rig
-//! sends it commands (power, transmitter on/off, sticks) and collects its
-//! timestamped events.
+//! sends it commands (power, transmitter on/off, sticks) and waits for its
+//! timestamped events ([`ReceiverEvent`]) through the fixture driver.
 
-use std::io::{BufRead, BufReader, Write};
-use std::path::Path;
-use std::process::{ChildStdin, Command};
-use std::sync::{Arc, Condvar, Mutex};
+use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::time::Duration;
 
-use anyhow::{Context, Result, bail};
-use serde_json::Value;
-
-use super::process::Process;
+pub use super::fixture::sbus_receiver::Loss;
+use super::fixture::sbus_receiver::ReceiverEvent;
+use super::fixture::{Fixture, FixtureError};
 use crate::clock::Mono;
-
-/// How a receiver reports that its pilot's transmitter is gone.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Loss {
-    /// Frames continue with the failsafe flag.
-    Failsafe,
-    /// Frames stop.
-    Silent,
-}
-
-impl Loss {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Loss::Failsafe => "failsafe",
-            Loss::Silent => "silent",
-        }
-    }
-}
 
 /// How to start a receiver fixture.
 #[derive(Debug, Clone)]
@@ -48,26 +27,9 @@ pub struct ReceiverSpec {
     pub channels: Vec<(u8, u16)>,
 }
 
-/// One line the fixture printed.
-#[derive(Debug, Clone)]
-pub struct FixtureEvent {
-    pub t: Mono,
-    pub event: String,
-    pub fields: Value,
-}
-
-#[derive(Default)]
-struct Events {
-    list: Mutex<Vec<FixtureEvent>>,
-    changed: Condvar,
-}
-
 /// A running receiver fixture.
 pub struct ReceiverFixture {
-    name: String,
-    stdin: Mutex<ChildStdin>,
-    events: Arc<Events>,
-    process: Mutex<Process>,
+    fixture: Fixture<ReceiverEvent>,
 }
 
 impl ReceiverFixture {
@@ -77,7 +39,7 @@ impl ReceiverFixture {
         script: &Path,
         spec: &ReceiverSpec,
         log_dir: &Path,
-    ) -> Result<Self> {
+    ) -> Result<Self, FixtureError> {
         let mut command = Command::new(python);
         command
             .arg(script)
@@ -93,153 +55,98 @@ impl ReceiverFixture {
         }
         let log = log_dir.join(format!("{}.log", spec.name));
         let spawned = Mono::now();
-        let mut process = Process::spawn(&spec.name, command, &log)?;
-        let stdin = process.take_stdin().context("fixture stdin")?;
-        let stdout = process.take_stdout().context("fixture stdout")?;
-        let events = Arc::new(Events::default());
-        let sink = events.clone();
-        let name = spec.name.clone();
-        std::thread::Builder::new()
-            .name(format!("fixture-{name}"))
-            .spawn(move || {
-                for line in BufReader::new(stdout).lines() {
-                    let Ok(line) = line else { break };
-                    match parse_event(&line) {
-                        Some(event) => {
-                            sink.list.lock().unwrap().push(event);
-                            sink.changed.notify_all();
-                        }
-                        None => tracing::warn!(fixture = %name, line, "unparsable fixture output"),
-                    }
+        let fixture = Fixture::start(&spec.name, command, &log)?;
+        let receiver = ReceiverFixture { fixture };
+        let ready = receiver.wait_for(
+            spawned,
+            "its ready event on",
+            Duration::from_secs(10),
+            |e| matches!(e, ReceiverEvent::Ready { .. }),
+        );
+        match ready {
+            Ok(_) => Ok(receiver),
+            // Exited early (a bad argument): its log says why.
+            Err(e) => Err(match receiver.fixture.check_running() {
+                Err(early) => {
+                    FixtureError::Spawn(early.context(format!("receiver fixture on {}", spec.port)))
                 }
-            })?;
-        let fixture = ReceiverFixture {
-            name: spec.name.clone(),
-            stdin: Mutex::new(stdin),
-            events,
-            process: Mutex::new(process),
-        };
-        fixture
-            .wait_for(spawned, Duration::from_secs(10), |e| e.event == "ready")
-            .map_err(|e| {
-                let early = fixture.process.lock().unwrap().check_running().err();
-                match early {
-                    Some(early) => early,
-                    None => e,
-                }
-            })
-            .with_context(|| format!("receiver fixture {} on {}", spec.name, spec.port))?;
-        Ok(fixture)
-    }
-
-    pub fn name(&self) -> &str {
-        &self.name
-    }
-
-    /// Sends one command line (see fixtures/README.md).
-    pub fn send(&self, command: &str) -> Result<()> {
-        let mut stdin = self.stdin.lock().unwrap();
-        writeln!(stdin, "{command}")
-            .and_then(|_| stdin.flush())
-            .with_context(|| format!("fixture {} stopped taking commands", self.name))
-    }
-
-    /// Waits for the first event at or after `since` matching `pred`.
-    pub fn wait_for(
-        &self,
-        since: Mono,
-        timeout: Duration,
-        pred: impl Fn(&FixtureEvent) -> bool,
-    ) -> Result<FixtureEvent> {
-        let deadline = std::time::Instant::now() + timeout;
-        // Events carry the fixture's own timestamps; allow for the event that
-        // answers a command being stamped a hair before we asked.
-        let since = Mono::from_secs_f64(since.as_secs_f64() - 0.001);
-        let mut list = self.events.list.lock().unwrap();
-        loop {
-            if let Some(e) = list.iter().find(|e| e.t >= since && pred(e)) {
-                return Ok(e.clone());
-            }
-            if let Some(e) = list.iter().rev().find(|e| e.event == "error") {
-                bail!("fixture {} reported an error: {}", self.name, e.fields);
-            }
-            let now = std::time::Instant::now();
-            if now >= deadline {
-                bail!(
-                    "fixture {}: no matching event within {timeout:?}",
-                    self.name
-                );
-            }
-            list = self
-                .events
-                .changed
-                .wait_timeout(list, deadline - now)
-                .unwrap()
-                .0;
+                Ok(()) => e,
+            }),
         }
     }
 
+    pub fn name(&self) -> &str {
+        self.fixture.name()
+    }
+
+    /// Sends one command line (see fixtures/README.md).
+    pub fn send(&self, command: &str) -> Result<(), FixtureError> {
+        self.fixture.send(command)
+    }
+
+    /// Waits for the first event the fixture stamped at or after `since`
+    /// matching `pred`.
+    pub fn wait_for(
+        &self,
+        since: Mono,
+        what: &str,
+        timeout: Duration,
+        pred: impl Fn(&ReceiverEvent) -> bool,
+    ) -> Result<ReceiverEvent, FixtureError> {
+        // Events carry the fixture's own timestamps; allow for the event that
+        // answers a command being stamped a hair before we asked.
+        let since = Mono::from_secs_f64(since.as_secs_f64() - 0.001);
+        self.fixture
+            .wait_for(what, timeout, |l| l.event.t() >= since && pred(&l.event))
+            .map(|l| l.event)
+    }
+
     /// Turns the pilot's transmitter on or off; returns the fixture's event.
-    pub fn set_tx(&self, on: bool) -> Result<FixtureEvent> {
+    pub fn set_tx(&self, on: bool) -> Result<ReceiverEvent, FixtureError> {
         let since = Mono::now();
         self.send(if on { "tx on" } else { "tx off" })?;
-        self.wait_for(since, Duration::from_secs(2), |e| {
-            e.event == "tx" && e.fields["on"] == on
-        })
+        self.wait_for(
+            since,
+            "its tx event",
+            Duration::from_secs(2),
+            |e| matches!(e, ReceiverEvent::Tx { on: now, .. } if *now == on),
+        )
     }
 
     /// Sets channels (1-based); returns the fixture's event.
-    pub fn set_channels(&self, channels: &[(u8, u16)]) -> Result<FixtureEvent> {
+    pub fn set_channels(&self, channels: &[(u8, u16)]) -> Result<ReceiverEvent, FixtureError> {
         let since = Mono::now();
         let pairs: Vec<String> = channels.iter().map(|(c, v)| format!("{c}={v}")).collect();
         self.send(&format!("set {}", pairs.join(" ")))?;
-        self.wait_for(since, Duration::from_secs(2), |e| e.event == "set")
+        self.wait_for(since, "its set event", Duration::from_secs(2), |e| {
+            matches!(e, ReceiverEvent::Set { .. })
+        })
     }
 
     /// The first frame the fixture wrote at or after `since` with flags
     /// matching `mask` (e.g. 0x08 = failsafe).
-    pub fn first_frame_with_flags(&self, since: Mono, mask: u8, timeout: Duration) -> Result<Mono> {
-        let e = self.wait_for(since, timeout, |e| {
-            e.event == "first_frame"
-                && e.fields["flags"]
-                    .as_u64()
-                    .is_some_and(|f| f as u8 & mask == mask)
-        })?;
-        Ok(e.t)
+    pub fn first_frame_with_flags(
+        &self,
+        since: Mono,
+        mask: u8,
+        timeout: Duration,
+    ) -> Result<Mono, FixtureError> {
+        let e = self.wait_for(
+            since,
+            "a first frame with those flags",
+            timeout,
+            |e| matches!(e, ReceiverEvent::FirstFrame { flags, .. } if flags & mask == mask),
+        )?;
+        Ok(e.t())
     }
 
-    pub fn log_path(&self) -> std::path::PathBuf {
-        self.process.lock().unwrap().log_path().to_path_buf()
+    pub fn log_path(&self) -> PathBuf {
+        self.fixture.log_path().to_path_buf()
     }
 
     /// Asks the fixture to quit and waits for it.
     pub fn stop(&self) {
         let _ = self.send("quit");
-        self.process.lock().unwrap().stop(Duration::from_secs(2));
-    }
-}
-
-fn parse_event(line: &str) -> Option<FixtureEvent> {
-    let fields: Value = serde_json::from_str(line).ok()?;
-    let t = Mono::from_secs_f64(fields.get("t")?.as_f64()?);
-    let event = fields.get("event")?.as_str()?.to_string();
-    Some(FixtureEvent { t, event, fields })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn parses_fixture_lines() {
-        let e = parse_event(
-            r#"{"t": 12.5, "name": "rx0", "event": "tx", "on": false, "last_frame": 12.49}"#,
-        )
-        .unwrap();
-        assert_eq!(e.event, "tx");
-        assert_eq!(e.t, Mono::from_secs_f64(12.5));
-        assert_eq!(e.fields["last_frame"].as_f64(), Some(12.49));
-        assert!(parse_event("not json").is_none());
-        assert!(parse_event(r#"{"event": "tx"}"#).is_none());
+        self.fixture.stop(Duration::from_secs(2));
     }
 }

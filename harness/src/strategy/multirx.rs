@@ -149,7 +149,7 @@ impl MultirxSession {
         let receivers = receiver_ports
             .iter()
             .enumerate()
-            .map(|(i, port)| {
+            .map(|(i, port)| -> Result<ReceiverFixture> {
                 let stick = pilot_stick(i as u8);
                 let spec = ReceiverSpec {
                     name: format!("rx{i}"),
@@ -167,7 +167,12 @@ impl MultirxSession {
                         (fm, config.auto_loiter_value),
                     ],
                 };
-                ReceiverFixture::start(&rig.fixtures.python, &script, &spec, log_dir)
+                Ok(ReceiverFixture::start(
+                    &rig.fixtures.python,
+                    &script,
+                    &spec,
+                    log_dir,
+                )?)
             })
             .collect::<Result<Vec<_>>>()?;
         let receivers = Arc::new(receivers);

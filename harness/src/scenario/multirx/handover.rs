@@ -63,15 +63,14 @@ type LossMark = fn(&MultirxSession, u8) -> Result<Mono>;
 fn failsafe_mark(s: &MultirxSession, rx: u8) -> Result<Mono> {
     let off = Mono::now();
     s.receiver(rx).set_tx(false)?;
-    s.receiver(rx)
-        .first_frame_with_flags(off, 0x08, std::time::Duration::from_secs(1))
+    Ok(s.receiver(rx)
+        .first_frame_with_flags(off, 0x08, std::time::Duration::from_secs(1))?)
 }
 
 fn silent_mark(s: &MultirxSession, rx: u8) -> Result<Mono> {
-    let event = s.receiver(rx).set_tx(false)?;
-    event.fields["last_frame"]
-        .as_f64()
-        .map(Mono::from_secs_f64)
+    s.receiver(rx)
+        .set_tx(false)?
+        .last_frame()
         .context("receiver fixture did not report its last frame")
 }
 

@@ -55,7 +55,7 @@ fn run(
     s.fly(0)?;
     ifs.set_channels(&[(ch + 1, IFS_VALUE)])?;
     let on = ifs.set_tx(true)?;
-    let t0 = ifs.first_frame_with_flags(on.t, 0, Duration::from_secs(1))?;
+    let t0 = ifs.first_frame_with_flags(on.t(), 0, Duration::from_secs(1))?;
     let f =
         s.fc.wait_for(t0, Duration::from_secs(1), "the IFS override", |f| {
             f.channels[usize::from(ch)] == IFS_VALUE && s.shows_pilot(f, 0)
@@ -63,10 +63,7 @@ fn run(
     ctx.record(override_ms, f.at.ms_since(t0));
     std::thread::sleep(Duration::from_millis(300));
     let off = ifs.set_tx(false)?;
-    let t1 = off.fields["last_frame"]
-        .as_f64()
-        .map(crate::clock::Mono::from_secs_f64)
-        .unwrap_or(off.t);
+    let t1 = off.last_frame().unwrap_or(off.t());
     let f =
         s.fc.wait_for(t1, Duration::from_secs(1), "the IFS release", |f| {
             f.channels[usize::from(ch)] != IFS_VALUE && s.shows_pilot(f, 0)

@@ -64,7 +64,7 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, m: &Measured) -> Result<()> {
         s.fc.wait_for(on, s.acquire_timeout(), "pilot 2 in control", |f| {
             s.shows_pilot(f, 1)
         })?;
-    ctx.record(m.takeover_ms, f.at.ms_since(tx.t));
+    ctx.record(m.takeover_ms, f.at.ms_since(tx.t()));
     std::thread::sleep(SETTLE);
     let changes = s.px4_report().mode_changes.len();
     ctx.record(m.mode_changes, changes as f64);
@@ -73,11 +73,11 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, m: &Measured) -> Result<()> {
     let set = s.receiver(1).set_channels(&[(fm, POSITION_MODE)])?;
     let slot = mode_slot(POSITION_MODE);
     let f = s.fc.wait_for(
-        set.t,
+        set.t(),
         Duration::from_secs(1),
         "the pilot's mode switch",
         |f| mode_slot(f.channels[s.mode_index()]) == slot,
     )?;
-    ctx.record(m.mode_switch_ms, f.at.ms_since(set.t));
+    ctx.record(m.mode_switch_ms, f.at.ms_since(set.t()));
     Ok(())
 }

@@ -12,31 +12,30 @@
 //! mission retransmissions), so keeping it would not be the naive link.
 //!
 //! The GCS fixture runs a plan ([`GcsPlan`]: telemetry window, commands,
-//! mission) and exits; its JSON event lines are read as they come, and each
-//! carries the radio's counters at the moment it was read, so a rate taken
-//! from the radio and one taken from the GCS cover the same window.
+//! mission) and exits; its JSON event lines are read as they come (by the
+//! fixture driver, [`crate::driver::fixture`]), and each carries the radio's
+//! counters at the moment it was read, so a rate taken from the radio and one
+//! taken from the GCS cover the same window.
 //! [`MavloraSession::finish`] stops everything with SIGTERM, checks each
 //! program exited with status 0 and collects the fixtures' summaries, the
 //! radio's per-direction [`LinkStats`] and the bridge's and router's last
 //! status lines. Every program's stderr is kept as a log in the output folder.
 
-mod fixture_lines;
 mod options;
-mod report;
 mod session;
+mod session_report;
 
 use std::path::PathBuf;
 use std::time::Duration;
 
+use crate::driver::fixture::FixtureError;
 use crate::driver::program::ProgramMissing;
-
-pub use fixture_lines::FixtureLine;
 pub use options::{
     FcProfile, GcsPlan, SessionDefaults, SessionOptions, Variant, sik_with_independent_loss,
     sik_with_loss,
 };
-pub use report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status, status_field};
-pub use session::MavloraSession;
+pub use session::{GcsLine, MavloraSession, RadioCounters};
+pub use session_report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status, status_field};
 
 /// Why a session could not be brought up or finished.
 #[derive(Debug, thiserror::Error)]
@@ -45,11 +44,13 @@ pub enum SessionError {
     #[error(transparent)]
     ProgramMissing(#[from] ProgramMissing),
     /// A fixture did not print its `ready` line.
-    #[error("{name} did not start within {timeout:?} (pymavlink and pyserial installed?); see {}", log.display())]
+    #[error("{name} did not start within {timeout:?} (pymavlink and pyserial installed?): {reason}; see {}", log.display())]
     FixtureStart {
         name: String,
         timeout: Duration,
         log: PathBuf,
+        /// What the fixture driver saw instead.
+        reason: String,
     },
     /// Telemetry did not reach the ground station.
     #[error("no telemetry at the ground station within {timeout:?}; see the logs in {}", dir.display())]
@@ -57,9 +58,9 @@ pub enum SessionError {
     /// The ground station did not finish its plan in time.
     #[error("the GCS fixture did not finish within {timeout:?}; see {}", log.display())]
     GcsTimeout { timeout: Duration, log: PathBuf },
-    /// A summary file or line could not be read.
-    #[error("cannot read the summary {what}: {reason}")]
-    Summary { what: String, reason: String },
+    /// A fixture's output was not what its events say, or ended early.
+    #[error(transparent)]
+    Fixture(#[from] FixtureError),
     /// The radio setup does not make a radio.
     #[error("radio setup: {0}")]
     Radio(#[from] harness_radio::ConfigError),

@@ -7,27 +7,30 @@ use std::process::Command;
 use std::sync::Arc;
 use std::time::Duration;
 
-use serde_json::Value;
-
-use super::fixture_lines::LineReader;
-use super::report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status};
+use super::session_report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status};
 use super::{Result, SessionError, SessionOptions, Variant};
 use crate::clock::Mono;
+use crate::driver::fixture::mavlora_fc::FcEvent;
+use crate::driver::fixture::mavlora_gcs::GcsEvent;
+use crate::driver::fixture::{Fixture, FixtureError};
 use crate::driver::process::Process;
 use crate::driver::program::MAVLORA_BRIDGE;
 use crate::driver::radio_emulator::RadioEmulator;
 use harness_radio::{Direction, LinkStats};
 
+/// The radio's (downlink, uplink) counters when a GCS line was read.
+pub type RadioCounters = (LinkStats, LinkStats);
+/// A GCS fixture line with the radio's counters when it was read.
+pub type GcsLine = crate::driver::fixture::Line<GcsEvent, RadioCounters>;
+
 /// A running MavLora link with its fixtures.
 pub struct MavloraSession {
     pub options: SessionOptions,
     radio: Arc<RadioEmulator>,
-    fc: Process,
-    fc_lines: LineReader,
+    fc: Fixture<FcEvent>,
     bridge: Option<Process>,
     router: Option<Process>,
-    gcs: Process,
-    gcs_lines: LineReader,
+    gcs: Fixture<GcsEvent, RadioCounters>,
     fc_summary: PathBuf,
     /// When the first telemetry reached the GCS.
     pub telemetry_at: Mono,
@@ -65,17 +68,21 @@ impl MavloraSession {
         if !bridged {
             command.args(["--port", radio.air_path()]);
         }
-        let mut fc = Process::spawn("mavlora_fc", command, &dir.join("fc.log"))?;
-        let fc_lines = LineReader::start("mavlora_fc", fc.take_stdout().unwrap(), None)?;
+        let fc = Fixture::start("mavlora_fc", command, &dir.join("fc.log"))?;
         let fixture_timeout = Duration::from_secs(10);
-        let ready = fc_lines
-            .wait_for(fixture_timeout, |l| l.event() == Some("ready"))
-            .ok_or_else(|| SessionError::FixtureStart {
+        let ready = fc
+            .wait_for("ready", fixture_timeout, |l| {
+                matches!(l.event, FcEvent::Ready { .. })
+            })
+            .map_err(|e| SessionError::FixtureStart {
                 name: "mavlora_fc.py".into(),
                 timeout: fixture_timeout,
                 log: fc.log_path().to_path_buf(),
+                reason: e.to_string(),
             })?;
-        let fc_port = ready.value["port"].as_str().unwrap_or_default().to_string();
+        let FcEvent::Ready { port: fc_port, .. } = ready.event else {
+            unreachable!("waited for ready")
+        };
         tracing::debug!(port = %fc_port, "FC fixture ready");
 
         let mut bridge = None;
@@ -132,43 +139,51 @@ impl MavloraSession {
             .args(["--items", &p.items.to_string()])
             .args(["--item-timeout", &p.item_timeout_s.to_string()])
             .args(["--upload-timeout", &p.upload_timeout_s.to_string()]);
-        let mut gcs = Process::spawn("mavlora_gcs", command, &dir.join("gcs.log"))?;
-        let gcs_lines = LineReader::start(
-            "mavlora_gcs",
-            gcs.take_stdout().unwrap(),
-            Some(radio.clone()),
-        )?;
+        // Each line carries the radio's counters when it was read, so a
+        // rate taken from the radio covers the GCS's own window.
+        let counters = radio.clone();
+        let gcs = Fixture::start_with("mavlora_gcs", command, &dir.join("gcs.log"), move || {
+            (
+                counters.stats(Direction::Downlink),
+                counters.stats(Direction::Uplink),
+            )
+        })?;
 
         let mut session = MavloraSession {
             telemetry_at: started,
             started,
             radio,
             fc,
-            fc_lines,
             bridge,
             router,
             gcs,
-            gcs_lines,
             fc_summary,
             options,
         };
         // Up when the vehicle's first message reaches the ground station.
         let timeout = session.options.ready_timeout;
-        let Some(first) = session
-            .gcs_lines
-            .wait_for(timeout, |l| l.event() == Some("telemetry"))
-        else {
-            for p in [&mut session.bridge, &mut session.router]
-                .into_iter()
-                .flatten()
-            {
-                p.check_running()?;
+        let first = session.gcs.wait_for("telemetry", timeout, |l| {
+            matches!(l.event, GcsEvent::Telemetry { .. })
+        });
+        let first = match first {
+            Ok(first) => first,
+            // A fixture that broke its own protocol says so, not "no telemetry".
+            Err(e @ (FixtureError::BadLine { .. } | FixtureError::Reported { .. })) => {
+                return Err(e.into());
             }
-            session.fc.check_running()?;
-            return Err(SessionError::NoTelemetry {
-                timeout,
-                dir: session.options.out_dir.clone(),
-            });
+            Err(_) => {
+                for p in [&mut session.bridge, &mut session.router]
+                    .into_iter()
+                    .flatten()
+                {
+                    p.check_running()?;
+                }
+                session.fc.check_running()?;
+                return Err(SessionError::NoTelemetry {
+                    timeout,
+                    dir: session.options.out_dir.clone(),
+                });
+            }
         };
         session.telemetry_at = first.at;
         tracing::info!(
@@ -191,24 +206,18 @@ impl MavloraSession {
     pub fn finish(mut self) -> Result<SessionReport> {
         let dir = self.options.out_dir.clone();
         let budget = self.options.gcs.budget();
-        let gcs_status = self.gcs.wait_timeout(budget)?;
-        let gcs_status = match gcs_status {
-            Some(s) => Some(s),
-            None => {
-                self.stop_all();
-                return Err(SessionError::GcsTimeout {
-                    timeout: budget,
-                    log: self.gcs.log_path().to_path_buf(),
-                });
-            }
+        let Some(gcs_status) = self.gcs.wait_exit(budget)? else {
+            self.stop_all();
+            return Err(SessionError::GcsTimeout {
+                timeout: budget,
+                log: self.gcs.log_path().to_path_buf(),
+            });
         };
-        // The reader sees EOF after the exit; wait for its last line.
-        let _ = self
-            .gcs_lines
-            .wait_for(Duration::from_secs(2), |l| l.value.get("event").is_none());
+        // The summary is its last line; the reader sees it before EOF.
+        let gcs = self.gcs.summary(Duration::from_secs(2))?;
         let mut exits = vec![ExitRecord {
             name: "mavlora_gcs".into(),
-            status: gcs_status,
+            status: Some(gcs_status),
             accepted: vec![GCS_PHASE_FAILED],
             log: self.gcs.log_path().to_path_buf(),
         }];
@@ -233,31 +242,20 @@ impl MavloraSession {
             log: self.fc.log_path().to_path_buf(),
         });
         let (downlink, uplink) = self.radio_stats();
-        let summary_err = |what: &Path, reason: String| SessionError::Summary {
-            what: what.display().to_string(),
-            reason,
-        };
-        let fc_text = std::fs::read_to_string(&self.fc_summary)
-            .map_err(|e| summary_err(&self.fc_summary, e.to_string()))?;
-        let fc: Value = serde_json::from_str(&fc_text)
-            .map_err(|e| summary_err(&self.fc_summary, e.to_string()))?;
-        let lines = self.gcs_lines.all();
-        let gcs = lines
-            .iter()
-            .rev()
-            .find(|l| l.value.get("event").is_none())
-            .map(|l| l.value.clone())
-            .ok_or_else(|| {
-                summary_err(
-                    self.gcs.log_path(),
-                    "the GCS fixture printed no summary line".into(),
-                )
-            })?;
-        let gcs_events = lines
+        // terminate() has read its last line.
+        let fc = self.fc.summary(Duration::ZERO)?;
+        let gcs_events = self
+            .gcs
+            .lines()
             .into_iter()
-            .filter(|l| l.value.get("event").is_some())
+            .filter(|l| !matches!(l.event, GcsEvent::Summary(_)))
             .collect();
-        let fc_events = self.fc_lines.all();
+        let fc_events = self
+            .fc
+            .lines()
+            .into_iter()
+            .filter(|l| !matches!(l.event, FcEvent::Summary(_)))
+            .collect();
         let bridge_status = self.bridge.as_ref().and_then(|p| last_status(p.log_path()));
         let router_status = self.router.as_ref().and_then(|p| last_status(p.log_path()));
         let mut files: Vec<PathBuf> = exits.iter().map(|e| e.log.clone()).collect();

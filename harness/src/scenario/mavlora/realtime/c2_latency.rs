@@ -3,7 +3,7 @@
 //! `COMMAND_ACK`, a retry after 1.5 s without one. SORA's TMPR asks < 3 s
 //! for medium robustness, < 5 s for low.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 
 use super::{Scenario, Script, ensure_clean, run_session, spec};
 use crate::measurement::{Declarations, Handle};
@@ -67,32 +67,33 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
         ..GcsPlan::default()
     };
     let report = run_session(ctx, o)?;
-    let c = &report.gcs["commands"];
-    let num = |k: &str| c[k].as_f64().unwrap_or(f64::NAN);
+    let c = report
+        .gcs
+        .commands
+        .as_ref()
+        .context("the GCS fixture ran no command phase")?;
+    let latency = c.latency();
+    let each: Vec<String> = c.latency_ms.iter().map(|ms| format!("{ms:.1}")).collect();
     ctx.log(format!(
-        "{} acked, {} lost, {} sends, max {:.0} ms; latencies {}; FC received {}",
-        c["acked"],
-        c["lost"],
-        c["sends"],
-        num("max_ms"),
-        c["latency_ms"],
-        report.fc["commands"]
+        "{} acked, {} lost, {} sends, max {:.0} ms; latencies [{}]; FC received {:?}",
+        c.acked,
+        c.lost,
+        c.sends,
+        latency.max,
+        each.join(", "),
+        report.fc.commands
     ));
     // Where the retries came from: sends the FC never got were lost on the
     // uplink; the rest of the extra sends answered an ack lost on the downlink.
-    let fc_got: f64 = ["176", "512"]
-        .iter()
-        .filter_map(|k| report.fc["commands"][k].as_f64())
-        .sum();
-    let sends = num("sends");
+    let fc_got = i64::from(report.fc.commands_received(176) + report.fc.commands_received(512));
     ctx.log(format!(
         "command sends lost on the uplink: {}; acks lost on the downlink (or late): {}",
-        sends - fc_got,
-        fc_got - num("acked")
+        i64::from(c.sends) - fc_got,
+        fc_got - i64::from(c.acked)
     ));
-    ctx.record(m.p50_ms, num("p50_ms"));
-    ctx.record(m.p99_ms, num("p99_ms"));
-    ctx.record(m.max_ms, num("max_ms"));
-    ctx.record(m.lost, num("lost"));
+    ctx.record(m.p50_ms, latency.p50);
+    ctx.record(m.p99_ms, latency.p99);
+    ctx.record(m.max_ms, latency.max);
+    ctx.record(m.lost, f64::from(c.lost));
     ensure_clean(ctx, &report)
 }

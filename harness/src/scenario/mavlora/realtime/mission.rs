@@ -4,9 +4,9 @@
 //! item intact.
 
 use anyhow::Result;
-use serde_json::Value;
 
 use super::{Scenario, Script, ensure_clean, run_session, spec};
+use crate::driver::fixture::mavlora_gcs::MissionItem;
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{GcsPlan, SessionDefaults};
@@ -53,17 +53,18 @@ fn run(
         ..GcsPlan::default()
     };
     let report = run_session(ctx, o)?;
-    let accepted = report.gcs["result"].as_i64() == Some(0);
-    let upload_s = report.gcs["upload_s"].as_f64().unwrap_or(f64::NAN);
+    let (gcs, fc) = (&report.gcs, &report.fc);
+    let accepted = gcs.result == Some(0);
+    let upload_s = gcs.upload_s.unwrap_or(f64::NAN);
     ctx.log(format!(
         "result {} after {upload_s:.2} s; GCS sent {} item messages; FC: {} item requests, {} duplicate items",
-        report.gcs["result"],
-        report.gcs["items_sent"],
-        report.fc["item_requests"],
-        report.fc["duplicate_items"]
+        gcs.result.map_or("none".into(), |r| r.to_string()),
+        gcs.items_sent,
+        fc.item_requests,
+        fc.duplicate_items
     ));
     ctx.record(upload_time, if accepted { upload_s } else { f64::NAN });
-    let (intact, why) = compare(&report.gcs["mission"], &report.fc["mission"]);
+    let (intact, why) = compare(&gcs.mission, &fc.mission);
     if let Some(why) = why {
         ctx.log(format!("mission differs: {why}"));
     }
@@ -72,10 +73,7 @@ fn run(
 }
 
 /// Whether the FC holds exactly the mission the GCS sent; else the first difference.
-pub fn compare(sent: &Value, got: &Value) -> (bool, Option<String>) {
-    let (Some(sent), Some(got)) = (sent.as_array(), got.as_array()) else {
-        return (false, Some("no mission in a summary".into()));
-    };
+pub fn compare(sent: &[MissionItem], got: &[MissionItem]) -> (bool, Option<String>) {
     if sent.is_empty() || sent.len() != got.len() {
         return (
             false,
@@ -87,22 +85,23 @@ pub fn compare(sent: &Value, got: &Value) -> (bool, Option<String>) {
         );
     }
     for (s, g) in sent.iter().zip(got) {
-        for key in ["seq", "command", "frame", "x", "y", "autocontinue"] {
-            if s[key] != g[key] {
-                return (
-                    false,
-                    Some(format!("item {} {key}: {} vs {}", s["seq"], s[key], g[key])),
-                );
+        let exact = [
+            ("seq", i64::from(s.seq), i64::from(g.seq)),
+            ("command", s.command.into(), g.command.into()),
+            ("frame", s.frame.into(), g.frame.into()),
+            ("x", s.x.into(), g.x.into()),
+            ("y", s.y.into(), g.y.into()),
+            ("autocontinue", s.autocontinue.into(), g.autocontinue.into()),
+        ];
+        for (key, a, b) in exact {
+            if a != b {
+                return (false, Some(format!("item {} {key}: {a} vs {b}", s.seq)));
             }
         }
-        for key in ["z", "param1"] {
-            let (a, b) = (s[key].as_f64(), g[key].as_f64());
+        for (key, a, b) in [("z", s.z, g.z), ("param1", s.param1, g.param1)] {
             // float32 on the wire
-            if !matches!((a, b), (Some(a), Some(b)) if (a - b).abs() <= 1e-6 * a.abs().max(1.0)) {
-                return (
-                    false,
-                    Some(format!("item {} {key}: {} vs {}", s["seq"], s[key], g[key])),
-                );
+            if (a - b).abs() > 1e-6 * a.abs().max(1.0) || a.is_nan() || b.is_nan() {
+                return (false, Some(format!("item {} {key}: {a} vs {b}", s.seq)));
             }
         }
     }
@@ -112,19 +111,24 @@ pub fn compare(sent: &Value, got: &Value) -> (bool, Option<String>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use serde_json::json;
 
     #[test]
     fn a_changed_or_missing_item_is_not_intact() {
-        let item = |seq: i64, x: i64| {
-            json!({"seq": seq, "command": 16, "frame": 6, "x": x, "y": 2, "z": 50.0,
-                   "autocontinue": 1, "param1": 0.0})
+        let item = |seq: u16, x: i32| MissionItem {
+            seq,
+            command: 16,
+            frame: 6,
+            x,
+            y: 2,
+            z: 50.0,
+            autocontinue: 1,
+            param1: 0.0,
         };
-        let sent = json!([item(0, 10), item(1, 11)]);
-        assert!(compare(&sent, &json!([item(0, 10), item(1, 11)])).0);
-        let (intact, why) = compare(&sent, &json!([item(0, 10), item(1, 12)]));
+        let sent = [item(0, 10), item(1, 11)];
+        assert!(compare(&sent, &[item(0, 10), item(1, 11)]).0);
+        let (intact, why) = compare(&sent, &[item(0, 10), item(1, 12)]);
         assert!(!intact && why.unwrap().contains("item 1 x"));
-        assert!(!compare(&sent, &json!([item(0, 10)])).0);
-        assert!(!compare(&json!([]), &json!([])).0);
+        assert!(!compare(&sent, &[item(0, 10)]).0);
+        assert!(!compare(&[], &[]).0);
     }
 }

@@ -6,6 +6,7 @@
 use anyhow::{Context, Result};
 
 use super::{Scenario, Script, ensure_clean, run_sessions, spec};
+use crate::driver::fixture::mavlora_fc::FcEvent;
 use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{FcProfile, GcsPlan, SessionDefaults};
@@ -91,24 +92,28 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, measured: &[Measured]) -> Re
     let reports = run_sessions(ctx, options)?;
     for (((variant, ..), report), m) in VARIANTS.iter().zip(&reports).zip(measured) {
         let (bytes_per_s, secs) = report
-            .downlink_rate("window_start", "window_end")
+            .downlink_rate()
             .context("the GCS reported no counting window")?;
-        let t = &report.gcs["telemetry"];
-        let msgs = t["msgs_per_s"].as_f64().unwrap_or(f64::NAN);
+        let t = report
+            .gcs
+            .telemetry
+            .as_ref()
+            .context("the GCS fixture ran no telemetry phase")?;
+        let msgs = t.msgs_per_s();
         ctx.log(format!(
-            "{variant}: window {secs:.2} s; radio {bytes_per_s:.1} B/s; GCS {msgs:.2} msg/s, {:.1} B/s after expansion; by type {}",
-            t["bytes_per_s"].as_f64().unwrap_or(f64::NAN),
-            t["by_type"]
+            "{variant}: window {secs:.2} s; radio {bytes_per_s:.1} B/s; GCS {msgs:.2} msg/s, {:.1} B/s after expansion; by type {:?}",
+            t.bytes_per_s(),
+            t.by_type
         ));
         ctx.record(m.bytes_per_s, bytes_per_s);
         // Steady state means after the bridge's SET_MESSAGE_INTERVAL round: check it.
         let configured = report
             .fc_events
             .iter()
-            .filter(|l| l.event() == Some("interval"))
+            .filter(|l| matches!(l.event, FcEvent::Interval { .. }))
             .map(|l| l.at)
             .max();
-        let opened = report.event("window_start").map(|l| l.at);
+        let opened = report.window().map(|(start, _)| start.at);
         match (configured, opened) {
             (Some(c), Some(w)) if c <= w => ctx.log(format!(
                 "{variant}: stream rates configured {:.2} s before the window opened",

@@ -280,14 +280,8 @@ pub fn mavlora_configs(
     Ok((b, RouterConfig::new(budget)))
 }
 
-/// The `p`-quantile (0..=1) of sorted samples, nearest rank; NaN if there are none.
-pub fn quantile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let rank = (p * sorted.len() as f64).ceil().max(1.0) as usize;
-    sorted[rank.min(sorted.len()) - 1]
-}
+/// Nearest-rank quantile of sorted samples, shared with the real-time scenarios.
+pub use crate::stats::quantile;
 
 /// Creates the phase folder for evidence files.
 pub fn evidence_dir(ctx: &PhaseContext) -> Result<std::path::PathBuf> {

@@ -4,9 +4,11 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitStatus;
 
-use serde_json::Value;
-
-use super::FixtureLine;
+use super::session::GcsLine;
+use crate::driver::fixture::Line;
+use crate::driver::fixture::mavlora_fc::{FcEvent, FcSummary};
+use crate::driver::fixture::mavlora_gcs::{GcsEvent, GcsSummary};
+use crate::stats;
 use harness_radio::LinkStats;
 
 /// `mavlora_gcs.py`'s exit status when it ran its plan to the end but a phase
@@ -37,14 +39,14 @@ impl ExitRecord {
 /// Everything a finished session leaves behind.
 #[derive(Debug, Clone)]
 pub struct SessionReport {
-    /// `mavlora_fc.py`'s summary file.
-    pub fc: Value,
+    /// `mavlora_fc.py`'s summary.
+    pub fc: FcSummary,
     /// `mavlora_gcs.py`'s summary line.
-    pub gcs: Value,
+    pub gcs: GcsSummary,
     /// The GCS's event lines, each with the radio's counters when read.
-    pub gcs_events: Vec<FixtureLine>,
-    /// The FC fixture's event lines (`ready`, `mission`, `reboot`).
-    pub fc_events: Vec<FixtureLine>,
+    pub gcs_events: Vec<GcsLine>,
+    /// The FC fixture's event lines (`ready`, `interval`, `mission`, `reboot`).
+    pub fc_events: Vec<Line<FcEvent>>,
     /// Drone → ground, whole session.
     pub downlink: LinkStats,
     /// Ground → drone, whole session.
@@ -64,18 +66,32 @@ impl SessionReport {
         self.exits.iter().all(ExitRecord::clean)
     }
 
-    /// The event `name`'s line.
-    pub fn event(&self, name: &str) -> Option<&FixtureLine> {
-        self.gcs_events.iter().find(|l| l.event() == Some(name))
+    /// The GCS's first line that `pick` accepts.
+    pub fn gcs_event(&self, pick: impl Fn(&GcsEvent) -> bool) -> Option<&GcsLine> {
+        self.gcs_events.iter().find(|l| pick(&l.event))
     }
 
-    /// Drone → ground bytes on air per second between two GCS events, as the
-    /// radio counted them, with the seconds between them.
-    pub fn downlink_rate(&self, from: &str, to: &str) -> Option<(f64, f64)> {
-        let (a, b) = (self.event(from)?, self.event(to)?);
-        let (sa, sb) = (&a.radio.as_ref()?.0, &b.radio.as_ref()?.0);
+    /// When the rig read the GCS's `window_start` and `window_end` lines.
+    pub fn window(&self) -> Option<(&GcsLine, &GcsLine)> {
+        Some((
+            self.gcs_event(|e| matches!(e, GcsEvent::WindowStart { .. }))?,
+            self.gcs_event(|e| matches!(e, GcsEvent::WindowEnd { .. }))?,
+        ))
+    }
+
+    /// Drone → ground bytes on air per second over the GCS's counting
+    /// window, as the radio counted them, with the seconds between the two
+    /// lines; `None` without a window.
+    pub fn downlink_rate(&self) -> Option<(f64, f64)> {
+        let (a, b) = self.window()?;
+        let (sa, sb) = (&a.snapshot.0, &b.snapshot.0);
         let secs = b.at.since(a.at).as_secs_f64();
-        (secs > 0.0).then(|| ((sb.bytes_sent - sa.bytes_sent) as f64 / secs, secs))
+        (secs > 0.0).then(|| {
+            (
+                stats::rate((sb.bytes_sent - sa.bytes_sent) as f64, secs),
+                secs,
+            )
+        })
     }
 }
 
