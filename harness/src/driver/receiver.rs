@@ -57,12 +57,9 @@ impl ReceiverFixture {
         let spawned = Mono::now();
         let fixture = Fixture::start(&spec.name, command, &log)?;
         let receiver = ReceiverFixture { fixture };
-        let ready = receiver.wait_for(
-            spawned,
-            "its ready event on",
-            Duration::from_secs(10),
-            |e| matches!(e, ReceiverEvent::Ready { .. }),
-        );
+        let ready = receiver.wait_for(spawned, "ready event", Duration::from_secs(10), |e| {
+            matches!(e, ReceiverEvent::Ready { .. })
+        });
         match ready {
             Ok(_) => Ok(receiver),
             // Exited early (a bad argument): its log says why.
@@ -107,7 +104,7 @@ impl ReceiverFixture {
         self.send(if on { "tx on" } else { "tx off" })?;
         self.wait_for(
             since,
-            "its tx event",
+            "tx event",
             Duration::from_secs(2),
             |e| matches!(e, ReceiverEvent::Tx { on: now, .. } if *now == on),
         )
@@ -118,7 +115,7 @@ impl ReceiverFixture {
         let since = Mono::now();
         let pairs: Vec<String> = channels.iter().map(|(c, v)| format!("{c}={v}")).collect();
         self.send(&format!("set {}", pairs.join(" ")))?;
-        self.wait_for(since, "its set event", Duration::from_secs(2), |e| {
+        self.wait_for(since, "set event", Duration::from_secs(2), |e| {
             matches!(e, ReceiverEvent::Set { .. })
         })
     }
