@@ -6,7 +6,9 @@
 //!    filtering, stream limiting only, limiting + filtering, compact telemetry.
 
 use std::hint::black_box;
-use std::time::{Duration, Instant as WallInstant};
+use std::time::Instant as WallInstant;
+
+use mavlora::Duration;
 
 use mavlora::Instant;
 use mavlora::bridge::{Bridge, BridgeConfig};
@@ -70,7 +72,7 @@ fn bridge_path(profile: &str, compact: bool) -> impl FnMut(Instant, &[u8]) {
     config.compact = compact.then(CompactConfig::default);
     let mut bridge = Bridge::new(config, Instant::ZERO).unwrap();
     move |now, bytes| {
-        bridge.handle_fc_bytes(bytes, now);
+        bridge.handle_fc_bytes(now, bytes);
         bridge.handle_timeout(now);
         while let Some(f) = bridge.poll_radio_transmit(now, usize::MAX) {
             black_box(f);

@@ -49,10 +49,12 @@ pub mod router;
 pub mod schedule;
 pub mod signing;
 pub mod sim;
-pub mod time;
+/// Time as plain values: the house's one [`Instant`] and [`Duration`] (crate `timebase`,
+/// shared with MultiRX and the radio model); the IO driver converts at the edge.
+pub use timebase as time;
 pub mod wire;
 
-pub use time::Instant;
+pub use time::{Duration, Instant};
 
 #[cfg(test)]
 mod testutil;

@@ -2,7 +2,7 @@
 //! simulated ground station): mission relay under loss, the naive relay's duplicates, and
 //! the radio bytes per second of each bandwidth mechanism.
 
-use std::time::Duration;
+use mavlora::Duration;
 
 use mavlora::Instant;
 use mavlora::bridge::BridgeConfig;
@@ -244,8 +244,8 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
     let Path::Relay(b, r) = &mut w.path else {
         unreachable!()
     };
-    b.handle_radio_bytes(forger.frame(&cmd).as_bytes(), now);
-    b.handle_radio_bytes(captured.as_bytes(), now);
+    b.handle_radio_bytes(now, forger.frame(&cmd).as_bytes());
+    b.handle_radio_bytes(now, captured.as_bytes());
     let s = b.stats().signing;
     println!(
         "bridge signing {s:?}, router signing {:?}",

@@ -5,7 +5,7 @@
 //! arithmetic is integer nanoseconds so a preset gives the same airtime on
 //! every host.
 
-use std::time::Duration;
+use timebase::Duration;
 
 use serde::{Deserialize, Serialize};
 
@@ -66,7 +66,7 @@ pub struct LoraParams {
 impl LoraParams {
     /// Symbol time T_sym = 2^SF / BW.
     pub fn symbol_time(&self) -> Duration {
-        Duration::from_nanos(self.symbol_nanos_x4() / 4)
+        micros_up(self.symbol_nanos_x4() / 4)
     }
 
     /// 4·T_sym in ns; exact for every SF at the usual bandwidths.
@@ -97,7 +97,7 @@ impl LoraParams {
         // In quarter symbols so the 4.25 stays exact.
         let quarters =
             4 * self.preamble_symbols as u64 + 17 + 4 * self.payload_symbols(payload_len);
-        Duration::from_nanos(quarters * self.symbol_nanos_x4() / 16)
+        micros_up(quarters * self.symbol_nanos_x4() / 16)
     }
 
     /// Raw bit rate SF · BW / 2^SF · 4/(4+CR), the figure LoRa calculators give
@@ -175,7 +175,7 @@ impl FskParams {
 
     /// Time on air: air bytes · 8 / bit rate.
     pub fn time_on_air(&self, len: usize) -> Duration {
-        Duration::from_nanos(self.air_bytes(len) * 8 * 1_000_000_000 / self.bit_rate_bps as u64)
+        micros_up(self.air_bytes(len) * 8 * 1_000_000_000 / self.bit_rate_bps as u64)
     }
 
     fn validate(&self) -> Result<(), ConfigError> {
@@ -187,6 +187,12 @@ impl FskParams {
             "100..=10000000 bit/s",
         )
     }
+}
+
+/// Nanoseconds (the exact arithmetic above) to whole microseconds, the model's resolution,
+/// rounded up: a packet is not over before its last bit. Exact for the built-in presets.
+fn micros_up(nanos: u64) -> Duration {
+    Duration::from_micros(nanos.div_ceil(1000))
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@
 //! the new packet in the window ending at its own end.
 
 use std::collections::VecDeque;
-use std::time::Duration;
+use timebase::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
@@ -52,9 +52,15 @@ impl DutyCycle {
         }
     }
 
-    /// Airtime allowed per window.
+    /// The window, in whole microseconds.
+    pub fn window(&self) -> Duration {
+        Duration::from_secs_f64(self.window_s)
+    }
+
+    /// Airtime allowed per window: the share of [`window`](Self::window), rounded down (up,
+    /// the rounding would let the share be exceeded).
     pub fn budget(&self) -> Duration {
-        Duration::from_secs_f64(self.window_s * self.max_share)
+        Duration::from_micros((self.window().as_micros() as f64 * self.max_share) as u64)
     }
 
     pub(crate) fn validate(
@@ -78,8 +84,8 @@ impl DutyCycle {
 /// One transmission: start and end.
 #[derive(Debug, Clone, Copy)]
 struct Burst {
-    start: Duration,
-    end: Duration,
+    start: Instant,
+    end: Instant,
 }
 
 /// Airtime bookkeeping for one transmitter; transmissions never overlap.
@@ -101,7 +107,7 @@ impl DutyTracker {
     pub fn new(rule: DutyCycle) -> DutyTracker {
         DutyTracker {
             rule,
-            window: Duration::from_secs_f64(rule.window_s),
+            window: rule.window(),
             budget: rule.budget(),
             recent: VecDeque::new(),
             recent_sum: Duration::ZERO,
@@ -116,7 +122,7 @@ impl DutyTracker {
     }
 
     /// Airtime of transmissions (parts) at or after `left`.
-    fn airtime_since(&self, left: Duration) -> Duration {
+    fn airtime_since(&self, left: Instant) -> Duration {
         let mut sum = self.recent_sum;
         for b in &self.recent {
             if b.start >= left {
@@ -128,20 +134,20 @@ impl DutyTracker {
     }
 
     /// Airtime within the window ending at `now`.
-    pub fn used(&self, now: Duration) -> Duration {
-        let mut sum = self.airtime_since(now.saturating_sub(self.window));
+    pub fn used(&self, now: Instant) -> Duration {
+        let mut sum = self.airtime_since(now - self.window);
         // A transmission still on air counts up to now only.
         for b in self.recent.iter().rev() {
             if b.end <= now {
                 break;
             }
-            sum = sum.saturating_sub(b.end - b.start.max(now));
+            sum -= b.end - b.start.max(now);
         }
         sum
     }
 
     /// Share of the window ending at `now` spent on air.
-    pub fn share(&self, now: Duration) -> f64 {
+    pub fn share(&self, now: Instant) -> f64 {
         self.used(now).as_secs_f64() / self.window.as_secs_f64()
     }
 
@@ -157,14 +163,14 @@ impl DutyTracker {
 
     /// Earliest start ≥ `t0` at which a packet of `airtime` keeps every window
     /// within budget; `t0` itself when not enforcing. `None` if it never fits.
-    pub fn earliest_start(&self, t0: Duration, airtime: Duration) -> Option<Duration> {
+    pub fn earliest_start(&self, t0: Instant, airtime: Duration) -> Option<Instant> {
         if !self.rule.enforce {
             return Some(t0);
         }
         let need = self.budget.checked_sub(airtime)?;
         // The window ending at the packet's end starts at `left`; airtime
         // since `left` only falls as `left` moves on.
-        let left = (t0 + airtime).saturating_sub(self.window);
+        let left = (t0 + airtime) - self.window;
         let mut tail = self.airtime_since(left);
         if tail <= need {
             return Some(t0);
@@ -187,8 +193,8 @@ impl DutyTracker {
     }
 
     /// Records a transmission starting at `start` (not before earlier ones end).
-    pub fn record(&mut self, start: Duration, airtime: Duration) {
-        let cutoff = start.saturating_sub(self.window);
+    pub fn record(&mut self, start: Instant, airtime: Duration) {
+        let cutoff = start - self.window;
         while let Some(b) = self.recent.front() {
             if b.end > cutoff {
                 break;
@@ -200,7 +206,7 @@ impl DutyTracker {
         self.recent.push_back(Burst { start, end });
         self.recent_sum += airtime;
         self.total += airtime;
-        let in_window = self.airtime_since(end.saturating_sub(self.window));
+        let in_window = self.airtime_since(end - self.window);
         self.peak = self.peak.max(in_window);
     }
 }
@@ -219,33 +225,37 @@ mod tests {
 
     const MS: Duration = Duration::from_millis(1);
 
+    fn at(ms: u64) -> Instant {
+        Instant::from_millis(ms)
+    }
+
     #[test]
     fn holds_until_old_airtime_leaves_the_window() {
         // 1 s window, 10 % → 100 ms budget. Two 50 ms packets at 0 and 100 ms.
         let mut d = rule(1.0, 0.1);
-        d.record(Duration::ZERO, 50 * MS);
-        assert_eq!(d.earliest_start(100 * MS, 50 * MS), Some(100 * MS));
-        d.record(100 * MS, 50 * MS);
-        assert_eq!(d.used(150 * MS), 100 * MS);
+        d.record(Instant::ZERO, 50 * MS);
+        assert_eq!(d.earliest_start(at(100), 50 * MS), Some(at(100)));
+        d.record(at(100), 50 * MS);
+        assert_eq!(d.used(at(150)), 100 * MS);
         assert!((d.peak_share() - 0.1).abs() < 1e-12);
         // A 20 ms packet at 200 ms would end at 220 ms; the window [−780, 220]
         // holds 100 ms. It must wait until 20 ms of the first packet leave:
         // window start 20 ms → end 1020 ms → start 1000 ms.
-        assert_eq!(d.earliest_start(200 * MS, 20 * MS), Some(1000 * MS));
+        assert_eq!(d.earliest_start(at(200), 20 * MS), Some(at(1000)));
         // A 60 ms packet needs the whole first packet gone and 10 ms of the
         // second: window start 110 ms → end 1110 ms → start 1050 ms.
-        assert_eq!(d.earliest_start(200 * MS, 60 * MS), Some(1050 * MS));
+        assert_eq!(d.earliest_start(at(200), 60 * MS), Some(at(1050)));
         // Longer than the budget: never.
-        assert_eq!(d.earliest_start(200 * MS, 101 * MS), None);
+        assert_eq!(d.earliest_start(at(200), 101 * MS), None);
     }
 
     #[test]
     fn used_counts_only_the_window_and_only_the_past() {
         let mut d = rule(1.0, 1.0);
-        d.record(Duration::ZERO, 100 * MS);
-        assert_eq!(d.used(40 * MS), 40 * MS);
-        assert_eq!(d.used(1050 * MS), 50 * MS);
-        assert_eq!(d.used(2000 * MS), Duration::ZERO);
+        d.record(Instant::ZERO, 100 * MS);
+        assert_eq!(d.used(at(40)), 40 * MS);
+        assert_eq!(d.used(at(1050)), 50 * MS);
+        assert_eq!(d.used(at(2000)), Duration::ZERO);
         assert_eq!(d.total(), 100 * MS);
     }
 
@@ -256,9 +266,9 @@ mod tests {
             max_share: 0.1,
             enforce: false,
         });
-        d.record(Duration::ZERO, 500 * MS);
-        assert_eq!(d.earliest_start(500 * MS, 500 * MS), Some(500 * MS));
-        assert!((d.share(600 * MS) - 0.5).abs() < 1e-12);
+        d.record(Instant::ZERO, 500 * MS);
+        assert_eq!(d.earliest_start(at(500), 500 * MS), Some(at(500)));
+        assert!((d.share(at(600)) - 0.5).abs() < 1e-12);
     }
 
     #[test]

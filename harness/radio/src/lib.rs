@@ -3,9 +3,11 @@
 //!
 //! Contract, after quinn-proto and smoltcp: no IO and no clock; the rig's
 //! radio emulator driver runs this model between two serial ports.
-//! Time is a [`Duration`](std::time::Duration) since an epoch the driver
-//! picks (the emulator: its start; a simulation: zero), passed to every call;
+//! Time is a [`timebase::Instant`] (microseconds since an epoch the driver
+//! picks: the emulator its start, a simulation zero), passed to every call;
 //! it must not go backwards (earlier times are treated as the latest seen).
+//! Deterministic: the model runs at whole microseconds (airtime and jitter
+//! rounded up), the resolution of every engine in the house.
 //! Randomness comes from a ChaCha8 generator seeded per direction, so a seed
 //! and the same calls give the same run, bit for bit.
 //!
@@ -16,7 +18,7 @@
 //!   packet-error curve ([`loss`]), [`GilbertElliott`] bursts, latency and
 //!   jitter, a [`DutyCycle`] rule ([`duty`]), the seed.
 //! - [`Link`]: one direction: `handle_input(now, bytes)`,
-//!   `poll_timeout()`, `handle_timeout(now)`, `poll_output(now)`, with
+//!   `poll_timeout()`, `handle_timeout(now)`, then drain `poll_output()`, with
 //!   [`LinkStats`] for the evidence.
 //! - [`Radio`]: two directions of one preset, half duplex where the preset is:
 //!   [`Direction::Uplink`] (ground → drone) and [`Direction::Downlink`].

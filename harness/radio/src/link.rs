@@ -11,7 +11,7 @@
 //! the port, not the model's schedule.
 
 use std::collections::VecDeque;
-use std::time::Duration;
+use timebase::{Duration, Instant};
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -82,7 +82,7 @@ pub struct LinkStats {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct AirPacket {
     /// Start on air.
-    pub start: Duration,
+    pub start: Instant,
     /// Time on air.
     pub airtime: Duration,
     /// Serial bytes carried.
@@ -114,7 +114,7 @@ enum Timing {
 
 #[derive(Debug, Clone)]
 struct OnAir {
-    end: Duration,
+    end: Instant,
     data: Vec<u8>,
     lost: bool,
     delay: Duration,
@@ -134,13 +134,13 @@ pub struct Link {
     budget: LinkBudget,
     duty: DutyTracker,
     buffer: VecDeque<u8>,
-    last_input: Duration,
-    now: Duration,
-    gap_until: Duration,
+    last_input: Instant,
+    now: Instant,
+    gap_until: Instant,
     on_air: Option<OnAir>,
-    in_flight: VecDeque<(Duration, Vec<u8>)>,
-    last_delivery: Duration,
-    last_start: Option<Duration>,
+    in_flight: VecDeque<(Instant, Vec<u8>)>,
+    last_delivery: Instant,
+    last_start: Option<Instant>,
     stats: LinkStats,
     trace: Option<Vec<AirPacket>>,
 }
@@ -198,12 +198,12 @@ impl Link {
             budget: config.budget,
             duty: DutyTracker::new(config.duty),
             buffer: VecDeque::with_capacity(preset.buffer_bytes),
-            last_input: Duration::ZERO,
-            now: Duration::ZERO,
-            gap_until: Duration::ZERO,
+            last_input: Instant::ZERO,
+            now: Instant::ZERO,
+            gap_until: Instant::ZERO,
             on_air: None,
             in_flight: VecDeque::new(),
-            last_delivery: Duration::ZERO,
+            last_delivery: Instant::ZERO,
             last_start: None,
             stats: LinkStats::default(),
             trace: None,
@@ -212,27 +212,27 @@ impl Link {
     }
 
     /// The sender's serial side offers `bytes` at `now`.
-    pub fn handle_input(&mut self, now: Duration, bytes: &[u8]) {
+    pub fn handle_input(&mut self, now: Instant, bytes: &[u8]) {
         self.advance(now);
         self.accept(now, bytes);
         self.advance(now);
     }
 
     /// Runs everything due by `now`.
-    pub fn handle_timeout(&mut self, now: Duration) {
+    pub fn handle_timeout(&mut self, now: Instant) {
         self.advance(now);
     }
 
     /// When the engine next needs [`Link::handle_timeout`] or has output.
-    pub fn poll_timeout(&self) -> Option<Duration> {
-        let event = self.next_event(Duration::ZERO).map(|(t, _)| t);
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        let event = self.next_event(Instant::ZERO).map(|(t, _)| t);
         min_opt(event, self.next_delivery())
     }
 
-    /// Bytes of one packet that reached the far serial port by `now`.
-    pub fn poll_output(&mut self, now: Duration) -> Option<Vec<u8>> {
-        self.advance(now);
-        self.pop_delivery(now)
+    /// Bytes of one packet that reached the far serial port by the time of the last
+    /// [`Link::handle_input`] or [`Link::handle_timeout`].
+    pub fn poll_output(&mut self) -> Option<Vec<u8>> {
+        self.pop_delivery()
     }
 
     /// The preset this direction runs.
@@ -286,7 +286,7 @@ impl Link {
 
     // ---- the engine, also driven by `Radio` ----
 
-    pub(crate) fn accept(&mut self, now: Duration, bytes: &[u8]) {
+    pub(crate) fn accept(&mut self, now: Instant, bytes: &[u8]) {
         let now = now.max(self.now);
         self.now = now;
         if bytes.is_empty() {
@@ -301,8 +301,8 @@ impl Link {
     }
 
     /// Runs this direction's events due by `now`, alone on its channel.
-    fn advance(&mut self, now: Duration) {
-        while let Some((t, event)) = self.next_event(Duration::ZERO) {
+    fn advance(&mut self, now: Instant) {
+        while let Some((t, event)) = self.next_event(Instant::ZERO) {
             if t > now {
                 break;
             }
@@ -311,25 +311,26 @@ impl Link {
         self.now = self.now.max(now);
     }
 
-    pub(crate) fn set_now(&mut self, now: Duration) {
+    pub(crate) fn set_now(&mut self, now: Instant) {
         self.now = self.now.max(now);
     }
 
     /// End of the packet on air, if one is.
-    pub(crate) fn on_air_until(&self) -> Option<Duration> {
+    pub(crate) fn on_air_until(&self) -> Option<Instant> {
         self.on_air.as_ref().map(|a| a.end)
     }
 
-    pub(crate) fn last_start(&self) -> Option<Duration> {
+    pub(crate) fn last_start(&self) -> Option<Instant> {
         self.last_start
     }
 
-    pub(crate) fn next_delivery(&self) -> Option<Duration> {
+    pub(crate) fn next_delivery(&self) -> Option<Instant> {
         self.in_flight.front().map(|(t, _)| *t)
     }
 
-    pub(crate) fn pop_delivery(&mut self, now: Duration) -> Option<Vec<u8>> {
-        if self.next_delivery()? > now {
+    /// The next delivery due by the model's time (`now` of the last call that moved it).
+    pub(crate) fn pop_delivery(&mut self) -> Option<Vec<u8>> {
+        if self.next_delivery()? > self.now {
             return None;
         }
         let (_, data) = self.in_flight.pop_front()?;
@@ -340,14 +341,14 @@ impl Link {
 
     /// The next internal event, with the channel busy until `busy` (the other
     /// direction of a half-duplex pair).
-    pub(crate) fn next_event(&self, busy: Duration) -> Option<(Duration, Event)> {
+    pub(crate) fn next_event(&self, busy: Instant) -> Option<(Instant, Event)> {
         if let Some(a) = &self.on_air {
             return Some((a.end, Event::TxEnd));
         }
         self.next_start(busy).map(|(t, n)| (t, Event::TxStart(n)))
     }
 
-    fn next_start(&self, busy: Duration) -> Option<(Duration, usize)> {
+    fn next_start(&self, busy: Instant) -> Option<(Instant, usize)> {
         if self.buffer.is_empty() {
             return None;
         }
@@ -408,7 +409,7 @@ impl Link {
         lo
     }
 
-    pub(crate) fn fire(&mut self, t: Duration, event: Event) {
+    pub(crate) fn fire(&mut self, t: Instant, event: Event) {
         match event {
             Event::TxStart(n) => {
                 debug_assert!(self.on_air.is_none());
@@ -459,17 +460,18 @@ impl Link {
 
 /// The own TDM window containing `t`, or the next one.
 fn tdm_window(
-    t: Duration,
+    t: Instant,
     window: Duration,
     round: Duration,
     phase: Duration,
-) -> (Duration, Duration) {
+) -> (Instant, Instant) {
+    let phase = Instant::ZERO + phase;
     if t < phase {
         return (phase, phase + window);
     }
-    let rel = (t - phase).as_nanos();
-    let k = rel / round.as_nanos();
-    let start = phase + Duration::from_nanos((k * round.as_nanos()) as u64);
+    let rel = (t - phase).as_micros();
+    let k = rel / round.as_micros();
+    let start = phase + Duration::from_micros(k * round.as_micros());
     if t < start + window {
         (start, start + window)
     } else {
@@ -477,7 +479,7 @@ fn tdm_window(
     }
 }
 
-pub(crate) fn min_opt(a: Option<Duration>, b: Option<Duration>) -> Option<Duration> {
+pub(crate) fn min_opt(a: Option<Instant>, b: Option<Instant>) -> Option<Instant> {
     match (a, b) {
         (Some(a), Some(b)) => Some(a.min(b)),
         (a, b) => a.or(b),
@@ -490,14 +492,18 @@ mod tests {
 
     const MS: Duration = Duration::from_millis(1);
 
-    fn drain(link: &mut Link, until: Duration) -> Vec<(Duration, Vec<u8>)> {
+    fn at(d: Duration) -> Instant {
+        Instant::ZERO + d
+    }
+
+    fn drain(link: &mut Link, until: Instant) -> Vec<(Instant, Vec<u8>)> {
         let mut out = Vec::new();
         while let Some(t) = link.poll_timeout() {
             if t > until {
                 break;
             }
             link.handle_timeout(t);
-            while let Some(b) = link.poll_output(t) {
+            while let Some(b) = link.poll_output() {
                 out.push((t, b));
             }
         }
@@ -512,12 +518,15 @@ mod tests {
             ..LinkConfig::default()
         };
         let mut link = Link::new(&p, &cfg, Slot::A).unwrap();
-        link.handle_input(Duration::ZERO, &[7; 17]);
+        link.handle_input(Instant::ZERO, &[7; 17]);
         // 17 data + 4 RadioHead = 21 bytes: 56.576 ms on air, after 5 ms idle, + 10 ms latency.
-        assert_eq!(link.poll_timeout(), Some(5 * MS));
-        let out = drain(&mut link, Duration::from_secs(1));
+        assert_eq!(link.poll_timeout(), Some(at(5 * MS)));
+        let out = drain(&mut link, Instant::from_secs(1));
         assert_eq!(out.len(), 1);
-        assert_eq!(out[0].0, 5 * MS + Duration::from_micros(56_576) + 10 * MS);
+        assert_eq!(
+            out[0].0,
+            at(5 * MS + Duration::from_micros(56_576) + 10 * MS)
+        );
         assert_eq!(out[0].1, vec![7; 17]);
         let s = link.stats();
         assert_eq!((s.packets_sent, s.bytes_delivered), (1, 17));
@@ -527,13 +536,13 @@ mod tests {
     fn overflow_drops_what_does_not_fit_the_buffer() {
         let p = Preset::lora_sf7();
         let mut link = Link::new(&p, &LinkConfig::default(), Slot::A).unwrap();
-        link.handle_input(Duration::ZERO, &[1; 1000]);
+        link.handle_input(Instant::ZERO, &[1; 1000]);
         // A full buffer sends at once: 251 bytes leave, 256 stay buffered at most.
         let s = link.stats().clone();
         assert_eq!(s.bytes_offered, 1000);
         assert_eq!(s.bytes_dropped, 1000 - 256);
         assert_eq!(link.buffered(), 256 - 251);
-        drain(&mut link, Duration::from_secs(5));
+        drain(&mut link, Instant::from_secs(5));
         assert_eq!(link.stats().bytes_delivered, 256);
     }
 
@@ -542,15 +551,15 @@ mod tests {
         let p = Preset::sik_64k();
         let mut b = Link::new(&p, &LinkConfig::default(), Slot::B).unwrap();
         // Slot B's first window opens at window + silence = 118.4 ms.
-        b.handle_input(Duration::ZERO, &[3; 10]);
-        assert_eq!(b.poll_timeout(), Some(Duration::from_micros(118_400)));
+        b.handle_input(Instant::ZERO, &[3; 10]);
+        assert_eq!(b.poll_timeout(), Some(Instant::from_micros(118_400)));
         // Later in B's window a packet leaves at once.
         let mut b2 = Link::new(&p, &LinkConfig::default(), Slot::B).unwrap();
         b2.set_trace(true);
-        b2.handle_input(150 * MS, &[3; 10]);
-        assert_eq!(b2.take_trace()[0].start, 150 * MS);
+        b2.handle_input(at(150 * MS), &[3; 10]);
+        assert_eq!(b2.take_trace()[0].start, at(150 * MS));
         // 10 data + 2 trailer + 5 framing + 7 preamble/sync = 24 B = 3 ms on air.
-        assert_eq!(b2.poll_timeout(), Some(153 * MS));
+        assert_eq!(b2.poll_timeout(), Some(at(153 * MS)));
     }
 
     #[test]
@@ -560,22 +569,23 @@ mod tests {
         a.set_trace(true);
         // 110 ms into a 114.24 ms window: 4.24 ms of room, 1 ms = 8 bytes at
         // 64 kbit/s, 14 bytes of framing → 19 data bytes fit (33 B = 4.125 ms).
-        a.handle_input(110 * MS, &[9; 100]);
-        drain(&mut a, Duration::from_secs(1));
+        a.handle_input(at(110 * MS), &[9; 100]);
+        drain(&mut a, Instant::from_secs(1));
         let trace = a.take_trace();
-        assert_eq!(trace[0].start, 110 * MS);
+        assert_eq!(trace[0].start, at(110 * MS));
         assert_eq!(trace[0].bytes, 19);
         // The rest waits for the next A window at 236.8 ms.
-        assert_eq!(trace[1].start, Duration::from_micros(236_800));
+        assert_eq!(trace[1].start, Instant::from_micros(236_800));
         assert_eq!(trace[1].bytes, 81);
     }
 
     #[test]
     fn tdm_window_arithmetic() {
         let (w, r, ph) = (10 * MS, 30 * MS, 15 * MS);
-        assert_eq!(tdm_window(Duration::ZERO, w, r, ph), (15 * MS, 25 * MS));
-        assert_eq!(tdm_window(20 * MS, w, r, ph), (15 * MS, 25 * MS));
-        assert_eq!(tdm_window(25 * MS, w, r, ph), (45 * MS, 55 * MS));
-        assert_eq!(tdm_window(50 * MS, w, r, ph), (45 * MS, 55 * MS));
+        let window = |t| tdm_window(at(t), w, r, ph);
+        assert_eq!(window(Duration::ZERO), (at(15 * MS), at(25 * MS)));
+        assert_eq!(window(20 * MS), (at(15 * MS), at(25 * MS)));
+        assert_eq!(window(25 * MS), (at(45 * MS), at(55 * MS)));
+        assert_eq!(window(50 * MS), (at(45 * MS), at(55 * MS)));
     }
 }

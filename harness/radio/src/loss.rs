@@ -30,7 +30,7 @@
 //! a sharp cliff: 1 % → 50 % in 2.3 dB), DMD 0.75 dB (3.4 dB), SiK 1 dB
 //! (4.6 dB; uncoded GFSK with the drifting centre frequency the paper saw).
 
-use std::time::Duration;
+use timebase::Duration;
 
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
@@ -268,7 +268,9 @@ pub(crate) fn jitter<R: Rng + ?Sized>(rng: &mut R, max: Duration) -> Duration {
         let _: f64 = rng.random();
         return Duration::ZERO;
     }
-    max.mul_f64(rng.random::<f64>())
+    // Whole microseconds, rounded up like airtime (a delivery is never early).
+    let nanos = std::time::Duration::from(max).mul_f64(rng.random::<f64>());
+    Duration::from_micros(nanos.as_nanos().div_ceil(1000) as u64)
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 //! both are ready at once, the one that started least recently goes first,
 //! so a saturated direction cannot starve the other.
 
-use std::time::Duration;
+use timebase::Instant;
 
 use super::error::ConfigError;
 use super::link::{Event, Link, LinkConfig, Slot, min_opt};
@@ -63,29 +63,29 @@ impl Radio {
     }
 
     /// Side `from`'s serial port offers `bytes` at `now`.
-    pub fn handle_input(&mut self, now: Duration, from: Direction, bytes: &[u8]) {
+    pub fn handle_input(&mut self, now: Instant, from: Direction, bytes: &[u8]) {
         self.advance(now);
         self.links[from.index()].accept(now, bytes);
         self.advance(now);
     }
 
     /// Runs everything due by `now`.
-    pub fn handle_timeout(&mut self, now: Duration) {
+    pub fn handle_timeout(&mut self, now: Instant) {
         self.advance(now);
     }
 
     /// When the radio next needs [`Radio::handle_timeout`] or has output.
-    pub fn poll_timeout(&self) -> Option<Duration> {
+    pub fn poll_timeout(&self) -> Option<Instant> {
         let event = self.next().map(|(_, t, _)| t);
         self.links
             .iter()
             .fold(event, |acc, l| min_opt(acc, l.next_delivery()))
     }
 
-    /// Bytes of one packet that reached the far end of `direction` by `now`.
-    pub fn poll_output(&mut self, now: Duration, direction: Direction) -> Option<Vec<u8>> {
-        self.advance(now);
-        self.links[direction.index()].pop_delivery(now)
+    /// Bytes of one packet that reached the far end of `direction` by the time of the last
+    /// [`Radio::handle_input`] or [`Radio::handle_timeout`].
+    pub fn poll_output(&mut self, direction: Direction) -> Option<Vec<u8>> {
+        self.links[direction.index()].pop_delivery()
     }
 
     /// One direction, for its counters and duty share.
@@ -99,18 +99,18 @@ impl Radio {
     }
 
     /// The channel is busy for direction `i` until the other's packet ends.
-    fn busy_for(&self, i: usize) -> Duration {
+    fn busy_for(&self, i: usize) -> Instant {
         if self.half_duplex {
-            self.links[1 - i].on_air_until().unwrap_or(Duration::ZERO)
+            self.links[1 - i].on_air_until().unwrap_or(Instant::ZERO)
         } else {
-            Duration::ZERO
+            Instant::ZERO
         }
     }
 
     /// The earliest event of either direction: ends before starts, then the
     /// direction that started least recently.
-    fn next(&self) -> Option<(usize, Duration, Event)> {
-        let rank = |i: usize, t: Duration, e: Event| {
+    fn next(&self) -> Option<(usize, Instant, Event)> {
+        let rank = |i: usize, t: Instant, e: Event| {
             let starts = matches!(e, Event::TxStart(_));
             (t, starts, self.links[i].last_start(), i)
         };
@@ -123,7 +123,7 @@ impl Radio {
             .min_by_key(|&(i, t, e)| rank(i, t, e))
     }
 
-    fn advance(&mut self, now: Duration) {
+    fn advance(&mut self, now: Instant) {
         while let Some((i, t, event)) = self.next() {
             if t > now {
                 break;

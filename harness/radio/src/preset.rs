@@ -25,7 +25,7 @@
 //! idle_ms = 5.0
 //! ```
 
-use std::time::Duration;
+use timebase::Duration;
 
 use serde::{Deserialize, Serialize};
 

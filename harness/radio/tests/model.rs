@@ -9,7 +9,7 @@
 //! σ = √(1−p_bg)/p_bg/√bursts (geometric). With fixed seeds the tests are
 //! deterministic; the bounds say how far a correct model could stray.
 
-use std::time::Duration;
+use timebase::{Duration, Instant};
 
 use harness_radio::{
     Access, Direction, DutyCycle, GilbertElliott, Link, LinkBudget, LinkConfig, LoraParams,
@@ -21,15 +21,20 @@ use rand_chacha::ChaCha8Rng;
 
 const MS: Duration = Duration::from_millis(1);
 
+/// `d` after the epoch.
+fn at(d: Duration) -> Instant {
+    Instant::ZERO + d
+}
+
 /// A delivery: when, which direction, what.
-type Delivery = (Duration, Direction, Vec<u8>);
+type Delivery = (Instant, Direction, Vec<u8>);
 
 /// Drives a radio with scheduled inputs under a virtual clock that jumps to
 /// the next input or deadline, until `until`.
 fn run(
     radio: &mut Radio,
-    inputs: &[(Duration, Direction, Vec<u8>)],
-    until: Duration,
+    inputs: &[(Instant, Direction, Vec<u8>)],
+    until: Instant,
 ) -> Vec<Delivery> {
     let mut out = Vec::new();
     let mut next_input = 0;
@@ -54,7 +59,7 @@ fn run(
         }
         radio.handle_timeout(now);
         for dir in [Direction::Uplink, Direction::Downlink] {
-            while let Some(bytes) = radio.poll_output(now, dir) {
+            while let Some(bytes) = radio.poll_output(dir) {
                 out.push((now, dir, bytes));
             }
         }
@@ -65,9 +70,9 @@ fn run(
 /// The same for a single link.
 fn run_link(
     link: &mut Link,
-    inputs: &[(Duration, Vec<u8>)],
-    until: Duration,
-) -> Vec<(Duration, Vec<u8>)> {
+    inputs: &[(Instant, Vec<u8>)],
+    until: Instant,
+) -> Vec<(Instant, Vec<u8>)> {
     let mut out = Vec::new();
     let mut next_input = 0;
     loop {
@@ -90,7 +95,7 @@ fn run_link(
             next_input += 1;
         }
         link.handle_timeout(now);
-        while let Some(bytes) = link.poll_output(now) {
+        while let Some(bytes) = link.poll_output() {
             out.push((now, bytes));
         }
     }
@@ -98,9 +103,9 @@ fn run_link(
 }
 
 /// One 21-byte message (the reference packet) every `period`.
-fn periodic(n: usize, period: Duration) -> Vec<(Duration, Vec<u8>)> {
+fn periodic(n: usize, period: Duration) -> Vec<(Instant, Vec<u8>)> {
     (0..n)
-        .map(|i| (period * i as u32, vec![i as u8; 21]))
+        .map(|i| (at(period * i as u32), vec![i as u8; 21]))
         .collect()
 }
 
@@ -162,11 +167,11 @@ fn a_lora_message_arrives_after_idle_airtime_and_latency() {
     let mut link = Link::new(&Preset::lora_sf7(), &cfg, Slot::A).unwrap();
     let out = run_link(
         &mut link,
-        &[(100 * MS, vec![0x55; 17])],
-        Duration::from_secs(2),
+        &[(at(100 * MS), vec![0x55; 17])],
+        Instant::from_secs(2),
     );
     assert_eq!(out.len(), 1);
-    let expected = 100 * MS + 5 * MS + Duration::from_micros(56_576) + 20 * MS;
+    let expected = at(100 * MS + 5 * MS + Duration::from_micros(56_576) + 20 * MS);
     assert_eq!(out[0].0, expected);
 }
 
@@ -188,7 +193,7 @@ fn budget_loss_rate_over_20000_packets() {
     assert!((0.05..0.1).contains(&p), "{p}");
     // 17 data bytes + 4 header = 21 on air: the reference length on air is
     // 21 *data* bytes, so send exactly 21 data bytes.
-    let out = run_link(&mut link, &periodic(n, 100 * MS), Duration::from_secs(3600));
+    let out = run_link(&mut link, &periodic(n, 100 * MS), Instant::from_secs(3600));
     let s = link.stats();
     assert_eq!(s.packets_sent, n as u64);
     assert_eq!(s.packets_lost + s.packets_delivered, n as u64);
@@ -245,7 +250,7 @@ fn burst_and_budget_loss_combine_through_a_link() {
     let pb = link.reference_per();
     assert!((0.03..0.045).contains(&pb), "{pb}");
     // Packets of 21 data bytes on DMD: the reference length.
-    run_link(&mut link, &periodic(n, 50 * MS), Duration::from_secs(3600));
+    run_link(&mut link, &periodic(n, 50 * MS), Instant::from_secs(3600));
     let p = 1.0 - (1.0 - pb) * (1.0 - ge.mean_loss());
     let lambda = 1.0 - ge.p_good_to_bad - ge.p_bad_to_good;
     let sigma = (n as f64 * p * (1.0 - p) * (1.0 + lambda) / (1.0 - lambda)).sqrt();
@@ -276,10 +281,10 @@ fn directions_are_independent() {
     let mut radio = Radio::new(&Preset::sik_64k(), &up, &down).unwrap();
     let mut inputs = Vec::new();
     for i in 0..2000u32 {
-        inputs.push((300 * MS * i, Direction::Uplink, vec![1; 21]));
-        inputs.push((300 * MS * i + 7 * MS, Direction::Downlink, vec![2; 21]));
+        inputs.push((at(300 * MS * i), Direction::Uplink, vec![1; 21]));
+        inputs.push((at(300 * MS * i + 7 * MS), Direction::Downlink, vec![2; 21]));
     }
-    run(&mut radio, &inputs, Duration::from_secs(3600));
+    run(&mut radio, &inputs, Instant::from_secs(3600));
     let up = radio.link(Direction::Uplink).stats();
     let down = radio.link(Direction::Downlink).stats();
     // 75 dB is 9 dB inside the SiK edge; 20 dB of noise puts the uplink 11 dB
@@ -335,14 +340,14 @@ proptest! {
         let mut radio = Radio::new(preset, &cfg(seed), &cfg(seed ^ 1)).unwrap();
         radio.link_mut(Direction::Uplink).set_trace(true);
         radio.link_mut(Direction::Downlink).set_trace(true);
-        let mut t = Duration::ZERO;
+        let mut t = Instant::ZERO;
         let inputs: Vec<_> = writes.iter().map(|&(gap, len, ab)| {
             t += MS * gap as u32;
             let dir = if ab { Direction::Uplink } else { Direction::Downlink };
             (t, dir, vec![0xA5; len])
         }).collect();
         let t0 = inputs[0].0;
-        let out = run(&mut radio, &inputs, Duration::from_secs(600));
+        let out = run(&mut radio, &inputs, Instant::from_secs(600));
         let rate = best_rate(preset);
         let (mut ab, mut ba) = (0usize, 0usize);
         for (at, dir, bytes) in &out {
@@ -399,8 +404,8 @@ proptest! {
         let mut link = Link::new(&preset, &cfg, Slot::A).unwrap();
         link.set_trace(true);
         // Saturating: 200 bytes every 100 ms for 4 windows.
-        let end = Duration::from_secs_f64(4.0 * window_s);
-        let inputs: Vec<_> = (0..).map(|i| (100 * MS * i, vec![1u8; 200]))
+        let end = at(Duration::from_secs_f64(4.0 * window_s));
+        let inputs: Vec<_> = (0..).map(|i| (at(100 * MS * i), vec![1u8; 200]))
             .take_while(|(t, _)| *t < end).collect();
         run_link(&mut link, &inputs, end);
         let trace = link.take_trace();
@@ -408,12 +413,12 @@ proptest! {
         let budget = window.as_secs_f64() * share;
         for p in &trace {
             let e = p.start + p.airtime;
-            let left = e.saturating_sub(window);
+            let left = e - window;
             let used: f64 = trace.iter()
                 .map(|q| {
                     let s = q.start.max(left);
                     let f = (q.start + q.airtime).min(e);
-                    f.saturating_sub(s).as_secs_f64()
+                    (f - s).as_secs_f64()
                 })
                 .sum();
             prop_assert!(used <= budget + 1e-6, "{used} s on air in the window ending {e:?}, budget {budget}");
@@ -434,8 +439,10 @@ proptest! {
 #[test]
 fn lora_sf7_saturated_throughput() {
     let mut link = Link::new(&Preset::lora_sf7(), &LinkConfig::default(), Slot::A).unwrap();
-    let inputs: Vec<_> = (0..600u32).map(|i| (50 * MS * i, vec![0u8; 64])).collect();
-    let out = run_link(&mut link, &inputs, Duration::from_secs(30));
+    let inputs: Vec<_> = (0..600u32)
+        .map(|i| (at(50 * MS * i), vec![0u8; 64]))
+        .collect();
+    let out = run_link(&mut link, &inputs, Instant::from_secs(30));
     let bytes: usize = out.iter().map(|(_, b)| b.len()).sum();
     let rate = bytes as f64 / 30.0;
     // 251 B per 399.6 ms = 628 B/s; minus the first packet's wait.
@@ -452,9 +459,9 @@ fn sik_one_direction_gets_its_window_share() {
     };
     let mut link = Link::new(&preset, &LinkConfig::default(), Slot::A).unwrap();
     let inputs: Vec<_> = (0..1000u32)
-        .map(|i| (10 * MS * i, vec![0u8; 200]))
+        .map(|i| (at(10 * MS * i), vec![0u8; 200]))
         .collect();
-    let out = run_link(&mut link, &inputs, Duration::from_secs(10));
+    let out = run_link(&mut link, &inputs, Instant::from_secs(10));
     let rate = out.iter().map(|(_, b)| b.len()).sum::<usize>() as f64 / 10.0;
     let share = tdm.window_ms / (2.0 * (tdm.window_ms + tdm.silence_ms));
     let ceiling = share * preset.max_data_rate();
@@ -470,10 +477,10 @@ fn half_duplex_shares_the_channel_fairly() {
     let mut radio = Radio::new(&Preset::lora_sf7(), &cfg, &cfg).unwrap();
     let mut inputs = Vec::new();
     for i in 0..600u32 {
-        inputs.push((50 * MS * i, Direction::Uplink, vec![1; 64]));
-        inputs.push((50 * MS * i, Direction::Downlink, vec![2; 64]));
+        inputs.push((at(50 * MS * i), Direction::Uplink, vec![1; 64]));
+        inputs.push((at(50 * MS * i), Direction::Downlink, vec![2; 64]));
     }
-    let out = run(&mut radio, &inputs, Duration::from_secs(30));
+    let out = run(&mut radio, &inputs, Instant::from_secs(30));
     let count = |d| -> usize { out.iter().filter(|o| o.1 == d).map(|o| o.2.len()).sum() };
     let (ab, ba) = (count(Direction::Uplink), count(Direction::Downlink));
     assert!(ab.abs_diff(ba) <= 251, "{ab} vs {ba}");
@@ -495,9 +502,9 @@ fn lossy_run(seed: u64) -> (Vec<Delivery>, Vec<bool>) {
     let mut radio = Radio::new(&Preset::lora_sf7(), &cfg, &cfg).unwrap();
     radio.link_mut(Direction::Uplink).set_trace(true);
     let inputs: Vec<_> = (0..500u32)
-        .map(|i| (130 * MS * i, Direction::Uplink, vec![i as u8; 30]))
+        .map(|i| (at(130 * MS * i), Direction::Uplink, vec![i as u8; 30]))
         .collect();
-    let out = run(&mut radio, &inputs, Duration::from_secs(120));
+    let out = run(&mut radio, &inputs, Instant::from_secs(120));
     let lost = radio
         .link_mut(Direction::Uplink)
         .take_trace()

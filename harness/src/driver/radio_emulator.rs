@@ -25,6 +25,7 @@ use serialport::{SerialPort, TTYPort};
 use crate::clock::Mono;
 use crate::driver::pty::PtyPair;
 use harness_radio::{Direction, LinkStats, Radio};
+use timebase::Instant;
 
 /// Longest the loop sleeps without looking for input.
 pub const POLL: Duration = Duration::from_millis(1);
@@ -141,8 +142,8 @@ impl RadioEmulator {
     }
 
     /// The model's time now: the emulator's epoch is its start.
-    pub fn now(&self) -> Duration {
-        Mono::now().since(self.shared.epoch)
+    pub fn now(&self) -> Instant {
+        model_time(self.shared.epoch)
     }
 
     /// Counters of one direction so far.
@@ -199,7 +200,7 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
                 .radio
                 .lock()
                 .unwrap_or_else(|poisoned| poisoned.into_inner());
-            let now = Mono::now().since(shared.epoch);
+            let now = model_time(shared.epoch);
             for (port, from) in [(&mut *a, Direction::Downlink), (&mut *b, Direction::Uplink)] {
                 match read_available(port, &mut buf) {
                     Ok(0) => {}
@@ -212,7 +213,7 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
             }
             radio.handle_timeout(now);
             for (port, to) in [(&mut *b, Direction::Downlink), (&mut *a, Direction::Uplink)] {
-                while let Some(bytes) = radio.poll_output(now, to) {
+                while let Some(bytes) = radio.poll_output(to) {
                     if port.write_all(&bytes).is_err() {
                         shared
                             .unwritten
@@ -222,8 +223,10 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
             }
             radio.poll_timeout()
         };
-        let now = Mono::now().since(shared.epoch);
-        let wait = next.map_or(POLL, |t| t.saturating_sub(now).min(POLL));
+        let now = model_time(shared.epoch);
+        let wait = next.map_or(POLL, |t| {
+            Duration::from(t.saturating_duration_since(now)).min(POLL)
+        });
         if !wait.is_zero() {
             std::thread::sleep(wait);
         }
@@ -236,6 +239,12 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
             "radio emulator delivered bytes nobody read"
         );
     }
+}
+
+/// The radio model's time: microseconds on the rig's monotonic clock since `epoch` (the
+/// edge where the real clock becomes the model's [`Instant`]).
+fn model_time(epoch: Mono) -> Instant {
+    Instant::ZERO + timebase::Duration::from(Mono::now().since(epoch))
 }
 
 /// Reads what the port has without blocking.

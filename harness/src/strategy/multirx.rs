@@ -294,9 +294,7 @@ impl MultirxSession {
         let c = &self.config;
         let scan = match self.mode {
             Mode::Parallel => Duration::ZERO,
-            Mode::Scan => {
-                Duration::from_micros(c.scan_window.total_micros() * u64::from(c.receivers))
-            }
+            Mode::Scan => Duration::from_micros(c.scan_window.as_micros() * u64::from(c.receivers)),
         };
         scan + Duration::from_secs(3)
     }

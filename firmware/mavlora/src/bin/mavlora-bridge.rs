@@ -3,12 +3,12 @@
 //!
 //! Exit codes: 0 after SIGINT/SIGTERM, 1 on a configuration or setup error, 2 on bad usage.
 
+use mavlora::Duration;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
-use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -93,17 +93,17 @@ fn run(o: Options) -> Result<()> {
     loop {
         let now = clock.now();
         let deadline = bridge
-            .poll_timeout(now)
+            .poll_timeout()
             .unwrap_or(now + Duration::from_secs(1))
             .min(next_status);
         match rx.recv_timeout(clock.until(deadline)) {
             Ok(Event::Serial("fc", SerialEvent::Bytes(b))) => {
-                bridge.handle_fc_bytes(&b, clock.now());
+                bridge.handle_fc_bytes(clock.now(), &b);
             }
             Ok(Event::Serial("fc", SerialEvent::Closed)) => bridge.fc_port_closed(),
             Ok(Event::Serial(_, SerialEvent::Closed)) => bridge.radio_port_closed(),
             Ok(Event::Serial(_, SerialEvent::Bytes(b))) => {
-                bridge.handle_radio_bytes(&b, clock.now());
+                bridge.handle_radio_bytes(clock.now(), &b);
             }
             Ok(Event::Serial(..) | Event::Udp(..) | Event::Tcp(..))
             | Err(RecvTimeoutError::Timeout) => {}

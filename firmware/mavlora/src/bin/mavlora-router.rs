@@ -3,13 +3,13 @@
 //!
 //! Exit codes: 0 after SIGINT/SIGTERM, 1 on a configuration or setup error, 2 on bad usage.
 
+use mavlora::Duration;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
-use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -93,22 +93,22 @@ fn run(o: Options) -> Result<()> {
     loop {
         let now = clock.now();
         let deadline = router
-            .poll_timeout(now)
+            .poll_timeout()
             .unwrap_or(now + Duration::from_secs(1))
             .min(next_status);
         match rx.recv_timeout(clock.until(deadline)) {
             Ok(Event::Serial(_, SerialEvent::Bytes(b))) => {
-                router.handle_radio_bytes(&b, clock.now());
+                router.handle_radio_bytes(clock.now(), &b);
             }
             Ok(Event::Serial(_, SerialEvent::Closed)) => router.radio_port_closed(),
             Ok(Event::Udp(b, from)) => {
                 udp.learn(from);
                 record(&mut tlog, &b);
-                router.handle_gcs_bytes(&b, clock.now());
+                router.handle_gcs_bytes(clock.now(), &b);
             }
             Ok(Event::Tcp(b, _)) => {
                 record(&mut tlog, &b);
-                router.handle_gcs_bytes(&b, clock.now());
+                router.handle_gcs_bytes(clock.now(), &b);
             }
             Ok(Event::Serial(_, SerialEvent::Opened)) | Err(RecvTimeoutError::Timeout) => {}
             Ok(Event::Stop) => {

@@ -1,6 +1,6 @@
 //! Bridge settings.
 
-use std::time::Duration;
+use crate::time::Duration;
 
 use crate::compact::CompactConfig;
 use crate::filter::Profile;

@@ -1,7 +1,7 @@
 //! The bridge state machine.
 
+use crate::time::Duration;
 use std::collections::VecDeque;
-use std::time::Duration;
 
 use mavlink::{MavlinkVersion, Message as _};
 use tracing::{debug, info};
@@ -176,7 +176,7 @@ impl Bridge {
     }
 
     /// Bytes read from the flight controller's serial port.
-    pub fn handle_fc_bytes(&mut self, bytes: &[u8], now: Instant) {
+    pub fn handle_fc_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.fc_reader.push(bytes);
         while let Some(rx) = self.fc_reader.next_frame() {
             self.fc_frame(rx.frame, now);
@@ -234,7 +234,7 @@ impl Bridge {
                     self.config_ack(ack.result, now);
                     return;
                 }
-                if self.mission.handle_fc(msg, now) {
+                if self.mission.handle_fc(now, msg) {
                     return;
                 }
             }
@@ -363,7 +363,7 @@ impl Bridge {
     }
 
     /// Bytes read from the radio's serial port.
-    pub fn handle_radio_bytes(&mut self, bytes: &[u8], now: Instant) {
+    pub fn handle_radio_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.radio_reader.push(bytes);
         while let Some(rx) = self.radio_reader.next_frame() {
             self.radio_frame(rx.frame, now);
@@ -374,7 +374,7 @@ impl Bridge {
         let Some(frame) = self.radio_leg.incoming(frame, now) else {
             return;
         };
-        self.quality.handle_frame(&frame, now);
+        self.quality.handle_frame(now, &frame);
         let id = frame.message_id();
         match id {
             // LINK_QUALITY is for us; the flight controller does not know it.
@@ -395,7 +395,7 @@ impl Bridge {
                 let from = (frame.system_id(), frame.component_id());
                 // Uploads addressed to this vehicle are relayed; others pass through.
                 let for_vehicle = msg.target_system_id() == Some(self.radio_sender.system());
-                if id != ids::HEARTBEAT && for_vehicle && self.mission.handle_radio(from, &msg, now)
+                if id != ids::HEARTBEAT && for_vehicle && self.mission.handle_radio(now, from, &msg)
                 {
                     return;
                 }
@@ -441,9 +441,10 @@ impl Bridge {
             }
         }
         // Coalescing: the report rides with the next group instead of paying its own packet.
-        if (!self.coalescing() || released)
-            && let Some(report) = self.quality.poll_report(now, self.radio_reader.stats())
-        {
+        if !self.coalescing() || released {
+            self.quality.handle_timeout(now, self.radio_reader.stats());
+        }
+        if let Some(report) = self.quality.poll_report() {
             let frame = self.radio_sender.frame(&MavMessage::LINK_QUALITY(report));
             self.stats.link_quality_sent += 1;
             let class = if released {
@@ -500,17 +501,21 @@ impl Bridge {
         }
     }
 
-    /// When the engine next needs [`handle_timeout`](Self::handle_timeout) or can send.
-    pub fn poll_timeout(&mut self, now: Instant) -> Option<Instant> {
-        let quality = (!self.coalescing()).then(|| self.quality.poll_timeout());
+    /// When the engine next needs [`handle_timeout`](Self::handle_timeout) or can send; a time
+    /// already past means at once.
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        let quality = (!self.coalescing())
+            .then(|| self.quality.poll_timeout())
+            .flatten();
         [
             quality,
-            self.scheduler.poll_timeout(now),
+            self.scheduler.poll_timeout(),
             self.compactor.as_ref().and_then(|c| c.poll_timeout()),
             self.gcs_heartbeat.poll_timeout(),
             self.config_state.next_retry,
             self.mission.poll_timeout(),
-            (!self.to_fc.is_empty()).then_some(now),
+            // Frames (mission replies) waiting for the flight controller: due at once.
+            (!self.to_fc.is_empty()).then_some(Instant::ZERO),
         ]
         .into_iter()
         .flatten()

@@ -11,7 +11,7 @@
 //! Sequence numbers are not used: after a reboot they restart at 0, but a jump back is
 //! indistinguishable from 255 lost frames.
 
-use std::time::Duration;
+use crate::time::Duration;
 
 use mavlink::MavlinkVersion;
 

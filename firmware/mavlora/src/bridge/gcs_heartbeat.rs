@@ -3,7 +3,7 @@
 //! them at the usual 1 Hz while the ground is heard, so the flight controller's data-link
 //! loss detection still works: when the radio goes quiet, regeneration stops after `hold`.
 
-use std::time::Duration;
+use crate::time::Duration;
 
 use mavlink::MavlinkVersion;
 

@@ -2,7 +2,7 @@
 // SET_MESSAGE_INTERVAL; they are used here on purpose, for MAVLink 1 autopilots.
 #![allow(deprecated)]
 
-use std::time::Duration;
+use crate::time::Duration;
 
 use mavlink::MavlinkVersion;
 
@@ -87,7 +87,7 @@ fn configures_stream_rates_on_first_heartbeat_and_consumes_acks() {
         to_fc(&mut b, ms(0)).is_empty(),
         "nothing before the FC is seen"
     );
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(100));
+    b.handle_fc_bytes(ms(100), fc_heartbeat(&mut fc).as_bytes());
     let sent = to_fc(&mut b, ms(100));
     assert_eq!(intervals(&sent), vec![(30.0, -1.0), (33.0, 333_333.0)]);
     for msg in &sent {
@@ -96,8 +96,8 @@ fn configures_stream_rates_on_first_heartbeat_and_consumes_acks() {
         };
         assert_eq!((c.target_system, c.target_component), (1, 1));
     }
-    b.handle_fc_bytes(fc.frame(&ack()).as_bytes(), ms(150));
-    b.handle_fc_bytes(fc.frame(&ack()).as_bytes(), ms(160));
+    b.handle_fc_bytes(ms(150), fc.frame(&ack()).as_bytes());
+    b.handle_fc_bytes(ms(160), fc.frame(&ack()).as_bytes());
     // acks are ours, not the ground's; fully acked means no retry
     let radio = to_radio(&mut b, ms(3000));
     assert!(radio.iter().all(|f| f.message_id() != 77));
@@ -115,10 +115,10 @@ fn unacknowledged_configuration_is_retried_then_given_up() {
     let mut now = ms(0);
     while now < ms(20_000) {
         // heartbeats keep coming: no reboot
-        b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), now);
+        b.handle_fc_bytes(now, fc_heartbeat(&mut fc).as_bytes());
         b.handle_timeout(now);
         sends += intervals(&to_fc(&mut b, now)).len();
-        now = now + Duration::from_millis(500);
+        now += Duration::from_millis(500);
     }
     assert_eq!(sends, 3 * 2);
 }
@@ -127,14 +127,14 @@ fn unacknowledged_configuration_is_retried_then_given_up() {
 fn reboot_by_silence_and_by_uptime_going_back_reconfigures() {
     let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(0));
+    b.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
     assert_eq!(intervals(&to_fc(&mut b, ms(0))).len(), 2);
     // regular heartbeats: nothing new
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(1000));
+    b.handle_fc_bytes(ms(1000), fc_heartbeat(&mut fc).as_bytes());
     assert!(intervals(&to_fc(&mut b, ms(1000))).is_empty());
     // 5 s of silence, then a heartbeat: rebooted
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(6000));
+    b.handle_fc_bytes(ms(6000), fc_heartbeat(&mut fc).as_bytes());
     assert_eq!(intervals(&to_fc(&mut b, ms(6000))).len(), 2);
     assert_eq!(b.stats().fc_reboots, 1);
     // a fast reboot: uptime goes from 60 s back to 2 s while heartbeats never stopped
@@ -144,8 +144,8 @@ fn reboot_by_silence_and_by_uptime_going_back_reconfigures() {
             ..Default::default()
         })
     };
-    b.handle_fc_bytes(fc.frame(&att(60_000)).as_bytes(), ms(6100));
-    b.handle_fc_bytes(fc.frame(&att(2_000)).as_bytes(), ms(6200));
+    b.handle_fc_bytes(ms(6100), fc.frame(&att(60_000)).as_bytes());
+    b.handle_fc_bytes(ms(6200), fc.frame(&att(2_000)).as_bytes());
     assert_eq!(intervals(&to_fc(&mut b, ms(6200))).len(), 2);
     assert_eq!(b.stats().fc_reboots, 2);
 }
@@ -158,20 +158,20 @@ fn telemetry_is_filtered_limited_and_commands_go_first() {
     for k in 0..50u64 {
         let now = ms(k * 20);
         b.handle_fc_bytes(
+            now,
             fc.frame(&MavMessage::ATTITUDE(Default::default()))
                 .as_bytes(),
-            now,
         );
-        b.handle_fc_bytes(fc.frame(&pos).as_bytes(), now);
+        b.handle_fc_bytes(now, fc.frame(&pos).as_bytes());
     }
     let s = b.stats();
     assert_eq!(s.filter.filtered, 50);
     assert_eq!(s.filter.passed, 3);
     // a command queued behind periodic frames leaves first
     b.handle_fc_bytes(
+        ms(1000),
         fc.frame(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA::default()))
             .as_bytes(),
-        ms(1000),
     );
     let out = to_radio(&mut b, ms(1000));
     assert_eq!(out.first().map(|f| f.message_id()), Some(76));
@@ -183,8 +183,8 @@ fn radio_traffic_reaches_the_fc_and_link_quality_goes_both_ways() {
     let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
     let cmd = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA::default());
     let lq = MavMessage::LINK_QUALITY(LINK_QUALITY_DATA::default());
-    b.handle_radio_bytes(ground.frame(&cmd).as_bytes(), ms(10));
-    b.handle_radio_bytes(ground.frame(&lq).as_bytes(), ms(20));
+    b.handle_radio_bytes(ms(10), ground.frame(&cmd).as_bytes());
+    b.handle_radio_bytes(ms(20), ground.frame(&lq).as_bytes());
     let fc = to_fc(&mut b, ms(20));
     assert_eq!(fc.len(), 1, "the command, not the report: {fc:?}");
     assert!(b.quality().peer().is_some());
@@ -208,7 +208,7 @@ fn ground_heartbeat_is_regenerated_while_the_ground_is_heard() {
         autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
         ..Default::default()
     });
-    b.handle_radio_bytes(ground.frame(&hb).as_bytes(), ms(0));
+    b.handle_radio_bytes(ms(0), ground.frame(&hb).as_bytes());
     let mut heartbeats = 0;
     let mut seqs = Vec::new();
     for t in (0..20_000).step_by(100) {
@@ -239,9 +239,9 @@ fn compact_mode_replaces_position_and_heartbeat() {
     for k in 0..50u64 {
         let now = ms(k * 200);
         if k % 5 == 0 {
-            b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), now);
+            b.handle_fc_bytes(now, fc_heartbeat(&mut fc).as_bytes());
         }
-        b.handle_fc_bytes(fc.frame(&pos).as_bytes(), now);
+        b.handle_fc_bytes(now, fc.frame(&pos).as_bytes());
         ids.extend(to_radio(&mut b, now).iter().map(|f| f.message_id()));
     }
     assert!(!ids.contains(&0) && !ids.contains(&33), "{ids:?}");
@@ -262,12 +262,12 @@ fn a_silent_reboot_seen_first_in_the_uptime_counts_once() {
             ..Default::default()
         })
     };
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(0));
-    b.handle_fc_bytes(fc.frame(&att(30_000)).as_bytes(), ms(100));
+    b.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
+    b.handle_fc_bytes(ms(100), fc.frame(&att(30_000)).as_bytes());
     to_fc(&mut b, ms(100));
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    b.handle_fc_bytes(fc.frame(&att(5)).as_bytes(), ms(4100));
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(4150));
+    b.handle_fc_bytes(ms(4100), fc.frame(&att(5)).as_bytes());
+    b.handle_fc_bytes(ms(4150), fc_heartbeat(&mut fc).as_bytes());
     assert_eq!(intervals(&to_fc(&mut b, ms(4150))).len(), 2);
     assert_eq!(b.stats().fc_reboots, 1);
 }
@@ -299,7 +299,7 @@ fn mavlink1_autopilot_is_configured_with_request_data_stream_in_mavlink1() {
     c.config_attempts = 2;
     let mut b = Bridge::new(c, Instant::ZERO).unwrap();
     let mut fc = Sender::new(1, 1, MavlinkVersion::V1);
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(100));
+    b.handle_fc_bytes(ms(100), fc_heartbeat(&mut fc).as_bytes());
     let frames: Vec<_> = std::iter::from_fn(|| b.poll_fc_transmit(ms(100))).collect();
     assert!(
         frames.iter().all(|f| f.version() == MavlinkVersion::V1),
@@ -312,8 +312,8 @@ fn mavlink1_autopilot_is_configured_with_request_data_stream_in_mavlink1() {
     let mut later = Vec::new();
     let mut now = ms(100);
     while now < ms(10_000) {
-        now = now + Duration::from_millis(500);
-        b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), now);
+        now += Duration::from_millis(500);
+        b.handle_fc_bytes(now, fc_heartbeat(&mut fc).as_bytes());
         b.handle_timeout(now);
         later.extend(to_fc(&mut b, now));
     }
@@ -327,13 +327,13 @@ fn set_message_interval_refused_as_unsupported_falls_back_to_data_streams() {
     c.profile = Profile::parse(PROFILE_WITH_STREAMS, "test").unwrap();
     let mut b = Bridge::new(c, Instant::ZERO).unwrap();
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(100));
+    b.handle_fc_bytes(ms(100), fc_heartbeat(&mut fc).as_bytes());
     assert_eq!(intervals(&to_fc(&mut b, ms(100))), vec![(33.0, 333_333.0)]);
     let refused = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
         result: MavResult::MAV_RESULT_UNSUPPORTED,
     });
-    b.handle_fc_bytes(fc.frame(&refused).as_bytes(), ms(150));
+    b.handle_fc_bytes(ms(150), fc.frame(&refused).as_bytes());
     assert_eq!(
         data_streams(&to_fc(&mut b, ms(150))),
         vec![(0, 0, 0), (6, 3, 1)]
@@ -347,7 +347,7 @@ fn set_message_interval_refused_as_unsupported_falls_back_to_data_streams() {
 fn without_data_streams_a_mavlink1_autopilot_still_gets_set_message_interval() {
     let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
     let mut fc = Sender::new(1, 1, MavlinkVersion::V1);
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(100));
+    b.handle_fc_bytes(ms(100), fc_heartbeat(&mut fc).as_bytes());
     assert_eq!(
         intervals(&to_fc(&mut b, ms(100))),
         vec![(30.0, -1.0), (33.0, 333_333.0)]
@@ -358,7 +358,7 @@ fn without_data_streams_a_mavlink1_autopilot_still_gets_set_message_interval() {
 fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
     let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    b.handle_fc_bytes(fc_heartbeat(&mut fc).as_bytes(), ms(0));
+    b.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
     to_fc(&mut b, ms(0));
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let cmd = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
@@ -369,7 +369,7 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
         ..Default::default()
     });
     let is_cmd = |m: &MavMessage| matches!(m, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_DO_SET_MODE);
-    b.handle_radio_bytes(gcs.frame(&cmd).as_bytes(), ms(100));
+    b.handle_radio_bytes(ms(100), gcs.frame(&cmd).as_bytes());
     assert_eq!(
         to_fc(&mut b, ms(100)).iter().filter(|m| is_cmd(m)).count(),
         1
@@ -378,7 +378,7 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
         command: MavCmd::MAV_CMD_DO_SET_MODE,
         result: MavResult::MAV_RESULT_ACCEPTED,
     });
-    b.handle_fc_bytes(fc.frame(&ack).as_bytes(), ms(120));
+    b.handle_fc_bytes(ms(120), fc.frame(&ack).as_bytes());
     let acks = |frames: Vec<OwnedFrame>| {
         frames
             .iter()
@@ -387,7 +387,7 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
     };
     assert_eq!(acks(to_radio(&mut b, ms(120))), 1);
     // the ack was lost on the radio and the router resends the command
-    b.handle_radio_bytes(gcs.frame(&cmd).as_bytes(), ms(1100));
+    b.handle_radio_bytes(ms(1100), gcs.frame(&cmd).as_bytes());
     assert_eq!(
         to_fc(&mut b, ms(1100)).iter().filter(|m| is_cmd(m)).count(),
         0,
@@ -408,7 +408,7 @@ fn compact_mode_keeps_replaced_messages_off_the_radio_before_the_fc_is_known() {
     let mut b = Bridge::new(c, Instant::ZERO).unwrap();
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
     let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
-    b.handle_fc_bytes(fc.frame(&pos).as_bytes(), ms(0));
+    b.handle_fc_bytes(ms(0), fc.frame(&pos).as_bytes());
     assert!(
         to_radio(&mut b, ms(10))
             .iter()
@@ -417,7 +417,7 @@ fn compact_mode_keeps_replaced_messages_off_the_radio_before_the_fc_is_known() {
     assert_eq!(b.stats().held_before_fc, 1);
     // without compact telemetry the same frame goes (the filter allows 3 Hz)
     let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
-    b.handle_fc_bytes(fc.frame(&pos).as_bytes(), ms(0));
+    b.handle_fc_bytes(ms(0), fc.frame(&pos).as_bytes());
     assert!(
         to_radio(&mut b, ms(10))
             .iter()

@@ -1,6 +1,6 @@
 //! The bridge's half of the command relay: at most one execution per command copy.
 
-use std::time::Duration;
+use crate::time::Duration;
 
 use super::command_key;
 use crate::dialect::MavMessage;

@@ -1,11 +1,11 @@
 //! The router's half of the command relay: retransmission over the radio.
 
-use std::time::Duration;
+use std::collections::VecDeque;
 
 use super::command_key;
 use crate::dialect::{MavMessage, MavResult};
 use crate::mission::RttEstimator;
-use crate::time::Instant;
+use crate::time::{Duration, Instant};
 use crate::wire::OwnedFrame;
 
 /// Counters of the router's command relay.
@@ -37,6 +37,8 @@ pub struct CommandRetransmitter {
     rtt: RttEstimator,
     max_attempts: u32,
     pending: Vec<Pending>,
+    /// Copies due, waiting for [`poll_retransmit`](CommandRetransmitter::poll_retransmit).
+    due: VecDeque<OwnedFrame>,
     stats: RetransmitStats,
 }
 
@@ -48,6 +50,7 @@ impl CommandRetransmitter {
             rtt: RttEstimator::new(initial, min, max),
             max_attempts: max_attempts.max(1),
             pending: Vec::new(),
+            due: VecDeque::new(),
             stats: RetransmitStats::default(),
         }
     }
@@ -100,26 +103,34 @@ impl CommandRetransmitter {
         }
     }
 
-    /// A command whose timeout ran out by `now`, to send again (at most one per call).
-    pub fn poll_retransmit(&mut self, now: Instant) -> Option<OwnedFrame> {
+    /// Queues a copy of every command whose timeout ran out by `now` (oldest position
+    /// first), and gives up those out of attempts.
+    pub fn handle_timeout(&mut self, now: Instant) {
         let rto = self.rtt.rto();
-        let i = self
+        while let Some(i) = self
             .pending
             .iter()
-            .position(|p| now.saturating_duration_since(p.sent) >= rto)?;
-        if self.pending[i].attempts >= self.max_attempts {
-            self.pending.swap_remove(i);
-            self.stats.given_up += 1;
-            return self.poll_retransmit(now);
+            .position(|p| now.saturating_duration_since(p.sent) >= rto)
+        {
+            if self.pending[i].attempts >= self.max_attempts {
+                self.pending.swap_remove(i);
+                self.stats.given_up += 1;
+                continue;
+            }
+            // No exponential backoff (RFC 6298 5.5): on a radio a lost command is loss, not
+            // congestion (the scheduler's byte budget already paces the link), and doubling the
+            // timeout after a lost copy is what pushes the 99th percentile past 3 s.
+            let p = &mut self.pending[i];
+            p.attempts += 1;
+            p.sent = now;
+            self.stats.retransmissions += 1;
+            self.due.push_back(p.frame.clone());
         }
-        // No exponential backoff (RFC 6298 5.5): on a radio a lost command is loss, not
-        // congestion (the scheduler's byte budget already paces the link), and doubling the
-        // timeout after a lost copy is what pushes the 99th percentile past 3 s.
-        let p = &mut self.pending[i];
-        p.attempts += 1;
-        p.sent = now;
-        self.stats.retransmissions += 1;
-        Some(p.frame.clone())
+    }
+
+    /// The next copy to send again, queued by [`handle_timeout`](Self::handle_timeout).
+    pub fn poll_retransmit(&mut self) -> Option<OwnedFrame> {
+        self.due.pop_front()
     }
 
     /// When the next retransmission is due.
@@ -156,6 +167,12 @@ mod tests {
         })
     }
 
+    /// The copy due at `now`, if any: the timer, then the queue.
+    fn due(r: &mut CommandRetransmitter, now: Instant) -> Option<OwnedFrame> {
+        r.handle_timeout(now);
+        r.poll_retransmit()
+    }
+
     fn retransmitter() -> CommandRetransmitter {
         CommandRetransmitter::new(MS(1000), MS(200), MS(3000), 4)
     }
@@ -168,14 +185,14 @@ mod tests {
         let t0 = Instant::from_millis(0);
         assert!(r.from_ground(&frame, &msg, t0));
         assert_eq!(r.poll_timeout(), Some(t0 + MS(1000)));
-        assert!(r.poll_retransmit(t0 + MS(999)).is_none());
-        let again = r.poll_retransmit(t0 + MS(1000)).expect("due");
+        assert!(due(&mut r, t0 + MS(999)).is_none());
+        let again = due(&mut r, t0 + MS(1000)).expect("due");
         assert_eq!(again.as_bytes(), frame.as_bytes());
         // the ground station's own retry while we are at it goes nowhere
         assert!(!r.from_ground(&frame, &msg, t0 + MS(1500)));
         r.from_radio(1, &ack(MavCmd::MAV_CMD_DO_SET_MODE), t0 + MS(1600));
         assert!(r.poll_timeout().is_none());
-        assert!(r.poll_retransmit(t0 + MS(10_000)).is_none());
+        assert!(due(&mut r, t0 + MS(10_000)).is_none());
         let s = r.stats();
         assert_eq!(
             (s.commands, s.retransmissions, s.ground_duplicates, s.acked),
@@ -193,9 +210,9 @@ mod tests {
         for _ in 0..20 {
             let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
             assert!(r.from_ground(&frame, &msg, now));
-            now = now + MS(150);
+            now += MS(150);
             r.from_radio(1, &ack(MavCmd::MAV_CMD_DO_SET_MODE), now);
-            now = now + MS(1000);
+            now += MS(1000);
         }
         assert!(r.rtt().rto() <= MS(300), "{:?}", r.rtt().rto());
     }
@@ -209,7 +226,7 @@ mod tests {
         r.from_ground(&frame, &msg, t0);
         r.from_radio(2, &ack(MavCmd::MAV_CMD_DO_SET_MODE), t0 + MS(100));
         r.from_radio(1, &ack(MavCmd::MAV_CMD_NAV_LAND), t0 + MS(100));
-        assert!(r.poll_retransmit(t0 + MS(1000)).is_some());
+        assert!(due(&mut r, t0 + MS(1000)).is_some());
     }
 
     #[test]
@@ -222,7 +239,7 @@ mod tests {
         let mut now = Instant::from_millis(0);
         while let Some(t) = r.poll_timeout() {
             now = now.max(t);
-            if r.poll_retransmit(now).is_some() {
+            if due(&mut r, now).is_some() {
                 sent += 1;
             }
         }

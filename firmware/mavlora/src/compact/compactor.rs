@@ -1,7 +1,7 @@
 //! Bridge side: periodic flight-controller messages in, compact frames out.
 
+use crate::time::Duration;
 use std::collections::VecDeque;
-use std::time::Duration;
 
 use crate::dialect::{
     GLOBAL_POSITION_INT_DATA, MAVLORA_POSITION_BATCH_DATA, MAVLORA_STATUS_DATA, MavMessage,

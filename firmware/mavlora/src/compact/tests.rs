@@ -1,4 +1,4 @@
-use std::time::Duration;
+use crate::time::Duration;
 
 use proptest::prelude::*;
 
@@ -136,7 +136,7 @@ fn keep_alive_status_without_position() {
     c.observe(&heartbeat(0, false), Instant::ZERO);
     let mut statuses = 0;
     let mut now = Instant::ZERO;
-    while now < Instant::from_secs_for_test(10) {
+    while now < Instant::from_secs(10) {
         c.observe(&heartbeat(0, false), now);
         statuses += drain(&mut c, now).len();
         now = c
@@ -182,12 +182,6 @@ fn batches_a_little_late_add_no_keep_alive_statuses() {
     assert!(statuses <= 3, "{statuses} statuses in 20 s");
 }
 
-impl Instant {
-    fn from_secs_for_test(s: u64) -> Self {
-        Self::from_millis(s * 1000)
-    }
-}
-
 proptest! {
     /// expand(compact(x)) == x within the precision table of the module doc.
     #[test]
@@ -226,11 +220,11 @@ proptest! {
             prop_assert!(c.observe(m, now));
         }
         for (i, p) in positions.iter().enumerate() {
-            if i > 0 { now = now + Duration::from_millis(u64::from(dt[i - 1])); }
+            if i > 0 { now += Duration::from_millis(u64::from(dt[i - 1])); }
             c.observe(&MavMessage::GLOBAL_POSITION_INT(p.clone()), now);
             compact.extend(std::iter::from_fn(|| c.poll(now)));
         }
-        now = now + Duration::from_secs(1);
+        now += Duration::from_secs(1);
         compact.extend(std::iter::from_fn(|| c.poll(now)));
         let mut e = Expander::new();
         let expanded: Vec<MavMessage> = compact.iter().flat_map(|m| e.expand(m)).collect();

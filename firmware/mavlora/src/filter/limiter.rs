@@ -1,7 +1,7 @@
 //! The radio filter: drops and rate-limits frames by header only (no payload decoding).
 
+use crate::time::Duration;
 use std::collections::HashMap;
-use std::time::Duration;
 
 use tracing::trace;
 

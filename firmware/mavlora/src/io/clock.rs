@@ -23,7 +23,7 @@ impl Clock {
 
     /// Real time until engine time `t` (zero if past).
     pub fn until(&self, t: Instant) -> std::time::Duration {
-        t.saturating_duration_since(self.now())
+        t.saturating_duration_since(self.now()).into()
     }
 }
 

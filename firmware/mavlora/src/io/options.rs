@@ -4,9 +4,9 @@
 //! which win over the defaults; config-file keys are the flags' names with `_` (clap's ids,
 //! which are also the fields' names).
 
+use crate::Duration;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Duration;
 
 use anyhow::Context as _;
 

@@ -5,7 +5,7 @@
 //! the answer, not a duplicate). The round trip is measured from an item forwarded to the
 //! request for the next one coming back.
 
-use std::time::Duration;
+use crate::time::Duration;
 
 use super::rtt::RttEstimator;
 use crate::dialect::MavMessage;

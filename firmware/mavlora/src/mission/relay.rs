@@ -1,7 +1,7 @@
 //! The bridge's mission relay: receiver on the radio leg, sender on the wire leg.
 
+use crate::time::Duration;
 use std::collections::VecDeque;
-use std::time::Duration;
 
 use tracing::{debug, info, warn};
 
@@ -139,7 +139,7 @@ impl MissionRelay {
 
     /// A message from the radio sent by `from` (system, component). Returns whether the relay
     /// took it (else the caller forwards it to the flight controller).
-    pub fn handle_radio(&mut self, from: (u8, u8), msg: &MavMessage, now: Instant) -> bool {
+    pub fn handle_radio(&mut self, now: Instant, from: (u8, u8), msg: &MavMessage) -> bool {
         match msg {
             MavMessage::MISSION_COUNT(c) => {
                 if let Radio::Receiving { ground, count, .. } = &self.radio
@@ -264,7 +264,7 @@ impl MissionRelay {
     /// relay took it.
     // MISSION_REQUEST is deprecated but older autopilots and tools still send it.
     #[allow(deprecated)]
-    pub fn handle_fc(&mut self, msg: &MavMessage, now: Instant) -> bool {
+    pub fn handle_fc(&mut self, now: Instant, msg: &MavMessage) -> bool {
         let Wire::Sending {
             items,
             last,
@@ -471,12 +471,12 @@ mod tests {
     #[test]
     fn timeout_follows_the_measured_round_trip() {
         let mut r = MissionRelay::new(MissionConfig::default());
-        assert!(r.handle_radio(GROUND, &count(20), ms(0)));
+        assert!(r.handle_radio(ms(0), GROUND, &count(20)));
         let mut t = 0;
         for seq in 0..20 {
             assert_eq!(requested(&radio_out(&mut r)), vec![seq]);
             t += 400;
-            r.handle_radio(GROUND, &item(seq), ms(t));
+            r.handle_radio(ms(t), GROUND, &item(seq));
         }
         let rto = r.rtt().rto();
         assert!(
@@ -489,7 +489,7 @@ mod tests {
     #[test]
     fn lost_request_is_retried_after_the_timeout_only() {
         let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(GROUND, &count(2), ms(0));
+        r.handle_radio(ms(0), GROUND, &count(2));
         assert_eq!(requested(&radio_out(&mut r)), vec![0]);
         let due = r.poll_timeout().unwrap();
         assert_eq!(due, ms(1500), "initial RTO");
@@ -503,12 +503,12 @@ mod tests {
     #[test]
     fn repeated_item_from_the_ground_gets_the_next_request_at_once() {
         let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(GROUND, &count(3), ms(0));
+        r.handle_radio(ms(0), GROUND, &count(3));
         radio_out(&mut r);
-        r.handle_radio(GROUND, &item(0), ms(300));
+        r.handle_radio(ms(300), GROUND, &item(0));
         assert_eq!(requested(&radio_out(&mut r)), vec![1]);
         // our request for 1 was lost; the ground repeats item 0
-        r.handle_radio(GROUND, &item(0), ms(1800));
+        r.handle_radio(ms(1800), GROUND, &item(0));
         assert_eq!(requested(&radio_out(&mut r)), vec![1]);
         assert_eq!(r.stats().radio_duplicate_items, 1);
     }
@@ -516,9 +516,9 @@ mod tests {
     #[test]
     fn full_upload_reaches_the_fc_and_its_ack_the_ground_and_a_lost_ack_is_resent() {
         let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(GROUND, &count(2), ms(0));
-        r.handle_radio(GROUND, &item(0), ms(100));
-        r.handle_radio(GROUND, &item(1), ms(200));
+        r.handle_radio(ms(0), GROUND, &count(2));
+        r.handle_radio(ms(100), GROUND, &item(0));
+        r.handle_radio(ms(200), GROUND, &item(1));
         radio_out(&mut r);
         let fc: Vec<_> = std::iter::from_fn(|| r.poll_fc((1, 1))).collect();
         assert!(
@@ -531,7 +531,7 @@ mod tests {
                 target_system: 1,
                 target_component: 191,
             });
-            assert!(r.handle_fc(&req, ms(300)));
+            assert!(r.handle_fc(ms(300), &req));
         }
         let items: Vec<_> = std::iter::from_fn(|| r.poll_fc((1, 1))).collect();
         assert_eq!(items.len(), 3);
@@ -540,12 +540,12 @@ mod tests {
             target_component: 191,
             mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
         });
-        assert!(r.handle_fc(&ack, ms(400)));
+        assert!(r.handle_fc(ms(400), &ack));
         let to_ground = radio_out(&mut r);
         assert!(matches!(&to_ground[..], [MavMessage::MISSION_ACK(a)]
             if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED && a.target_system == 255));
         // the ack was lost: the ground repeats its last item, the ack goes again
-        r.handle_radio(GROUND, &item(1), ms(2000));
+        r.handle_radio(ms(2000), GROUND, &item(1));
         assert!(matches!(
             &radio_out(&mut r)[..],
             [MavMessage::MISSION_ACK(_)]
@@ -556,7 +556,7 @@ mod tests {
     #[test]
     fn silent_fc_and_silent_ground_end_in_an_error_ack() {
         let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(GROUND, &count(0), ms(0));
+        r.handle_radio(ms(0), GROUND, &count(0));
         let mut now = ms(0);
         while let Some(t) = r.poll_timeout() {
             now = t;
@@ -571,7 +571,7 @@ mod tests {
         assert_eq!(now, ms(6 * 1500));
 
         let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(GROUND, &count(5), ms(0));
+        r.handle_radio(ms(0), GROUND, &count(5));
         while let Some(t) = r.poll_timeout() {
             r.handle_timeout(t);
         }

@@ -7,7 +7,7 @@
 //! Written here rather than taken from a crate: it is twenty lines and needs our `Duration`
 //! handling, not a transport stack.
 
-use std::time::Duration;
+use crate::time::Duration;
 
 /// Smallest margin above SRTT: about the airtime of one 41-byte compact telemetry frame at
 /// 683 B/s (60 ms), with room.

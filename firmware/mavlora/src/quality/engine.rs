@@ -2,7 +2,7 @@
 //! the other side reports hearing. The paper's reason: a drone's own RF noise can blind its
 //! receiver while the ground still hears the drone, so the ground must be told.
 
-use std::time::Duration;
+use crate::time::Duration;
 
 use tracing::debug;
 
@@ -68,8 +68,8 @@ pub enum PeerState {
 /// Sans-IO link-quality engine for one radio link.
 ///
 /// Feed it every frame read from the radio ([`handle_frame`](Self::handle_frame)); at
-/// [`poll_timeout`](Self::poll_timeout) call [`poll_report`](Self::poll_report) with the radio
-/// reader's counters and send the message it returns.
+/// [`poll_timeout`](Self::poll_timeout) call [`handle_timeout`](Self::handle_timeout) with the
+/// radio reader's counters, then send what [`poll_report`](Self::poll_report) returns.
 #[derive(Debug)]
 pub struct LinkQuality {
     config: LinkQualityConfig,
@@ -78,6 +78,8 @@ pub struct LinkQuality {
     rssi: Option<i8>,
     remote_rssi: Option<i8>,
     peer: Option<PeerReport>,
+    /// Our report, made at its time and waiting for [`poll_report`](Self::poll_report).
+    due: Option<LINK_QUALITY_DATA>,
 }
 
 impl LinkQuality {
@@ -90,6 +92,7 @@ impl LinkQuality {
             rssi: None,
             remote_rssi: None,
             peer: None,
+            due: None,
         }
     }
 
@@ -102,7 +105,7 @@ impl LinkQuality {
 
     /// Looks at a frame read from the radio. Only the peer's `LINK_QUALITY` and the local
     /// radio's `RADIO_STATUS` are decoded; other frames are ignored by header.
-    pub fn handle_frame<T: AsRef<[u8]>>(&mut self, frame: &Frame<T>, now: Instant) {
+    pub fn handle_frame<T: AsRef<[u8]>>(&mut self, now: Instant, frame: &Frame<T>) {
         match frame.message_id() {
             ids::LINK_QUALITY => {
                 if let Ok(MavMessage::LINK_QUALITY(report)) = frame.decode::<MavMessage>() {
@@ -141,16 +144,17 @@ impl LinkQuality {
         });
     }
 
-    /// When the next report is due.
-    pub fn poll_timeout(&self) -> Instant {
-        self.next_report
+    /// When the next report is due (always `Some`: reports never stop).
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        Some(self.next_report)
     }
 
-    /// Our report, if one is due at `now`, from the radio reader's counters (cumulative,
-    /// truncated to 16 bits as the message defines).
-    pub fn poll_report(&mut self, now: Instant, stats: &ReaderStats) -> Option<LINK_QUALITY_DATA> {
+    /// Makes our report if one is due at `now`, from the radio reader's counters (cumulative,
+    /// truncated to 16 bits as the message defines); [`poll_report`](Self::poll_report)
+    /// hands it out.
+    pub fn handle_timeout(&mut self, now: Instant, stats: &ReaderStats) {
         if now < self.next_report {
-            return None;
+            return;
         }
         // Keep the cadence, but do not fire a burst of reports after a stall.
         let next = self.next_report + self.config.period;
@@ -160,14 +164,19 @@ impl LinkQuality {
             next
         };
         let unknown = |v: Option<i8>| v.unwrap_or(i8::MAX);
-        Some(LINK_QUALITY_DATA {
+        self.due = Some(LINK_QUALITY_DATA {
             time_boot_ms: now.saturating_duration_since(self.started).as_millis() as u32,
             rx_packets: stats.frames() as u16,
             rx_lost: stats.lost as u16,
             rx_bad_crc: stats.bad_crc as u16,
             rssi: unknown(self.rssi),
             remote_rssi: unknown(self.remote_rssi),
-        })
+        });
+    }
+
+    /// The report made by [`handle_timeout`](Self::handle_timeout), once.
+    pub fn poll_report(&mut self) -> Option<LINK_QUALITY_DATA> {
+        self.due.take()
     }
 
     /// The peer's latest report.

@@ -1,7 +1,7 @@
 //! The router state machine.
 
+use crate::time::Duration;
 use std::collections::{HashMap, VecDeque};
-use std::time::Duration;
 
 use mavlink::{MavHeader, MavlinkVersion};
 
@@ -174,7 +174,7 @@ impl Router {
     }
 
     /// Bytes from a ground station (one UDP datagram, or a stream chunk).
-    pub fn handle_gcs_bytes(&mut self, bytes: &[u8], now: Instant) {
+    pub fn handle_gcs_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.gcs_reader.push(bytes);
         while let Some(rx) = self.gcs_reader.next_frame() {
             let frame = rx.frame;
@@ -199,13 +199,13 @@ impl Router {
     }
 
     /// Bytes from the radio's serial port.
-    pub fn handle_radio_bytes(&mut self, bytes: &[u8], now: Instant) {
+    pub fn handle_radio_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.radio_reader.push(bytes);
         while let Some(rx) = self.radio_reader.next_frame() {
             let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
                 continue;
             };
-            self.quality.handle_frame(&frame, now);
+            self.quality.handle_frame(now, &frame);
             match frame.message_id() {
                 ids::MAVLORA_POSITION_BATCH | ids::MAVLORA_STATUS => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
@@ -274,10 +274,12 @@ impl Router {
     /// Does what is due at `now`: our link-quality report (also shown to the ground
     /// station), command retransmissions.
     pub fn handle_timeout(&mut self, now: Instant) {
-        while let Some(frame) = self.commands.poll_retransmit(now) {
+        self.commands.handle_timeout(now);
+        while let Some(frame) = self.commands.poll_retransmit() {
             self.scheduler.push(frame, Class::Priority, now);
         }
-        if let Some(report) = self.quality.poll_report(now, self.radio_reader.stats()) {
+        self.quality.handle_timeout(now, self.radio_reader.stats());
+        if let Some(report) = self.quality.poll_report() {
             let frame = self.sender.frame(&MavMessage::LINK_QUALITY(report));
             self.stats.link_quality_sent += 1;
             self.enqueue_gcs(frame.clone());
@@ -300,13 +302,14 @@ impl Router {
         }
     }
 
-    /// When the engine next needs attention.
-    pub fn poll_timeout(&mut self, now: Instant) -> Option<Instant> {
+    /// When the engine next needs attention; a time already past means at once.
+    pub fn poll_timeout(&self) -> Option<Instant> {
         [
-            Some(self.quality.poll_timeout()),
-            self.scheduler.poll_timeout(now),
+            self.quality.poll_timeout(),
+            self.scheduler.poll_timeout(),
             self.commands.poll_timeout(),
-            (!self.to_gcs.is_empty()).then_some(now),
+            // Frames waiting for the ground stations: due at once.
+            (!self.to_gcs.is_empty()).then_some(Instant::ZERO),
         ]
         .into_iter()
         .flatten()

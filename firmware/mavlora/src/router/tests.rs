@@ -55,7 +55,7 @@ fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
     radio.extend_from_slice(fc.frame(&ack).as_bytes());
 
     let mut r = router();
-    r.handle_radio_bytes(&radio, ms(1000));
+    r.handle_radio_bytes(ms(1000), &radio);
     let out = gcs_out(&mut r);
     let mut reader = FrameReader::new();
     for f in &out {
@@ -87,7 +87,7 @@ fn ground_heartbeats_are_thinned_towards_the_radio() {
     });
     let mut sent = 0;
     for t in 0..20 {
-        r.handle_gcs_bytes(gcs.frame(&hb).as_bytes(), ms(t * 1000));
+        r.handle_gcs_bytes(ms(t * 1000), gcs.frame(&hb).as_bytes());
         while let Some(f) = r.poll_radio_transmit(ms(t * 1000), usize::MAX) {
             sent += usize::from(f.message_id() == ids::HEARTBEAT);
         }
@@ -105,13 +105,13 @@ fn premature_mission_retransmission_is_dropped() {
         target_system: 1,
         target_component: 1,
     });
-    r.handle_gcs_bytes(gcs.frame(&count).as_bytes(), ms(0));
-    r.handle_gcs_bytes(gcs.frame(&count).as_bytes(), ms(250));
+    r.handle_gcs_bytes(ms(0), gcs.frame(&count).as_bytes());
+    r.handle_gcs_bytes(ms(250), gcs.frame(&count).as_bytes());
     let radio: Vec<_> = std::iter::from_fn(|| r.poll_radio_transmit(ms(300), usize::MAX)).collect();
     assert_eq!(radio.len(), 1);
     assert_eq!(r.stats().mission_duplicates, 1);
     // after the timeout a retransmission is legitimate
-    r.handle_gcs_bytes(gcs.frame(&count).as_bytes(), ms(2000));
+    r.handle_gcs_bytes(ms(2000), gcs.frame(&count).as_bytes());
     assert!(r.poll_radio_transmit(ms(2000), usize::MAX).is_some());
     assert_eq!(known::message_name(44), Some("MISSION_COUNT"));
 }
@@ -132,12 +132,12 @@ fn item_requested_again_by_the_vehicle_is_not_a_duplicate() {
         target_system: 255,
         target_component: 190,
     });
-    r.handle_gcs_bytes(gcs.frame(&item).as_bytes(), ms(0));
+    r.handle_gcs_bytes(ms(0), gcs.frame(&item).as_bytes());
     // the ground's own early retry is dropped...
-    r.handle_gcs_bytes(gcs.frame(&item).as_bytes(), ms(100));
+    r.handle_gcs_bytes(ms(100), gcs.frame(&item).as_bytes());
     // ...but its answer to the vehicle's new request for item 3 goes
-    r.handle_radio_bytes(bridge.frame(&again).as_bytes(), ms(600));
-    r.handle_gcs_bytes(gcs.frame(&item).as_bytes(), ms(601));
+    r.handle_radio_bytes(ms(600), bridge.frame(&again).as_bytes());
+    r.handle_gcs_bytes(ms(601), gcs.frame(&item).as_bytes());
     let items = std::iter::from_fn(|| r.poll_radio_transmit(ms(700), usize::MAX))
         .filter(|f| f.message_id() == ids::MISSION_ITEM_INT)
         .count();
@@ -169,20 +169,20 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
         command: MavCmd::MAV_CMD_DO_SET_MODE,
         ..Default::default()
     });
-    r.handle_gcs_bytes(gcs.frame(&cmd).as_bytes(), ms(0));
+    r.handle_gcs_bytes(ms(0), gcs.frame(&cmd).as_bytes());
     assert_eq!(commands(&radio_out(&mut r, ms(0))), 1);
     // lost on the radio: resent after the initial 1 s timeout, not at the ground's 1.5 s
     assert_eq!(commands(&radio_out(&mut r, ms(999))), 0);
     assert_eq!(commands(&radio_out(&mut r, ms(1000))), 1);
     // the ground station's own retry is not sent again
-    r.handle_gcs_bytes(gcs.frame(&cmd).as_bytes(), ms(1500));
+    r.handle_gcs_bytes(ms(1500), gcs.frame(&cmd).as_bytes());
     assert_eq!(commands(&radio_out(&mut r, ms(1500))), 0);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
     let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_DO_SET_MODE,
         result: MavResult::MAV_RESULT_ACCEPTED,
     });
-    r.handle_radio_bytes(fc.frame(&ack).as_bytes(), ms(1700));
+    r.handle_radio_bytes(ms(1700), fc.frame(&ack).as_bytes());
     assert!(
         gcs_out(&mut r)
             .iter()

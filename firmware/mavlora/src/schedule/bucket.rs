@@ -47,16 +47,16 @@ impl TokenBucket {
         }
     }
 
-    /// Earliest time at which `bytes` can be taken (`now` if already), `None` if never (more
-    /// than the capacity, or zero rate).
-    pub fn ready_at(&mut self, bytes: usize, now: Instant) -> Option<Instant> {
-        self.refill(now);
+    /// Earliest time at which `bytes` can be taken, `None` if never (more than the capacity,
+    /// or zero rate). Does not refill: the answer is the same whenever it is asked, and a
+    /// time already past (the last refill) means "now".
+    pub fn ready_at(&self, bytes: usize) -> Option<Instant> {
         let need = (bytes as u64).saturating_mul(MICRO);
         if need > self.capacity_micro {
             return None;
         }
         if self.tokens_micro >= need {
-            return Some(now);
+            return Some(self.last);
         }
         if self.rate == 0 {
             return None;
@@ -77,10 +77,7 @@ mod tests {
         let mut b = TokenBucket::new(100, 50, Instant::ZERO);
         assert!(b.try_take(50, Instant::ZERO));
         assert!(!b.try_take(1, Instant::ZERO));
-        assert_eq!(
-            b.ready_at(10, Instant::ZERO),
-            Some(Instant::from_millis(100))
-        );
+        assert_eq!(b.ready_at(10), Some(Instant::from_millis(100)));
         assert!(!b.try_take(10, Instant::from_millis(99)));
         assert!(b.try_take(10, Instant::from_millis(100)));
         // a long pause refills only up to the capacity
@@ -90,7 +87,7 @@ mod tests {
 
     #[test]
     fn more_than_capacity_is_never_ready() {
-        let mut b = TokenBucket::new(100, 50, Instant::ZERO);
-        assert_eq!(b.ready_at(51, Instant::ZERO), None);
+        let b = TokenBucket::new(100, 50, Instant::ZERO);
+        assert_eq!(b.ready_at(51), None);
     }
 }

@@ -202,11 +202,11 @@ impl LinkScheduler {
         Some(frame)
     }
 
-    /// When the next queued frame fits the byte budget (`now` if it already does), `None` if
-    /// nothing is queued.
-    pub fn poll_timeout(&mut self, now: Instant) -> Option<Instant> {
+    /// When the next queued frame fits the byte budget (a time already past if it does now),
+    /// `None` if nothing is queued.
+    pub fn poll_timeout(&self) -> Option<Instant> {
         let len = self.head()?.as_bytes().len();
-        self.bucket.ready_at(len, now)
+        self.bucket.ready_at(len)
     }
 
     fn head(&self) -> Option<&OwnedFrame> {

@@ -1,8 +1,8 @@
 //! A ground station as the MAVLink mission protocol specifies it: heartbeats at 1 Hz, upload
 //! with a 1500 ms timeout and up to 5 retries of the last message sent.
 
+use crate::time::Duration;
 use std::collections::VecDeque;
-use std::time::Duration;
 
 use mavlink::MavlinkVersion;
 
@@ -341,7 +341,7 @@ impl GcsMock {
     }
 
     /// Bytes received from the vehicle side.
-    pub fn handle_bytes(&mut self, bytes: &[u8], now: Instant) {
+    pub fn handle_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.reader.push(bytes);
         while let Some(rx) = self.reader.next_frame() {
             *self.received.entry(rx.frame.message_id()).or_default() += 1;
@@ -404,7 +404,7 @@ impl GcsMock {
     /// Heartbeats and upload retries due at `now`.
     pub fn handle_timeout(&mut self, now: Instant) {
         if now >= self.next_heartbeat {
-            self.next_heartbeat = self.next_heartbeat + Duration::from_secs(1);
+            self.next_heartbeat += Duration::from_secs(1);
             self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
                 mavtype: MavType::MAV_TYPE_GCS,
                 autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,

@@ -1,7 +1,7 @@
 //! One direction of a radio: frames in, frames out later, some lost.
 
+use crate::time::Duration;
 use std::collections::VecDeque;
-use std::time::Duration;
 
 use super::rng::SplitMix64;
 use crate::time::Instant;

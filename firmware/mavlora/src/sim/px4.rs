@@ -2,8 +2,8 @@
 //! stream profile, `SET_MESSAGE_INTERVAL`, and mission upload with 250 ms item retries
 //! (PX4 issue #11078).
 
+use crate::time::Duration;
 use std::collections::VecDeque;
-use std::time::Duration;
 
 use mavlink::MavlinkVersion;
 
@@ -333,7 +333,7 @@ impl Px4Fc {
     }
 
     /// Bytes written to the flight controller.
-    pub fn handle_bytes(&mut self, bytes: &[u8], now: Instant) {
+    pub fn handle_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.reader.push(bytes);
         while let Some(rx) = self.reader.next_frame() {
             let from = (rx.frame.system_id(), rx.frame.component_id());
@@ -538,7 +538,7 @@ impl Px4Fc {
                 ..SYS_STATUS_DATA::default()
             }),
             24 => MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
-                time_usec: t.as_micros() as u64,
+                time_usec: t.as_micros(),
                 lat,
                 lon,
                 alt: 10_000 + rel_mm,

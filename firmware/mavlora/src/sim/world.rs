@@ -1,7 +1,7 @@
 //! The simulated chain and its virtual clock.
 
+use crate::time::Duration;
 use std::collections::BTreeMap;
-use std::time::Duration;
 
 use super::gcs::GcsMock;
 use super::link::{Link, LinkConfig};
@@ -84,8 +84,7 @@ impl World {
         }
     }
 
-    fn next_deadline(&mut self) -> Option<Instant> {
-        let now = self.now;
+    fn next_deadline(&self) -> Option<Instant> {
         let mut t = [
             self.fc.poll_timeout(),
             self.gcs.poll_timeout(),
@@ -95,11 +94,8 @@ impl World {
         .into_iter()
         .flatten()
         .min();
-        if let Path::Relay(b, r) = &mut self.path {
-            for d in [b.poll_timeout(now), r.poll_timeout(now)]
-                .into_iter()
-                .flatten()
-            {
+        if let Path::Relay(b, r) = &self.path {
+            for d in [b.poll_timeout(), r.poll_timeout()].into_iter().flatten() {
                 t = Some(t.map_or(d, |t| t.min(d)));
             }
         }
@@ -119,14 +115,14 @@ impl World {
         match &mut self.path {
             Path::Relay(b, r) => {
                 while let Some(f) = self.fc.poll_transmit() {
-                    b.handle_fc_bytes(f.as_bytes(), now);
+                    b.handle_fc_bytes(now, f.as_bytes());
                 }
                 while let Some(f) = self.down.receive(now) {
-                    b.handle_radio_bytes(&f, now);
+                    b.handle_radio_bytes(now, &f);
                 }
                 b.handle_timeout(now);
                 while let Some(f) = b.poll_fc_transmit(now) {
-                    self.fc.handle_bytes(f.as_bytes(), now);
+                    self.fc.handle_bytes(now, f.as_bytes());
                 }
                 while let Some(f) = b.poll_radio_transmit(now, usize::MAX) {
                     *self.up_bytes_by_id.entry(f.message_id()).or_default() +=
@@ -134,14 +130,14 @@ impl World {
                     self.up.send(f.as_bytes(), now);
                 }
                 while let Some(f) = self.up.receive(now) {
-                    r.handle_radio_bytes(&f, now);
+                    r.handle_radio_bytes(now, &f);
                 }
                 while let Some(f) = self.gcs.poll_transmit() {
-                    r.handle_gcs_bytes(f.as_bytes(), now);
+                    r.handle_gcs_bytes(now, f.as_bytes());
                 }
                 r.handle_timeout(now);
                 while let Some(f) = r.poll_gcs_transmit() {
-                    self.gcs.handle_bytes(f.as_bytes(), now);
+                    self.gcs.handle_bytes(now, f.as_bytes());
                 }
                 while let Some(f) = r.poll_radio_transmit(now, usize::MAX) {
                     self.down.send(f.as_bytes(), now);
@@ -154,13 +150,13 @@ impl World {
                     self.up.send(f.as_bytes(), now);
                 }
                 while let Some(f) = self.up.receive(now) {
-                    self.gcs.handle_bytes(&f, now);
+                    self.gcs.handle_bytes(now, &f);
                 }
                 while let Some(f) = self.gcs.poll_transmit() {
                     self.down.send(f.as_bytes(), now);
                 }
                 while let Some(f) = self.down.receive(now) {
-                    self.fc.handle_bytes(&f, now);
+                    self.fc.handle_bytes(now, &f);
                 }
             }
         }

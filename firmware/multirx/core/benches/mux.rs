@@ -60,7 +60,7 @@ fn main() {
             for (i, f) in frames.iter().enumerate() {
                 now += step;
                 mux.handle_receiver_bytes(now, (i % usize::from(n)) as u8, f);
-                if now >= mux.poll_timeout() {
+                if mux.poll_timeout().is_some_and(|due| now >= due) {
                     mux.handle_timeout(now);
                 }
                 if let Some(frame) = mux.poll_transmit() {

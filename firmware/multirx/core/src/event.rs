@@ -51,7 +51,7 @@ impl fmt::Display for Event {
 impl fmt::Display for TimedEvent {
     /// One status line, without its newline.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} {}", self.at.total_micros(), self.event)
+        write!(f, "{} {}", self.at.as_micros(), self.event)
     }
 }
 

@@ -9,7 +9,7 @@
 //! - [`board`]: how many UART inputs the board has ([`board::SAMD21_UARTS`]) and whether a config fits.
 //!
 //! The contract: no IO, no clock, no allocation, deterministic. Callers pass
-//! [`time::Instant`]s and move bytes; the same code runs in the SAMD21 firmware,
+//! [`time::Instant`]s (crate `timebase`, shared with MavLora and the radio model) and move bytes; the same code runs in the SAMD21 firmware,
 //! the emulated device on a host, and tests under a virtual clock.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![deny(unsafe_code)]
@@ -20,7 +20,8 @@ pub mod config;
 pub mod decoder;
 pub mod event;
 pub mod mux;
-pub mod time;
+/// Time as plain numbers: the house's one [`Instant`] and [`Duration`] (crate `timebase`).
+pub use timebase as time;
 pub mod wire;
 
 pub use config::{Config, Mode};

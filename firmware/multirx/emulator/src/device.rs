@@ -55,14 +55,15 @@ impl Device {
     }
 
     fn to_host(&self, t: Instant) -> HostInstant {
-        self.epoch + std::time::Duration::from_micros(t.total_micros())
+        self.epoch + std::time::Duration::from(t.since_epoch())
     }
 
     /// Runs until `stop` is set or every input and the stop flag are gone.
     pub fn run(&mut self, inputs: Receiver<Input>, stop: &AtomicBool) -> RunStats {
         self.flush();
         while !stop.load(Ordering::Relaxed) {
-            let deadline = self.to_host(self.mux.poll_timeout());
+            let due = self.mux.poll_timeout().expect("the output never stops");
+            let deadline = self.to_host(due);
             let wait = deadline
                 .saturating_duration_since(HostInstant::now())
                 // Wake now and then to notice `stop`.
@@ -99,7 +100,7 @@ impl Device {
     /// Handles due deadlines and sends what they produced.
     fn service(&mut self) {
         let now = self.to_core(HostInstant::now());
-        if now >= self.mux.poll_timeout() {
+        if self.mux.poll_timeout().is_some_and(|due| now >= due) {
             self.mux.handle_timeout(now);
         }
         self.flush();

@@ -106,7 +106,7 @@ fn run(args: Args) -> Result<()> {
     tracing::info!(
         mode = config.mode.as_str(),
         receivers = config.receivers,
-        period_ms = config.frame_period.total_millis(),
+        period_ms = config.frame_period.as_millis(),
         "MultiRX emulated device running"
     );
     hostio::realtime::request("engine");

@@ -267,7 +267,7 @@ fn main() -> ! {
             feed(&mut mux, &chunk[..len]);
         }
 
-        if now >= mux.poll_timeout() {
+        if mux.poll_timeout().is_some_and(|due| now >= due) {
             mux.handle_timeout(now);
         }
         while let Some(frame) = mux.poll_transmit() {
@@ -281,7 +281,7 @@ fn main() -> ! {
         drain(&mut fc_out, &mut fc_queue);
         drain(&mut status_out, &mut status_queue);
 
-        if now < mux.poll_timeout() {
+        if mux.poll_timeout().is_some_and(|due| now < due) {
             watchdog.feed();
         }
     }

@@ -49,9 +49,9 @@ pub struct ModeLimits {
 
 impl ModeLimits {
     pub fn new(mode: Mode, config: &Config) -> ModeLimits {
-        let period = config.frame_period.total_micros() as f64 / 1000.0;
-        let window = config.scan_window.total_micros() as f64 / 1000.0;
-        let silence = config.silence_timeout.total_micros() as f64 / 1000.0;
+        let period = config.frame_period.as_micros() as f64 / 1000.0;
+        let window = config.scan_window.as_micros() as f64 / 1000.0;
+        let silence = config.silence_timeout.as_micros() as f64 / 1000.0;
         let scan_bound = window * f64::from(config.receivers) + 500.0;
         let (handover_ms, handover_silent_ms) = match mode {
             Mode::Parallel => (50.0, 100.0),

@@ -22,6 +22,16 @@ fn secs(s: u64) -> Instant {
 
 /// Reader counters after: seq 0, 1, (2 lost), 3, one corrupted frame, 4 => 4 good, 1 lost
 /// (seq 4 follows 3; the corrupted one is not counted as a frame), 1 bad CRC.
+/// A report due at `now`: the timer, then the queue.
+fn due_report(
+    lq: &mut LinkQuality,
+    now: Instant,
+    stats: &ReaderStats,
+) -> Option<LINK_QUALITY_DATA> {
+    lq.handle_timeout(now, stats);
+    lq.poll_report()
+}
+
 fn stats() -> ReaderStats {
     let mut reader = FrameReader::new();
     for seq in [0, 1, 3] {
@@ -51,28 +61,25 @@ fn report(rx: u16, lost: u16) -> MavMessage {
 fn reports_our_counters_once_per_period() {
     let stats = stats();
     let mut lq = LinkQuality::new(config(), secs(10));
-    assert_eq!(lq.poll_timeout(), secs(11));
-    assert!(
-        lq.poll_report(Instant::from_millis(10_999), &stats)
-            .is_none()
-    );
-    let r = lq.poll_report(secs(11), &stats).unwrap();
+    assert_eq!(lq.poll_timeout(), Some(secs(11)));
+    assert!(due_report(&mut lq, Instant::from_millis(10_999), &stats).is_none());
+    let r = due_report(&mut lq, secs(11), &stats).unwrap();
     assert_eq!(
         (r.rx_packets, r.rx_lost, r.rx_bad_crc, r.time_boot_ms),
         (4, 1, 1, 1000)
     );
     assert_eq!((r.rssi, r.remote_rssi), (i8::MAX, i8::MAX), "unknown");
-    assert!(lq.poll_report(secs(11), &stats).is_none());
-    assert_eq!(lq.poll_timeout(), secs(12));
+    assert!(due_report(&mut lq, secs(11), &stats).is_none());
+    assert_eq!(lq.poll_timeout(), Some(secs(12)));
 }
 
 #[test]
 fn a_stall_gives_one_report_not_a_burst() {
     let stats = ReaderStats::default();
     let mut lq = LinkQuality::new(config(), secs(0));
-    assert!(lq.poll_report(secs(30), &stats).is_some());
-    assert!(lq.poll_report(secs(30), &stats).is_none());
-    assert_eq!(lq.poll_timeout(), secs(31));
+    assert!(due_report(&mut lq, secs(30), &stats).is_some());
+    assert!(due_report(&mut lq, secs(30), &stats).is_none());
+    assert_eq!(lq.poll_timeout(), Some(secs(31)));
 }
 
 #[test]
@@ -83,7 +90,7 @@ fn counters_wrap_at_16_bits() {
         while reader.next_frame().is_some() {}
     }
     let mut lq = LinkQuality::new(config(), secs(0));
-    let r = lq.poll_report(secs(1), reader.stats()).unwrap();
+    let r = due_report(&mut lq, secs(1), reader.stats()).unwrap();
     assert_eq!(r.rx_packets, (70_000 - 65_536) as u16);
 }
 
@@ -96,8 +103,8 @@ fn sik_radio_status_sets_rssi() {
     });
     let f = Sender::new(51, 68, MavlinkVersion::V1).frame(&status);
     let mut lq = LinkQuality::new(config(), secs(0));
-    lq.handle_frame(&f, secs(0));
-    let r = lq.poll_report(secs(1), &ReaderStats::default()).unwrap();
+    lq.handle_frame(secs(0), &f);
+    let r = due_report(&mut lq, secs(1), &ReaderStats::default()).unwrap();
     assert_eq!((r.rssi, r.remote_rssi), (-77, i8::MAX));
 
     let config = LinkQualityConfig {
@@ -105,10 +112,8 @@ fn sik_radio_status_sets_rssi() {
         ..config()
     };
     let mut ignoring = LinkQuality::new(config, secs(0));
-    ignoring.handle_frame(&f, secs(0));
-    let r = ignoring
-        .poll_report(secs(1), &ReaderStats::default())
-        .unwrap();
+    ignoring.handle_frame(secs(0), &f);
+    let r = due_report(&mut ignoring, secs(1), &ReaderStats::default()).unwrap();
     assert_eq!(r.rssi, i8::MAX);
 }
 
@@ -117,13 +122,13 @@ fn peer_loss_ratio_from_wrapping_counter_differences() {
     let mut sender = Sender::new(1, 191, MavlinkVersion::V2);
     let mut lq = LinkQuality::new(config(), secs(0));
     assert_eq!(lq.peer_state(secs(0)), PeerState::Unknown);
-    lq.handle_frame(&sender.frame(&report(65_530, 10)), secs(1));
+    lq.handle_frame(secs(1), &sender.frame(&report(65_530, 10)));
     assert_eq!(
         lq.peer_state(secs(1)),
         PeerState::Reporting { loss_ratio: None }
     );
     // +10 received (across the wrap), +10 lost
-    lq.handle_frame(&sender.frame(&report(4, 20)), secs(2));
+    lq.handle_frame(secs(2), &sender.frame(&report(4, 20)));
     assert_eq!(
         lq.peer_state(secs(2)),
         PeerState::Reporting {
@@ -152,10 +157,10 @@ fn air_and_ground_learn_what_the_other_hears() {
     let mut ground_reader = FrameReader::new();
 
     let air_hears = stats(); // 4 received, 1 lost, 1 bad CRC
-    let r = air.poll_report(secs(1), &air_hears).unwrap();
+    let r = due_report(&mut air, secs(1), &air_hears).unwrap();
     ground_reader.push(air_sender.frame(&MavMessage::LINK_QUALITY(r)).as_bytes());
     let received = ground_reader.next_frame().unwrap();
-    ground.handle_frame(&received.frame, secs(1));
+    ground.handle_frame(secs(1), &received.frame);
 
     let seen = &ground.peer().unwrap().report;
     assert_eq!((seen.rx_packets, seen.rx_lost, seen.rx_bad_crc), (4, 1, 1));

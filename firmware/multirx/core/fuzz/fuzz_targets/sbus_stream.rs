@@ -24,8 +24,7 @@ fuzz_target!(|data: &[u8]| {
         let (chunk, next) = tail.split_at(len);
         rest = next;
         now += Duration::from_micros(u64::from(head >> 2) * 250);
-        while mux.poll_timeout() <= now {
-            let due = mux.poll_timeout();
+        while let Some(due) = mux.poll_timeout().filter(|&due| due <= now) {
             mux.handle_timeout(due);
         }
         mux.handle_receiver_bytes(now, head % 4, chunk);

@@ -24,7 +24,7 @@ impl Config {
             writeln!(
                 out,
                 "    {name}: multirx_core::time::Duration::from_micros({}),",
-                d.total_micros()
+                d.as_micros()
             )?;
         }
         writeln!(out, "    acquire_frames: {},", self.acquire_frames)?;

@@ -165,19 +165,19 @@ impl Config {
         range("receivers", self.receivers.into(), 1, MAX_RECEIVERS as u32)?;
         range(
             "frame_period_ms",
-            self.frame_period.total_millis() as u32,
+            self.frame_period.as_millis() as u32,
             5,
             20,
         )?;
         range(
             "link.silence_timeout_ms",
-            self.silence_timeout.total_millis() as u32,
+            self.silence_timeout.as_millis() as u32,
             20,
             1000,
         )?;
         range(
             "link.scan_window_ms",
-            self.scan_window.total_millis() as u32,
+            self.scan_window.as_millis() as u32,
             200,
             10_000,
         )?;

@@ -183,17 +183,20 @@ impl Multiplexer {
         }
     }
 
-    /// The next time [`handle_timeout`](Self::handle_timeout) must be called.
-    pub fn poll_timeout(&self) -> Instant {
+    /// The next time [`handle_timeout`](Self::handle_timeout) must be called. Always `Some`
+    /// (the output never stops); an `Option` like every engine's, so drivers read alike.
+    pub fn poll_timeout(&self) -> Option<Instant> {
         let timeout = self.config.silence_timeout;
         let links = self.links[..usize::from(self.config.receivers)]
             .iter()
             .chain(core::iter::once(&self.ifs))
             .filter_map(|l| l.silence_deadline(timeout));
         let scan = self.scan.map(|s| s.until);
-        links
-            .chain(scan)
-            .fold(self.next_output, |earliest, t| earliest.min(t))
+        Some(
+            links
+                .chain(scan)
+                .fold(self.next_output, |earliest, t| earliest.min(t)),
+        )
     }
 
     /// The frame due for the flight controller, once per period.

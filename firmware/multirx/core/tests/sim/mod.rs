@@ -122,7 +122,7 @@ impl Sim {
                 .filter_map(|(i, r)| r.next_frame.map(|t| (t, i)))
                 .min();
             let next_cue = cues.peek().map(|c| c.at);
-            let deadline = self.mux.poll_timeout();
+            let deadline = self.mux.poll_timeout().expect("the output never stops");
             let mut t = deadline;
             if let Some((rt, _)) = next_rx {
                 t = t.min(rt);
@@ -150,7 +150,7 @@ impl Sim {
                     }
                 }
             }
-            if self.mux.poll_timeout() <= t {
+            if self.mux.poll_timeout().is_some_and(|due| due <= t) {
                 let before = self.mux.active();
                 self.mux.handle_timeout(t);
                 self.check_takeover(before);

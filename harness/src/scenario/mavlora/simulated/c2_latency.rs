@@ -5,7 +5,7 @@
 //! Latency: first copy sent → first ack received. A command given up (5 copies, no ack)
 //! counts as infinitely late, so it cannot hide in the percentiles.
 
-use std::time::Duration;
+use timebase::Duration;
 
 use anyhow::Result;
 use mavlora::Instant;

@@ -6,7 +6,7 @@
 //! or link-quality report) share one LoRa packet and its ~30 ms of preamble and header;
 //! positions are still sampled at 3 Hz, and reach the ground up to 1.5 s later.
 
-use std::time::Duration;
+use timebase::Duration;
 
 use anyhow::Result;
 use mavlora::Instant;

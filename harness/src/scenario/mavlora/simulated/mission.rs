@@ -14,7 +14,7 @@
 //! little and recovers a loss in 250 ms, sooner than the relay's timeout (RTT-following,
 //! at least 300 ms): there the relay is not faster, and the measurements show it.
 
-use std::time::Duration;
+use timebase::Duration;
 
 use anyhow::Result;
 use mavlora::Instant;

@@ -9,7 +9,7 @@
 //! preset's frequency is the paper's "range in an ideal world".
 
 use std::fmt::Write as _;
-use std::time::Duration;
+use timebase::Duration;
 
 use anyhow::{Context, Result};
 use mavlora::Instant;

@@ -258,7 +258,7 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
     let on_lora = [(Dimension::Radio, "lora_sf7")];
     assert_eq!(value(&ms, "duty_cycle_pct", &on_lora), coalesced.down_pct);
     // Each frame when ready: the airtime is that of one packet per frame.
-    let d = duty_cycle::measure_with(&radios, None, std::time::Duration::ZERO).unwrap();
+    let d = duty_cycle::measure_with(&radios, None, timebase::Duration::ZERO).unwrap();
     let lora = harness_radio::Preset::lora_sf7();
     let expected: f64 = d
         .down_sent

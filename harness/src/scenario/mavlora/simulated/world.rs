@@ -12,7 +12,7 @@
 //! (`*_received`): what crossed the radio.
 
 use std::collections::BTreeMap;
-use std::time::Duration;
+use timebase::Duration;
 
 use mavlora::Instant;
 use mavlora::bridge::{Bridge, BridgeConfig};
@@ -142,16 +142,6 @@ pub struct SimWorld {
     steps: u64,
 }
 
-/// mavlora time → radio time.
-pub fn to_duration(t: Instant) -> Duration {
-    Duration::from_micros(t.as_micros())
-}
-
-/// Radio time → mavlora time, rounded up so a deadline is never run early.
-pub fn to_instant(d: Duration) -> Instant {
-    Instant::from_micros(d.as_nanos().div_ceil(1000) as u64)
-}
-
 impl SimWorld {
     /// A world with `fc`, a fresh ground station, the MavLora engines if `mavlora` is given
     /// (bridge and router configuration) and `radio` as the carrier (`None`: an ideal wire).
@@ -230,8 +220,7 @@ impl SimWorld {
         self.steps
     }
 
-    fn next_deadline(&mut self) -> Option<Instant> {
-        let now = self.now;
+    fn next_deadline(&self) -> Option<Instant> {
         let mut t = [self.fc.poll_timeout(), self.gcs.poll_timeout()]
             .into_iter()
             .flatten()
@@ -241,12 +230,12 @@ impl SimWorld {
                 t = Some(t.map_or(d, |t| t.min(d)));
             }
         };
-        if let Relay::MavLora(b, r) = &mut self.relay {
-            fold(b.poll_timeout(now));
-            fold(r.poll_timeout(now));
+        if let Relay::MavLora(b, r) = &self.relay {
+            fold(b.poll_timeout());
+            fold(r.poll_timeout());
         }
         if let Carrier::Radio(radio) = &self.carrier {
-            fold(radio.poll_timeout().map(to_instant));
+            fold(radio.poll_timeout());
         }
         t
     }
@@ -260,7 +249,6 @@ impl SimWorld {
         self.now = next.max(self.now + Duration::from_micros(1));
         self.steps += 1;
         let now = self.now;
-        let at = to_duration(now);
         self.fc.handle_timeout(now);
         self.gcs.handle_timeout(now);
 
@@ -268,7 +256,8 @@ impl SimWorld {
         let mut down: Vec<Vec<u8>> = Vec::new();
         let mut arrived = Vec::new();
         if let Carrier::Radio(radio) = &mut self.carrier {
-            while let Some(bytes) = radio.poll_output(at, Direction::Uplink) {
+            radio.handle_timeout(now);
+            while let Some(bytes) = radio.poll_output(Direction::Uplink) {
                 arrived.push(bytes);
             }
         }
@@ -279,11 +268,11 @@ impl SimWorld {
         match &mut self.relay {
             Relay::MavLora(b, _) => {
                 while let Some(f) = self.fc.poll_transmit() {
-                    b.handle_fc_bytes(f.as_bytes(), now);
+                    b.handle_fc_bytes(now, f.as_bytes());
                 }
                 b.handle_timeout(now);
                 while let Some(f) = b.poll_fc_transmit(now) {
-                    self.fc.handle_bytes(f.as_bytes(), now);
+                    self.fc.handle_bytes(now, f.as_bytes());
                 }
                 while let Some(f) = b.poll_radio_transmit(now, usize::MAX) {
                     self.down_sent.add(f.message_id(), f.as_bytes().len());
@@ -308,10 +297,10 @@ impl SimWorld {
             }
             Carrier::Radio(radio) => {
                 for bytes in &down {
-                    radio.handle_input(at, Direction::Downlink, bytes);
+                    radio.handle_input(now, Direction::Downlink, bytes);
                 }
                 let mut delivered = Vec::new();
-                while let Some(bytes) = radio.poll_output(at, Direction::Downlink) {
+                while let Some(bytes) = radio.poll_output(Direction::Downlink) {
                     delivered.push(bytes);
                 }
                 for bytes in &delivered {
@@ -326,11 +315,11 @@ impl SimWorld {
         match &mut self.relay {
             Relay::MavLora(_, r) => {
                 while let Some(f) = self.gcs.poll_transmit() {
-                    r.handle_gcs_bytes(f.as_bytes(), now);
+                    r.handle_gcs_bytes(now, f.as_bytes());
                 }
                 r.handle_timeout(now);
                 while let Some(f) = r.poll_gcs_transmit() {
-                    self.gcs.handle_bytes(f.as_bytes(), now);
+                    self.gcs.handle_bytes(now, f.as_bytes());
                 }
                 while let Some(f) = r.poll_radio_transmit(now, usize::MAX) {
                     self.up_sent.add(f.message_id(), f.as_bytes().len());
@@ -355,7 +344,7 @@ impl SimWorld {
             }
             Carrier::Radio(radio) => {
                 for bytes in &up {
-                    radio.handle_input(at, Direction::Uplink, bytes);
+                    radio.handle_input(now, Direction::Uplink, bytes);
                 }
             }
         }
@@ -363,15 +352,15 @@ impl SimWorld {
 
     fn air_input(&mut self, bytes: &[u8], now: Instant) {
         match &mut self.relay {
-            Relay::MavLora(b, _) => b.handle_radio_bytes(bytes, now),
-            Relay::Transparent => self.fc.handle_bytes(bytes, now),
+            Relay::MavLora(b, _) => b.handle_radio_bytes(now, bytes),
+            Relay::Transparent => self.fc.handle_bytes(now, bytes),
         }
     }
 
     fn ground_input(&mut self, bytes: &[u8], now: Instant) {
         match &mut self.relay {
-            Relay::MavLora(_, r) => r.handle_radio_bytes(bytes, now),
-            Relay::Transparent => self.gcs.handle_bytes(bytes, now),
+            Relay::MavLora(_, r) => r.handle_radio_bytes(now, bytes),
+            Relay::Transparent => self.gcs.handle_bytes(now, bytes),
         }
     }
 
