@@ -38,13 +38,15 @@ impl Duration {
         }
     }
 
-    /// `secs` seconds, rounded to the nearest microsecond (so decimal settings such as
-    /// 0.1184 s come out exact); negative and NaN give zero, too large saturates.
+    /// `secs` seconds, truncated to whole microseconds after `core::time::Duration`'s
+    /// conversion to nanoseconds (so decimal settings such as 0.1184 s come out exact, and
+    /// a period of 1/6 s is what engines got before by adding a `core` duration to an
+    /// instant); negative and NaN give zero, too large saturates.
     pub fn from_secs_f64(secs: f64) -> Self {
-        let micros = secs * 1e6;
-        // `as` saturates and maps NaN to 0; round half up by hand (no `f64::round` in core).
-        Duration {
-            micros: (micros + 0.5) as u64,
+        match core::time::Duration::try_from_secs_f64(secs) {
+            Ok(d) => Duration::from(d),
+            Err(_) if secs > 0.0 => Duration::MAX,
+            Err(_) => Duration::ZERO,
         }
     }
 
@@ -68,11 +70,6 @@ impl Duration {
         self.micros as f64 / 1e6
     }
 
-    /// Milliseconds.
-    pub fn as_millis_f64(self) -> f64 {
-        self.micros as f64 / 1e3
-    }
-
     /// Whether this is no time at all.
     pub const fn is_zero(self) -> bool {
         self.micros == 0
@@ -91,12 +88,6 @@ impl Duration {
         Duration {
             micros: self.micros.abs_diff(other.micros),
         }
-    }
-
-    /// `self * factor`, rounded to the nearest microsecond (saturating, like
-    /// [`from_secs_f64`](Self::from_secs_f64)).
-    pub fn mul_f64(self, factor: f64) -> Duration {
-        Duration::from_secs_f64(self.as_secs_f64() * factor)
     }
 }
 
@@ -213,19 +204,19 @@ mod tests {
     }
 
     #[test]
-    fn floats_round_to_the_nearest_microsecond() {
-        // 0.1184 * 1e6 is 118399.99999999999 in f64: truncation would lose a microsecond.
+    fn floats_are_exact_for_decimals_and_truncate_the_rest() {
+        // 0.1184 * 1e6 is 118399.99999999999 in f64; via nanoseconds it stays exact.
         assert_eq!(
             Duration::from_secs_f64(0.1184),
             Duration::from_micros(118_400)
         );
+        assert_eq!(
+            Duration::from_secs_f64(1.0 / 6.0),
+            Duration::from_micros(166_666)
+        );
         assert_eq!(Duration::from_secs_f64(-1.0), Duration::ZERO);
         assert_eq!(Duration::from_secs_f64(f64::NAN), Duration::ZERO);
         assert_eq!(Duration::from_secs_f64(1e300), Duration::MAX);
-        assert_eq!(
-            Duration::from_millis(10).mul_f64(0.25),
-            Duration::from_micros(2_500)
-        );
     }
 
     #[test]
