@@ -10,13 +10,13 @@ use std::time::Instant as WallInstant;
 
 use mavlora::Duration;
 
+use harness_sim::{Direction, PX4_NORMAL, Px4Fc, World};
 use mavlora::Instant;
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::router::RouterConfig;
 use mavlora::schedule::SchedulerConfig;
-use mavlora::sim::{LinkConfig, PX4_NORMAL, Px4Fc, World};
 use mavlora::wire::FrameReader;
 
 const PROFILES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles/");
@@ -83,19 +83,16 @@ fn bridge_path(profile: &str, compact: bool) -> impl FnMut(Instant, &[u8]) {
     }
 }
 
+/// Bytes the bridge hands to an ideal wire towards the ground, per second.
 fn radio_rate(profile: &str, compact: bool) -> f64 {
-    let fast = LinkConfig {
-        latency: Duration::from_millis(1),
-        bytes_per_s: 1_000_000,
-        loss: 0.0,
-    };
     let mut b = BridgeConfig::new(Profile::parse(profile, "bench").unwrap(), wide());
     b.compact = compact.then(CompactConfig::default);
-    let mut w = World::relay(b, RouterConfig::new(wide()), PX4_NORMAL, fast, fast, 3);
+    let fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, 3);
+    let mut w = World::new(fc, Some((b, RouterConfig::new(wide()))), None).unwrap();
     w.run_until(Instant::from_millis(10_000));
-    let before: u64 = w.up_bytes_by_id.values().sum();
+    let before = w.sent(Direction::Downlink).total_bytes();
     w.run_until(Instant::from_millis(130_000));
-    let after: u64 = w.up_bytes_by_id.values().sum();
+    let after = w.sent(Direction::Downlink).total_bytes();
     (after - before) as f64 / 120.0
 }
 

@@ -20,8 +20,6 @@
 //! - [`command`]: the command relay: the router resends commands over the radio on a
 //!   measured round-trip timeout, the bridge answers copies from its ack cache.
 //! - [`signing`]: MAVLink 2 signing of the radio link, replay rejection.
-//! - [`sim`]: a deterministic virtual-clock world (PX4-like flight controller, ground
-//!   station, lossy radio) for tests and benchmarks.
 //! - `io` (feature `cli`): the binaries' serial, UDP and `.tlog` driver — the only code here
 //!   that does IO or reads a clock.
 //! - [`dialect`]: the generated MavLora dialect, `common.xml` plus `LINK_QUALITY` (15),
@@ -48,7 +46,6 @@ pub mod quality;
 pub mod router;
 pub mod schedule;
 pub mod signing;
-pub mod sim;
 /// Time as plain values: the house's one [`Instant`] and [`Duration`] (crate `timebase`,
 /// shared with MultiRX and the radio model); the IO driver converts at the edge.
 pub use timebase as time;

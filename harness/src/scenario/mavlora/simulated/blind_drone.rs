@@ -10,15 +10,15 @@
 //! of the noise starting.
 
 use anyhow::Result;
+use harness_sim::profiles::PX4_COMPACT_TOML;
+use harness_sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 use mavlora::Instant;
-use mavlora::sim::profiles::PX4_COMPACT_TOML;
-use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 
-use super::world::{Carrier, SimWorld, secs};
 use super::{Radios, Scenario, Script, mavlora_configs, spec};
 use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::{Direction, LinkBudget};
+use harness_sim::{Carrier, World, secs};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "blind_drone",
@@ -80,13 +80,13 @@ pub fn detect(radios: &Radios) -> Result<Detection> {
     let fc =
         Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(Route::PAPER));
     let mavlora = mavlora_configs(PX4_COMPACT_TOML, "px4-compact.toml", true, Some(&preset))?;
-    let mut w = SimWorld::new(fc, Some(mavlora), Some(&setup))?;
+    let mut w = World::new(fc, Some(mavlora), Some(&setup))?;
     let mut last_seen: Option<Instant> = None;
     let mut views = Vec::new();
     let mut before = 0.0f64;
     // The router's view of the bridge's latest report: the share of the router's frames the
     // bridge lost between its previous report and this one (`PeerReport::loss_ratio`).
-    let mut follow = |w: &SimWorld| -> Option<f64> {
+    let mut follow = |w: &World| -> Option<f64> {
         let peer = w.router()?.quality().peer()?;
         if last_seen == Some(peer.received_at) {
             return None;

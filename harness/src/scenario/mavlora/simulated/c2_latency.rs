@@ -8,15 +8,15 @@
 use timebase::Duration;
 
 use anyhow::Result;
+use harness_sim::profiles::PX4_COMPACT_TOML;
+use harness_sim::{CommandPlan, CommandStats, Flight, PX4_NORMAL, Px4Fc, Route};
 use mavlora::Instant;
-use mavlora::sim::profiles::PX4_COMPACT_TOML;
-use mavlora::sim::{CommandPlan, CommandStats, Flight, PX4_NORMAL, Px4Fc, Route};
 
-use super::world::{SimWorld, secs};
 use super::{Radios, Scenario, Script, mavlora_configs, quantile, spec};
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::Direction;
+use harness_sim::{World, secs};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "c2_latency",
@@ -69,7 +69,7 @@ pub fn measure_with(
     if let Some(n) = router_attempts {
         mavlora.1.command_attempts = n;
     }
-    let mut w = SimWorld::new(fc, Some(mavlora), Some(&setup))?;
+    let mut w = World::new(fc, Some(mavlora), Some(&setup))?;
     w.run_until(secs(WARM_UP_S));
     w.gcs.start_commands(plan, w.now);
     // Worst case per command: every copy lost, then the pause.

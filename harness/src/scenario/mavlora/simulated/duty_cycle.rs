@@ -9,15 +9,15 @@
 use timebase::Duration;
 
 use anyhow::Result;
+use harness_sim::profiles::PX4_COMPACT_TOML;
+use harness_sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 use mavlora::Instant;
-use mavlora::sim::profiles::PX4_COMPACT_TOML;
-use mavlora::sim::{Flight, PX4_NORMAL, Px4Fc, Route};
 
-use super::world::{Counts, SimWorld};
 use super::{Radios, Scenario, Script, mavlora_configs, spec};
 use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::{Direction, LinkStats};
+use harness_sim::{Counts, World};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "duty_cycle",
@@ -57,7 +57,7 @@ pub struct Duty {
     /// The radio's counters, GCS→UAV.
     pub up: LinkStats,
     /// Frames the bridge handed to the radio.
-    pub down_sent: Counts,
+    pub downlink_sent: Counts,
     /// Flight time, s.
     pub flight_s: f64,
 }
@@ -89,7 +89,7 @@ pub fn measure_with(
     if let Some(c) = &mut mavlora.0.compact {
         c.coalesce = coalesce;
     }
-    let mut w = SimWorld::new(fc, Some(mavlora), Some(&setup))?;
+    let mut w = World::new(fc, Some(mavlora), Some(&setup))?;
     w.run_until(Instant::ZERO + route.duration());
     let flight = route.duration().as_secs_f64();
     let down = w.link_stats(Direction::Downlink).unwrap_or_default();
@@ -100,7 +100,7 @@ pub fn measure_with(
         up_pct: pct(&up),
         down,
         up,
-        down_sent: w.down_sent.clone(),
+        downlink_sent: w.sent(Direction::Downlink).clone(),
         flight_s: flight,
     })
 }
@@ -109,7 +109,7 @@ fn run(ctx: &mut PhaseContext, radios: &Radios, down: Handle, up: Handle) -> Res
     let d = measure(radios)?;
     ctx.record(down, d.down_pct);
     ctx.record(up, d.up_pct);
-    let bytes_per_s = d.down_sent.total_bytes() as f64 / d.flight_s;
+    let bytes_per_s = d.downlink_sent.total_bytes() as f64 / d.flight_s;
     ctx.annotate(
         down,
         &format!(

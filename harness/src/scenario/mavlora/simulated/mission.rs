@@ -17,18 +17,18 @@
 use timebase::Duration;
 
 use anyhow::Result;
+use harness_sim::profiles::PX4_COMPACT_TOML;
+use harness_sim::{Flight, GcsMock, PX4_NORMAL, Px4Fc, Route};
 use mavlora::Instant;
 use mavlora::dialect::MavMissionResult;
 use mavlora::filter::Profile;
-use mavlora::sim::profiles::PX4_COMPACT_TOML;
-use mavlora::sim::{Flight, GcsMock, PX4_NORMAL, Px4Fc, Route};
 use mavlora::wire::ids;
 
-use super::world::{Counts, SimWorld, secs};
 use super::{Radios, Scenario, Script, mavlora_configs, spec};
 use crate::measurement::{Declarations, Dimension, Handle, RELAY};
 use crate::scenario::PhaseContext;
 use harness_radio::{Direction, LinkStats, RadioSetup};
+use harness_sim::{Counts, World, secs};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "mission_upload",
@@ -157,10 +157,11 @@ pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload
         );
         None
     };
-    let mut w = SimWorld::new(fc, mavlora, Some(setup))?;
+    let mut w = World::new(fc, mavlora, Some(setup))?;
     w.run_until(secs(WARM_UP_S));
     let start = w.now;
-    let (down0, up0) = (w.down_sent.clone(), w.up_sent.clone());
+    let downlink0 = w.sent(Direction::Downlink).clone();
+    let uplink0 = w.sent(Direction::Uplink).clone();
     let air0 = airtime(&w);
     let items = GcsMock::mission(ITEMS);
     w.gcs.upload(items.clone(), start);
@@ -173,13 +174,14 @@ pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload
     let stored = w.fc.mission() == &items[..];
     let accepted = matches!(result, Some((MavMissionResult::MAV_MISSION_ACCEPTED, _)));
     let mission = |now: &Counts, then: &Counts| now.since(then).bytes_of(&MISSION_IDS);
-    let mission_bytes = mission(&w.down_sent, &down0) + mission(&w.up_sent, &up0);
+    let mission_bytes = mission(w.sent(Direction::Downlink), &downlink0)
+        + mission(w.sent(Direction::Uplink), &uplink0);
     let used = airtime(&w) - air0;
     // The average item frame as sent (v2 truncates trailing zeros, so lengths vary a little).
-    let up = w.up_sent.since(&up0);
-    let item_len = match up.frames_of(&[73]) {
+    let uplink = w.sent(Direction::Uplink).since(&uplink0);
+    let item_len = match uplink.frames_of(&[73]) {
         0 => 0,
-        n => (up.bytes_of(&[73]) as f64 / n as f64).round() as usize,
+        n => (uplink.bytes_of(&[73]) as f64 / n as f64).round() as usize,
     };
     let needed = preset.time_on_air(item_len) * u32::from(ITEMS);
     let duplicate_items = w.fc.stats().duplicate_items;
@@ -202,7 +204,7 @@ pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload
     })
 }
 
-fn airtime(w: &SimWorld) -> Duration {
+fn airtime(w: &World) -> Duration {
     [Direction::Downlink, Direction::Uplink]
         .into_iter()
         .filter_map(|d| w.link_stats(d))

@@ -1,7 +1,7 @@
 //! MavLora's full-length reproductions of the paper (issue 4, the in-process
 //! half): the real bridge and router engines, the simulated PX4 and ground
-//! station of `mavlora::sim`, and the rig's radio model between them, under a
-//! virtual clock ([`world::SimWorld`]). An 8.5-minute flight costs seconds, and
+//! station, and the rig's radio model between them, under a virtual clock: the
+//! one world of crate `harness-sim` ([`harness_sim::World`]). An 8.5-minute flight costs seconds, and
 //! a seed gives the same numbers every time.
 //!
 //! One file per scenario: [`table_ii`] (bytes and messages per second per
@@ -47,19 +47,18 @@ pub mod duty_cycle;
 pub mod mission;
 pub mod sweep;
 pub mod table_ii;
-pub mod world;
 
 use anyhow::{Context, Result};
 use mavlora::bridge::BridgeConfig;
 use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::router::RouterConfig;
-use mavlora::schedule::SchedulerConfig;
 use serde::{Deserialize, Serialize};
 
 use super::super::PhaseContext;
 use crate::measurement::{Declarations, Dimension, SIMULATED, Spec};
-use harness_radio::{Access, GilbertElliott, LinkConfig, Preset, RadioSetup};
+use harness_radio::{GilbertElliott, LinkConfig, Preset, RadioSetup};
+pub use harness_sim::{direction_capacity, scheduler_for};
 
 /// One scenario: its measurements (with built-in limits) and its script.
 pub struct Scenario {
@@ -231,37 +230,6 @@ pub fn mix(a: u64, b: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
-}
-
-/// Serial bytes per second one direction of `preset` can carry at best: full packets in its
-/// share of the channel (its TDM windows, or half of a half-duplex channel).
-pub fn direction_capacity(preset: &Preset) -> f64 {
-    let share = match preset.access {
-        Access::Tdm(t) => t.window_ms / (2.0 * (t.window_ms + t.silence_ms)),
-        Access::Burst(_) => 0.5,
-    };
-    share * preset.max_data_rate()
-}
-
-/// The bridge's and router's byte budget for a radio: 80 % of one direction's capacity, so
-/// the radio's buffer does not overflow under the budget; `None`: an ideal wire (a budget
-/// that never binds).
-pub fn scheduler_for(preset: Option<&Preset>) -> SchedulerConfig {
-    match preset {
-        Some(p) => {
-            let rate = (0.8 * direction_capacity(p)) as u32;
-            SchedulerConfig {
-                rate_bytes_per_s: rate,
-                burst_bytes: (2 * p.max_payload) as u32,
-                max_queued_bytes: 8 * p.max_payload,
-            }
-        }
-        None => SchedulerConfig {
-            rate_bytes_per_s: 1_000_000,
-            burst_bytes: 100_000,
-            max_queued_bytes: 1_000_000,
-        },
-    }
 }
 
 /// Bridge and router settings for a profile (text), compact telemetry on or off, over a

@@ -12,16 +12,16 @@ use std::fmt::Write as _;
 use timebase::Duration;
 
 use anyhow::{Context, Result};
+use harness_sim::{Px4Fc, StreamSpec};
 use mavlora::Instant;
-use mavlora::sim::{Px4Fc, StreamSpec};
 use mavlora::wire::ids;
 
-use super::world::{SimWorld, secs};
 use super::{Radios, Scenario, Script, evidence_dir, spec};
 use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::loss::free_space_range_km;
-use harness_radio::{LinkBudget, PathLoss, Preset, RadioSetup};
+use harness_radio::{Direction, LinkBudget, PathLoss, Preset, RadioSetup};
+use harness_sim::{World, secs};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "attenuation_sweep",
@@ -128,7 +128,7 @@ pub fn step(radios: &Radios, setup: &RadioSetup, db: f64) -> Result<Step> {
         ..s.downlink.budget
     };
     let fc = Px4Fc::new(SOURCE, Instant::ZERO, radios.seed);
-    let mut w = SimWorld::new(fc, None, Some(&s))?;
+    let mut w = World::new(fc, None, Some(&s))?;
     let end = secs(f64::from(MESSAGES_PER_STEP) / 2.0);
     let mut arrivals: Vec<Instant> = Vec::new();
     let mut seen = 0;
@@ -162,7 +162,7 @@ pub fn step(radios: &Radios, setup: &RadioSetup, db: f64) -> Result<Step> {
     };
     Ok(Step {
         attenuation_db: db,
-        sent: w.down_sent.frames_of(&[ids::HEARTBEAT]),
+        sent: w.sent(Direction::Downlink).frames_of(&[ids::HEARTBEAT]),
         received: w.gcs.received.get(&ids::HEARTBEAT).copied().unwrap_or(0),
         mean_period_ms: mean,
         max_period_ms: gaps.iter().copied().fold(f64::NAN, f64::max),

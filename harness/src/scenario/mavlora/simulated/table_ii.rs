@@ -13,15 +13,15 @@
 //! radio lets through.
 
 use anyhow::Result;
+use harness_sim::profiles::{PX4_COMPACT_TOML, PX4_NORMAL_TOML, stream_only};
+use harness_sim::{Flight, PX4_CONFIG, Px4Fc, Route};
 use mavlora::Instant;
-use mavlora::sim::profiles::{PX4_COMPACT_TOML, PX4_NORMAL_TOML, stream_only};
-use mavlora::sim::{Flight, PX4_CONFIG, Px4Fc, Route};
 
-use super::world::SimWorld;
 use super::{Radios, Scenario, Script, mavlora_configs, spec};
 use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
-use harness_radio::{Preset, RadioSetup};
+use harness_radio::{Direction, Preset, RadioSetup};
+use harness_sim::World;
 
 pub const SCENARIO: Scenario = Scenario {
     name: "table_ii",
@@ -193,16 +193,16 @@ pub fn fly(radios: &Radios, variant: &'static str) -> Result<Row> {
     } else {
         radio.as_ref()
     };
-    let mut w = SimWorld::new(fc, mavlora, carrier)?;
+    let mut w = World::new(fc, mavlora, carrier)?;
     let end = Instant::ZERO + route.duration();
     w.run_until(end);
     let flight_s = route.duration().as_secs_f64();
     Ok(Row {
         variant,
         flight_s,
-        msgs_per_s: w.down_sent.total_frames() as f64 / flight_s,
-        bytes_per_s: w.down_sent.total_bytes() as f64 / flight_s,
-        received_msgs: w.down_received().total_frames(),
+        msgs_per_s: w.sent(Direction::Downlink).total_frames() as f64 / flight_s,
+        bytes_per_s: w.sent(Direction::Downlink).total_bytes() as f64 / flight_s,
+        received_msgs: w.received(Direction::Downlink).total_frames(),
         steps: w.steps(),
     })
 }

@@ -1,7 +1,7 @@
 use std::path::Path;
 use std::time::Instant as Wall;
 
-use mavlora::sim::PX4_CONFIG;
+use harness_sim::PX4_CONFIG;
 
 use super::*;
 use crate::measurement::{Dimension, Measurement, Outcome, RELAY, Selector};
@@ -217,7 +217,7 @@ fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
     assert!(stats.started >= c2_latency::COMMANDS);
     assert!(lat.iter().all(|l| l.is_finite()), "a command was given up");
     let (lat, _) =
-        c2_latency::measure_with(&radios, mavlora::sim::CommandPlan::default(), Some(1)).unwrap();
+        c2_latency::measure_with(&radios, harness_sim::CommandPlan::default(), Some(1)).unwrap();
     let p99_ground_only = quantile(&lat, 0.99);
     assert!(
         (3000.0..3500.0).contains(&p99_ground_only),
@@ -261,18 +261,18 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
     let d = duty_cycle::measure_with(&radios, None, timebase::Duration::ZERO).unwrap();
     let lora = harness_radio::Preset::lora_sf7();
     let expected: f64 = d
-        .down_sent
+        .downlink_sent
         .frames
         .iter()
         .map(|(id, n)| {
-            let len = d.down_sent.bytes[id] as f64 / *n as f64;
+            let len = d.downlink_sent.bytes[id] as f64 / *n as f64;
             *n as f64 * lora.time_on_air(len.round() as usize).as_secs_f64()
         })
         .sum::<f64>()
         / d.flight_s
         * 100.0;
     // one frame per packet, but for the odd two that left within the radio's 5 ms idle time
-    let frames = d.down_sent.total_frames();
+    let frames = d.downlink_sent.total_frames();
     assert!(d.down.packets_sent <= frames && d.down.packets_sent * 100 >= frames * 99);
     assert!(
         (d.down_pct - expected).abs() < 0.05 * expected,
@@ -281,10 +281,11 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
     );
     assert!((10.0..13.0).contains(&d.down_pct), "{}", d.down_pct);
     // Coalesced for 1.5 s: the same bytes in about one packet per two batches, under 10 %.
-    let same_bytes = coalesced.down_sent.total_bytes() as f64 / d.down_sent.total_bytes() as f64;
+    let same_bytes =
+        coalesced.downlink_sent.total_bytes() as f64 / d.downlink_sent.total_bytes() as f64;
     assert!((0.97..1.03).contains(&same_bytes), "{same_bytes}");
     let batches = coalesced
-        .down_sent
+        .downlink_sent
         .frames
         .get(&mavlora::wire::ids::MAVLORA_POSITION_BATCH)
         .copied()

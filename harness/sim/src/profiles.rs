@@ -2,10 +2,12 @@
 //! working directory.
 
 /// `profiles/px4-normal.toml`: the paper's limiting and filtering.
-pub const PX4_NORMAL_TOML: &str = include_str!("../../profiles/px4-normal.toml");
+pub const PX4_NORMAL_TOML: &str =
+    include_str!("../../../firmware/mavlora/profiles/px4-normal.toml");
 
 /// `profiles/px4-compact.toml`: for compact telemetry.
-pub const PX4_COMPACT_TOML: &str = include_str!("../../profiles/px4-compact.toml");
+pub const PX4_COMPACT_TOML: &str =
+    include_str!("../../../firmware/mavlora/profiles/px4-compact.toml");
 
 /// A profile with only its `stream_hz` lines: stream limiting at the flight controller, no
 /// radio filtering (the paper's "gcs fc limit" run).
@@ -20,7 +22,7 @@ pub fn stream_only(profile: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::Profile;
+    use mavlora::filter::Profile;
 
     #[test]
     fn built_in_profiles_parse_and_stream_only_keeps_no_radio_rule() {

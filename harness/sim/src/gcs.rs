@@ -1,18 +1,18 @@
 //! A ground station as the MAVLink mission protocol specifies it: heartbeats at 1 Hz, upload
 //! with a 1500 ms timeout and up to 5 retries of the last message sent.
 
-use crate::time::Duration;
+use mavlora::Duration;
 use std::collections::VecDeque;
 
 use mavlink::MavlinkVersion;
 
-use crate::dialect::{
+use mavlora::Instant;
+use mavlora::dialect::{
     COMMAND_LONG_DATA, HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA,
     MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA,
     MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionResult, MavType,
 };
-use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, Sender};
+use mavlora::wire::{FrameReader, OwnedFrame, Sender};
 
 /// A mission download in progress.
 #[derive(Debug)]

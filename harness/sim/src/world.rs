@@ -1,27 +1,27 @@
-//! A virtual-clock world for the MavLora reproductions: the simulated PX4
-//! ([`Px4Fc`]), optionally the real bridge and router engines, the rig's radio
-//! model ([`Radio`]) or an ideal wire between air and ground, and the
-//! simulated ground station ([`GcsMock`]). Like `mavlora::sim::World`, the
-//! clock jumps to the earliest deadline of any part, so a 513 s flight costs
-//! what its events cost, not 513 s; everything random is seeded, so a run is
-//! the same for the same seed.
+//! The virtual-clock world: a simulated flight controller (any [`Autopilot`],
+//! [`Px4Fc`] by default), optionally the real bridge and router engines
+//! ([`Relay`]), the radio model ([`Radio`]) or an ideal wire between air and
+//! ground ([`Carrier`]), and the simulated ground station ([`GcsMock`]). The
+//! clock jumps to the earliest deadline of any part (after quinn-proto's test
+//! pair), so a 513 s flight costs what its events cost, not 513 s; everything
+//! random is seeded, so a run is the same for the same seed.
 //!
 //! Counting happens where the brief's questions are asked: frames (by
-//! message id) and bytes handed to the carrier on each side (`*_sent`), and
-//! frames parsed out of what the carrier delivered on the far side
-//! (`*_received`): what crossed the radio.
+//! message id) and bytes handed to the carrier per [`Direction`]
+//! ([`World::sent`]), and frames parsed out of what the carrier delivered on
+//! the far side ([`World::received`]): what crossed the radio.
 
 use std::collections::BTreeMap;
-use timebase::Duration;
 
-use mavlora::Instant;
+use harness_radio::{ConfigError, Direction, LinkStats, Radio, RadioSetup};
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::ScheduleError;
-use mavlora::sim::{GcsMock, Px4Fc};
 use mavlora::wire::FrameReader;
+use mavlora::{Duration, Instant};
 
-use harness_radio::{ConfigError, Direction, LinkStats, Radio, RadioSetup};
+use crate::autopilot::{Autopilot, Px4Fc};
+use crate::gcs::GcsMock;
 
 /// Why a world could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -120,36 +120,36 @@ impl Tap {
     }
 }
 
-/// The virtual-clock world.
+/// The virtual-clock world, with flight controller `A`.
 #[derive(Debug)]
-pub struct SimWorld {
+pub struct World<A: Autopilot = Px4Fc> {
     /// Virtual time.
     pub now: Instant,
     /// The flight controller.
-    pub fc: Px4Fc,
+    pub fc: A,
     /// The ground station.
     pub gcs: GcsMock,
     /// Bridge and router, or nothing.
     pub relay: Relay,
     /// Wire or radio.
     pub carrier: Carrier,
-    /// Frames handed to the carrier on the drone's side (UAV → GCS).
-    pub down_sent: Counts,
-    /// Frames handed to the carrier on the ground's side (GCS → UAV).
-    pub up_sent: Counts,
-    down_rx: Tap,
-    up_rx: Tap,
+    /// Frames handed to the carrier on the drone's side (downlink, UAV → GCS).
+    downlink_sent: Counts,
+    /// Frames handed to the carrier on the ground's side (uplink, GCS → UAV).
+    uplink_sent: Counts,
+    downlink_rx: Tap,
+    uplink_rx: Tap,
     steps: u64,
 }
 
-impl SimWorld {
+impl<A: Autopilot> World<A> {
     /// A world with `fc`, a fresh ground station, the MavLora engines if `mavlora` is given
     /// (bridge and router configuration) and `radio` as the carrier (`None`: an ideal wire).
     pub fn new(
-        fc: Px4Fc,
+        fc: A,
         mavlora: Option<(BridgeConfig, RouterConfig)>,
         radio: Option<&RadioSetup>,
-    ) -> Result<SimWorld, WorldError> {
+    ) -> Result<World<A>, WorldError> {
         let now = Instant::ZERO;
         let relay = match mavlora {
             Some((b, r)) => Relay::MavLora(
@@ -162,28 +162,35 @@ impl SimWorld {
             Some(setup) => Carrier::Radio(Box::new(setup.radio()?)),
             None => Carrier::Wire,
         };
-        Ok(SimWorld {
+        Ok(World {
             now,
             fc,
             gcs: GcsMock::new(now),
             relay,
             carrier,
-            down_sent: Counts::default(),
-            up_sent: Counts::default(),
-            down_rx: Tap::default(),
-            up_rx: Tap::default(),
+            downlink_sent: Counts::default(),
+            uplink_sent: Counts::default(),
+            downlink_rx: Tap::default(),
+            uplink_rx: Tap::default(),
             steps: 0,
         })
     }
 
-    /// Frames parsed out of what the carrier delivered to the ground (UAV → GCS).
-    pub fn down_received(&self) -> &Counts {
-        &self.down_rx.counts
+    /// Frames handed to the carrier in `direction` (by the bridge or the flight controller
+    /// for the downlink, by the router or the ground station for the uplink).
+    pub fn sent(&self, direction: Direction) -> &Counts {
+        match direction {
+            Direction::Downlink => &self.downlink_sent,
+            Direction::Uplink => &self.uplink_sent,
+        }
     }
 
-    /// Frames parsed out of what the carrier delivered to the drone (GCS → UAV).
-    pub fn up_received(&self) -> &Counts {
-        &self.up_rx.counts
+    /// Frames parsed out of what the carrier delivered at the far end of `direction`.
+    pub fn received(&self, direction: Direction) -> &Counts {
+        match direction {
+            Direction::Downlink => &self.downlink_rx.counts,
+            Direction::Uplink => &self.uplink_rx.counts,
+        }
     }
 
     /// The radio, if the carrier is one.
@@ -194,7 +201,7 @@ impl SimWorld {
         }
     }
 
-    /// The radio's counters for one direction (`Direction::Downlink` or `UPLINK`).
+    /// The radio's counters for one direction.
     pub fn link_stats(&self, direction: Direction) -> Option<LinkStats> {
         self.radio().map(|r| r.link(direction).stats().clone())
     }
@@ -211,6 +218,14 @@ impl SimWorld {
     pub fn router(&self) -> Option<&Router> {
         match &self.relay {
             Relay::MavLora(_, r) => Some(r),
+            Relay::Transparent => None,
+        }
+    }
+
+    /// The bridge, to feed it directly (an attacker on the radio).
+    pub fn bridge_mut(&mut self) -> Option<&mut Bridge> {
+        match &mut self.relay {
+            Relay::MavLora(b, _) => Some(b),
             Relay::Transparent => None,
         }
     }
@@ -253,7 +268,7 @@ impl SimWorld {
         self.gcs.handle_timeout(now);
 
         // Air side: whatever the radio delivered up to now, then what leaves for the ground.
-        let mut down: Vec<Vec<u8>> = Vec::new();
+        let mut downlink: Vec<Vec<u8>> = Vec::new();
         let mut arrived = Vec::new();
         if let Carrier::Radio(radio) = &mut self.carrier {
             radio.handle_timeout(now);
@@ -262,7 +277,7 @@ impl SimWorld {
             }
         }
         for bytes in &arrived {
-            self.up_rx.push(bytes);
+            self.uplink_rx.push(bytes);
             self.air_input(bytes, now);
         }
         match &mut self.relay {
@@ -275,28 +290,28 @@ impl SimWorld {
                     self.fc.handle_bytes(now, f.as_bytes());
                 }
                 while let Some(f) = b.poll_radio_transmit(now, usize::MAX) {
-                    self.down_sent.add(f.message_id(), f.as_bytes().len());
-                    down.push(f.into_inner());
+                    self.downlink_sent.add(f.message_id(), f.as_bytes().len());
+                    downlink.push(f.into_inner());
                 }
             }
             Relay::Transparent => {
                 while let Some(f) = self.fc.poll_transmit() {
-                    self.down_sent.add(f.message_id(), f.as_bytes().len());
-                    down.push(f.into_inner());
+                    self.downlink_sent.add(f.message_id(), f.as_bytes().len());
+                    downlink.push(f.into_inner());
                 }
             }
         }
 
-        // Across, downwards.
+        // Across, on the downlink.
         match &mut self.carrier {
             Carrier::Wire => {
-                for bytes in &down {
-                    self.down_rx.push(bytes);
+                for bytes in &downlink {
+                    self.downlink_rx.push(bytes);
                     self.ground_input(bytes, now);
                 }
             }
             Carrier::Radio(radio) => {
-                for bytes in &down {
+                for bytes in &downlink {
                     radio.handle_input(now, Direction::Downlink, bytes);
                 }
                 let mut delivered = Vec::new();
@@ -304,14 +319,14 @@ impl SimWorld {
                     delivered.push(bytes);
                 }
                 for bytes in &delivered {
-                    self.down_rx.push(bytes);
+                    self.downlink_rx.push(bytes);
                     self.ground_input(bytes, now);
                 }
             }
         }
 
         // Ground side.
-        let mut up: Vec<Vec<u8>> = Vec::new();
+        let mut uplink: Vec<Vec<u8>> = Vec::new();
         match &mut self.relay {
             Relay::MavLora(_, r) => {
                 while let Some(f) = self.gcs.poll_transmit() {
@@ -322,28 +337,28 @@ impl SimWorld {
                     self.gcs.handle_bytes(now, f.as_bytes());
                 }
                 while let Some(f) = r.poll_radio_transmit(now, usize::MAX) {
-                    self.up_sent.add(f.message_id(), f.as_bytes().len());
-                    up.push(f.into_inner());
+                    self.uplink_sent.add(f.message_id(), f.as_bytes().len());
+                    uplink.push(f.into_inner());
                 }
             }
             Relay::Transparent => {
                 while let Some(f) = self.gcs.poll_transmit() {
-                    self.up_sent.add(f.message_id(), f.as_bytes().len());
-                    up.push(f.into_inner());
+                    self.uplink_sent.add(f.message_id(), f.as_bytes().len());
+                    uplink.push(f.into_inner());
                 }
             }
         }
 
-        // Across, upwards.
+        // Across, on the uplink.
         match &mut self.carrier {
             Carrier::Wire => {
-                for bytes in &up {
-                    self.up_rx.push(bytes);
+                for bytes in &uplink {
+                    self.uplink_rx.push(bytes);
                     self.air_input(bytes, now);
                 }
             }
             Carrier::Radio(radio) => {
-                for bytes in &up {
+                for bytes in &uplink {
                     radio.handle_input(now, Direction::Uplink, bytes);
                 }
             }

@@ -2,20 +2,20 @@
 //! stream profile, `SET_MESSAGE_INTERVAL`, and mission upload with 250 ms item retries
 //! (PX4 issue #11078).
 
-use crate::time::Duration;
+use mavlora::Duration;
 use std::collections::VecDeque;
 
 use mavlink::MavlinkVersion;
 
-use super::rng::SplitMix64;
-use crate::dialect::{
+use crate::rng::SplitMix64;
+use mavlora::Instant;
+use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType,
     HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA,
     MISSION_REQUEST_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionResult, MavModeFlag,
     MavResult, MavState, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
-use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, Sender, known};
+use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 
 /// One stream of the profile.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -290,9 +290,9 @@ impl Px4Fc {
     /// Sets the stream rates `profile` asks for, as if a companion computer had sent its
     /// `SET_MESSAGE_INTERVAL`s (or the operator had set PX4's parameters): for runs without a
     /// bridge that should still stream what the profile wants. The acks are not sent.
-    pub fn apply_profile_rates(&mut self, profile: &crate::filter::Profile, now: Instant) {
+    pub fn apply_profile_rates(&mut self, profile: &mavlora::filter::Profile, now: Instant) {
         let queued = self.out.len();
-        for msg in crate::filter::set_message_interval_requests(profile, 1, 1) {
+        for msg in mavlora::filter::set_message_interval_requests(profile, 1, 1) {
             self.handle((1, 191), msg, now);
         }
         self.out.truncate(queued);

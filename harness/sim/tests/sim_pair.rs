@@ -2,51 +2,59 @@
 //! simulated ground station): mission relay under loss, the naive relay's duplicates, and
 //! the radio bytes per second of each bandwidth mechanism.
 
-use mavlora::Duration;
-
-use mavlora::Instant;
+use harness_radio::{Direction, GilbertElliott, LinkConfig, Preset, RadioSetup};
+use harness_sim::{GcsMock, PX4_NORMAL, Px4Fc, StreamSpec, World, scheduler_for};
 use mavlora::bridge::BridgeConfig;
 use mavlora::compact::CompactConfig;
 use mavlora::dialect::MavMissionResult;
 use mavlora::filter::Profile;
 use mavlora::router::RouterConfig;
 use mavlora::schedule::SchedulerConfig;
-use mavlora::sim::{GcsMock, LinkConfig, PX4_NORMAL, Path, StreamSpec, World};
+use mavlora::{Duration, Instant};
 
-const PROFILES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles/");
+const PROFILES: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../firmware/mavlora/profiles/"
+);
 
 fn profile(name: &str) -> Profile {
     Profile::load(format!("{PROFILES}{name}")).unwrap()
 }
 
-fn radio(loss: f64) -> LinkConfig {
-    // a LoRa-class link: 683 B/s on air (the paper's SF7 figure), 150 ms one way
-    LinkConfig {
-        latency: Duration::from_millis(150),
-        bytes_per_s: 683,
-        loss,
-    }
+/// The paper's LoRa radio (SF7/125 kHz, 683 B/s raw) with 150 ms one way and every air
+/// packet lost with `loss`, independently, each way; the seeds follow `seed`.
+fn radio(loss: f64, seed: u64) -> RadioSetup {
+    let link = |seed| LinkConfig {
+        latency_ms: 150.0,
+        burst: Some(GilbertElliott {
+            p_good_to_bad: 0.0,
+            p_bad_to_good: 1.0,
+            loss_good: loss,
+            loss_bad: loss,
+        }),
+        seed,
+        ..LinkConfig::default()
+    };
+    let mut setup = RadioSetup::builtin("lora-sf7").unwrap();
+    setup.downlink = link(seed ^ 0x5555);
+    setup.uplink = link(seed ^ 0xAAAA);
+    setup
 }
 
+/// The engines' budget for that radio: 80 % of one direction's share of the channel.
 fn budget() -> SchedulerConfig {
-    SchedulerConfig {
-        rate_bytes_per_s: 600,
-        burst_bytes: 600,
-        max_queued_bytes: 4000,
-    }
+    scheduler_for(Some(&Preset::lora_sf7()))
 }
 
 fn relay_world(profile_name: &str, compact: bool, loss: f64, seed: u64) -> World {
     let mut b = BridgeConfig::new(profile(profile_name), budget());
     b.compact = compact.then(CompactConfig::default);
-    World::relay(
-        b,
-        RouterConfig::new(budget()),
-        PX4_NORMAL,
-        radio(loss),
-        radio(loss),
-        seed,
+    World::new(
+        Px4Fc::new(PX4_NORMAL, Instant::ZERO, seed),
+        Some((b, RouterConfig::new(budget()))),
+        Some(&radio(loss, seed)),
     )
+    .unwrap()
 }
 
 fn secs(s: u64) -> Instant {
@@ -68,9 +76,7 @@ fn fifty_item_mission_completes_under_ten_percent_loss() {
             "seed {seed}"
         );
         assert_eq!(w.fc.mission(), &GcsMock::mission(50)[..], "seed {seed}");
-        let Path::Relay(b, r) = &w.path else {
-            unreachable!()
-        };
+        let (b, r) = (w.bridge().unwrap(), w.router().unwrap());
         let m = b.stats().mission;
         println!(
             "seed {seed}: {:.1} s, radio requests {} + {} retries, duplicate items at bridge {}, \
@@ -109,7 +115,12 @@ const LIGHT: &[StreamSpec] = &[
 fn naive_relay_with_px4_retries_floods_duplicates() {
     // Same radio and loss, no bridge: PX4 re-requests every 250 ms across a radio whose round
     // trip is ~400 ms, so nearly every item crosses twice.
-    let mut naive = World::direct(LIGHT, radio(0.10), radio(0.10), 7);
+    let mut naive = World::new(
+        Px4Fc::new(LIGHT, Instant::ZERO, 7),
+        None,
+        Some(&radio(0.10, 7)),
+    )
+    .unwrap();
     naive.run_until(secs(5));
     naive.gcs.upload(GcsMock::mission(50), naive.now);
     naive.run_until_or(secs(120), |w| w.gcs.result.is_some());
@@ -117,21 +128,21 @@ fn naive_relay_with_px4_retries_floods_duplicates() {
 
     let mut b = BridgeConfig::new(profile("px4-compact.toml"), budget());
     b.compact = Some(CompactConfig::default());
-    let mut relay = World::relay(
-        b,
-        RouterConfig::new(budget()),
-        LIGHT,
-        radio(0.10),
-        radio(0.10),
-        7,
-    );
+    let mut relay = World::new(
+        Px4Fc::new(LIGHT, Instant::ZERO, 7),
+        Some((b, RouterConfig::new(budget()))),
+        Some(&radio(0.10, 7)),
+    )
+    .unwrap();
     relay.run_until(secs(5));
     relay.gcs.upload(GcsMock::mission(50), relay.now);
     relay.run_until_or(secs(120), |w| w.gcs.result.is_some());
-    let Path::Relay(b, _) = &relay.path else {
-        unreachable!()
-    };
-    let relay_dups = b.stats().mission.radio_duplicate_items;
+    let relay_dups = relay
+        .bridge()
+        .unwrap()
+        .stats()
+        .mission
+        .radio_duplicate_items;
     println!(
         "duplicates over the radio: naive {naive_dups} (items sent {}, result {:?}), relay {relay_dups} (items sent {})",
         naive.gcs.items_sent, naive.gcs.result, relay.gcs.items_sent
@@ -148,9 +159,9 @@ fn naive_relay_with_px4_retries_floods_duplicates() {
 /// Air→ground bytes per second between 10 s and 70 s of steady flight.
 fn steady_rate(mut w: World) -> (f64, World) {
     w.run_until(secs(10));
-    let before: u64 = w.up_bytes_by_id.values().sum();
+    let before = w.sent(Direction::Downlink).total_bytes();
     w.run_until(secs(70));
-    let after: u64 = w.up_bytes_by_id.values().sum();
+    let after = w.sent(Direction::Downlink).total_bytes();
     ((after - before) as f64 / 60.0, w)
 }
 
@@ -161,16 +172,13 @@ fn compact_telemetry_stays_under_50_bytes_per_second() {
         burst_bytes: 10_000,
         max_queued_bytes: 100_000,
     };
-    let fast = LinkConfig {
-        latency: Duration::from_millis(1),
-        bytes_per_s: 1_000_000,
-        loss: 0.0,
-    };
+    // An ideal wire: what the bridge sends is all that is measured.
     let run = |profile_text: &str, compact: bool| {
         let p = Profile::parse(profile_text, "inline").unwrap();
         let mut b = BridgeConfig::new(p, wide);
         b.compact = compact.then(CompactConfig::default);
-        let w = World::relay(b, RouterConfig::new(wide), PX4_NORMAL, fast, fast, 3);
+        let fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, 3);
+        let w = World::new(fc, Some((b, RouterConfig::new(wide))), None).unwrap();
         steady_rate(w)
     };
     let read = |name: &str| std::fs::read_to_string(format!("{PROFILES}{name}")).unwrap();
@@ -186,7 +194,7 @@ fn compact_telemetry_stays_under_50_bytes_per_second() {
     println!(
         "PX4 Normal air->ground B/s: none {none:.1}, stream limiting {limited:.1}, \
          limiting+filtering {filtered:.1}, compact {compact:.1}; compact by id {:?}",
-        w.up_bytes_by_id
+        w.sent(Direction::Downlink).bytes
     );
     assert!(none > limited && limited > filtered && filtered > compact);
     assert!(compact <= 50.0, "compact telemetry at {compact:.1} B/s");
@@ -199,9 +207,7 @@ fn compact_telemetry_stays_under_50_bytes_per_second() {
     }
     // A lossless radio reads as lossless on both sides, although the bridge filters and the
     // router thins heartbeats: both renumber what they send.
-    let Path::Relay(b, r) = &w.path else {
-        unreachable!()
-    };
+    let (b, r) = (w.bridge().unwrap(), w.router().unwrap());
     assert_eq!(r.stats().radio_reader.lost, 0);
     assert_eq!(b.stats().radio_reader.lost, 0);
     let positions = w.gcs.received[&33] as f64 / 70.0;
@@ -224,7 +230,12 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
     b.signing = Some(signing(1));
     let mut r = RouterConfig::new(budget());
     r.signing = Some(signing(2));
-    let mut w = World::relay(b, r, PX4_NORMAL, radio(0.05), radio(0.05), 11);
+    let mut w = World::new(
+        Px4Fc::new(PX4_NORMAL, Instant::ZERO, 11),
+        Some((b, r)),
+        Some(&radio(0.05, 11)),
+    )
+    .unwrap();
     w.run_until(secs(5));
     w.gcs.upload(GcsMock::mission(50), w.now);
     assert!(w.run_until_or(secs(200), |w| w.gcs.result.is_some()));
@@ -241,18 +252,14 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
     let mut victim = mavlora::signing::LinkSigner::new(SigningKey([42; 32]), 2, 3_000_000_000);
     let captured = victim.sign(&forger.frame(&cmd), Instant::ZERO).unwrap();
     let now = w.now;
-    let Path::Relay(b, r) = &mut w.path else {
-        unreachable!()
-    };
+    let b = w.bridge_mut().unwrap();
     b.handle_radio_bytes(now, forger.frame(&cmd).as_bytes());
     b.handle_radio_bytes(now, captured.as_bytes());
     let s = b.stats().signing;
-    println!(
-        "bridge signing {s:?}, router signing {:?}",
-        r.stats().signing
-    );
+    let router = w.router().unwrap().stats().signing;
+    println!("bridge signing {s:?}, router signing {router:?}");
     assert!(s.unsigned >= 1 && s.replayed >= 1, "{s:?}");
-    assert!(s.accepted > 50 && r.stats().signing.accepted > 50);
+    assert!(s.accepted > 50 && router.accepted > 50);
     assert_eq!(s.bad_signature, 0);
 }
 

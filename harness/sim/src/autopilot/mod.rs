@@ -1,0 +1,50 @@
+//! Simulated flight controllers. The [`World`](crate::World) drives any [`Autopilot`]; the
+//! PX4-like one is [`Px4Fc`]. An ArduPilot-like one (MAVLink 1, `REQUEST_DATA_STREAM`) plugs in
+//! beside it by implementing the trait, and scenarios that need its specifics use
+//! `World<ThatFc>` as they use `World<Px4Fc>` (the default) for PX4's.
+
+mod px4;
+
+pub use px4::{Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec};
+
+use mavlora::Instant;
+use mavlora::dialect::MISSION_ITEM_INT_DATA;
+use mavlora::wire::OwnedFrame;
+
+/// What the world needs of a simulated flight controller: a sans-IO engine on one serial
+/// port (time first, deadlines out, `poll_*` only dequeue), and the mission it stored, which
+/// is what every upload is judged by.
+pub trait Autopilot {
+    /// Bytes read from its serial port at `now`.
+    fn handle_bytes(&mut self, now: Instant, bytes: &[u8]);
+    /// Does what is due at `now` (streams, retries).
+    fn handle_timeout(&mut self, now: Instant);
+    /// When [`handle_timeout`](Self::handle_timeout) is next needed.
+    fn poll_timeout(&self) -> Option<Instant>;
+    /// The next frame it writes to its serial port.
+    fn poll_transmit(&mut self) -> Option<OwnedFrame>;
+    /// The mission it holds.
+    fn mission(&self) -> &[MISSION_ITEM_INT_DATA];
+}
+
+impl Autopilot for Px4Fc {
+    fn handle_bytes(&mut self, now: Instant, bytes: &[u8]) {
+        Px4Fc::handle_bytes(self, now, bytes);
+    }
+
+    fn handle_timeout(&mut self, now: Instant) {
+        Px4Fc::handle_timeout(self, now);
+    }
+
+    fn poll_timeout(&self) -> Option<Instant> {
+        Px4Fc::poll_timeout(self)
+    }
+
+    fn poll_transmit(&mut self) -> Option<OwnedFrame> {
+        Px4Fc::poll_transmit(self)
+    }
+
+    fn mission(&self) -> &[MISSION_ITEM_INT_DATA] {
+        Px4Fc::mission(self)
+    }
+}
