@@ -278,7 +278,7 @@ impl<A: Autopilot> World<A> {
         }
         for bytes in &arrived {
             self.uplink_rx.push(bytes);
-            self.air_input(bytes, now);
+            self.air_input(now, bytes);
         }
         match &mut self.relay {
             Relay::MavLora(b, _) => {
@@ -307,7 +307,7 @@ impl<A: Autopilot> World<A> {
             Carrier::Wire => {
                 for bytes in &downlink {
                     self.downlink_rx.push(bytes);
-                    self.ground_input(bytes, now);
+                    self.ground_input(now, bytes);
                 }
             }
             Carrier::Radio(radio) => {
@@ -320,7 +320,7 @@ impl<A: Autopilot> World<A> {
                 }
                 for bytes in &delivered {
                     self.downlink_rx.push(bytes);
-                    self.ground_input(bytes, now);
+                    self.ground_input(now, bytes);
                 }
             }
         }
@@ -354,7 +354,7 @@ impl<A: Autopilot> World<A> {
             Carrier::Wire => {
                 for bytes in &uplink {
                     self.uplink_rx.push(bytes);
-                    self.air_input(bytes, now);
+                    self.air_input(now, bytes);
                 }
             }
             Carrier::Radio(radio) => {
@@ -365,14 +365,14 @@ impl<A: Autopilot> World<A> {
         }
     }
 
-    fn air_input(&mut self, bytes: &[u8], now: Instant) {
+    fn air_input(&mut self, now: Instant, bytes: &[u8]) {
         match &mut self.relay {
             Relay::MavLora(b, _) => b.handle_radio_bytes(now, bytes),
             Relay::Transparent => self.fc.handle_bytes(now, bytes),
         }
     }
 
-    fn ground_input(&mut self, bytes: &[u8], now: Instant) {
+    fn ground_input(&mut self, now: Instant, bytes: &[u8]) {
         match &mut self.relay {
             Relay::MavLora(_, r) => r.handle_radio_bytes(now, bytes),
             Relay::Transparent => self.gcs.handle_bytes(now, bytes),

@@ -9,7 +9,7 @@
 //! as the model decides (airtime, loss, buffer drops, duty cycle). One thread
 //! runs the small loop the sans-IO contract asks for: read what is
 //! available → `handle_input(now)`, `handle_timeout(now)`, write what
-//! `poll_output(now)` hands over, sleep until the next deadline. A pty has no
+//! `poll_output()` hands over, sleep until the next deadline. A pty has no
 //! "readable" wake-up here, so input is polled every [`POLL`]: a byte's
 //! arrival time is known to within that, on top of host scheduling.
 

@@ -1,6 +1,6 @@
 //! The IO driver of the two binaries (feature `cli`): serial ports that reopen, a UDP
 //! endpoint that learns its peer, a TCP listener for ground stations, a `.tlog` writer, the wall clock. The engines never see
-//! any of it: this module turns IO into `handle_*_bytes(bytes, now)` calls.
+//! any of it: this module turns IO into `handle_*_bytes(now, bytes)` calls.
 
 mod clock;
 mod options;
