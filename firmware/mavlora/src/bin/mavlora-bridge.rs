@@ -8,7 +8,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError};
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -18,7 +17,10 @@ use tracing::info;
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
-use mavlora::io::{Clock, Event, RadioOptions, SerialEvent, SerialLink, on_signal};
+use mavlora::io::{
+    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, SerialEvent, SerialLink, frame_gap,
+    on_signal,
+};
 
 /// MavLora bridge: flight controller serial port <-> radio serial port.
 #[derive(Parser, Deserialize, Default, Debug)]
@@ -79,12 +81,22 @@ fn run(o: Options) -> Result<()> {
     config.signing = o.shared.signing(1)?;
     let status_every = o.shared.status_every();
 
-    let (tx, rx) = mpsc::channel();
-    on_signal(tx.clone())?;
+    let inbox = Inbox::new(INBOX_BYTES);
+    on_signal(inbox.clone())?;
     let stop = Arc::new(AtomicBool::new(false));
     let fc_baud = o.fc_baud.unwrap_or(921_600);
-    let mut fc = SerialLink::spawn("fc", fc_path, fc_baud, tx.clone(), stop.clone());
-    let mut radio = SerialLink::spawn("radio", radio_path, o.shared.radio_baud(), tx, stop.clone());
+    let fc_gap = frame_gap(fc_baud / 10);
+    let mut fc = SerialLink::spawn("fc", fc_path, fc_baud, fc_gap, inbox.clone(), stop.clone());
+    let radio_baud = o.shared.radio_baud();
+    let radio_gap = frame_gap(rate.min(radio_baud / 10));
+    let mut radio = SerialLink::spawn(
+        "radio",
+        radio_path,
+        radio_baud,
+        radio_gap,
+        inbox.clone(),
+        stop.clone(),
+    );
     let clock = Clock::start();
     let compact = config.compact.is_some();
     let mut bridge = Bridge::new(config, clock.now())?;
@@ -96,22 +108,23 @@ fn run(o: Options) -> Result<()> {
             .poll_timeout()
             .unwrap_or(now + Duration::from_secs(1))
             .min(next_status);
-        match rx.recv_timeout(clock.until(deadline)) {
+        match inbox.recv_timeout(clock.until(deadline)) {
             Ok(Event::Serial("fc", SerialEvent::Bytes(b))) => {
                 bridge.handle_fc_bytes(clock.now(), &b);
             }
+            Ok(Event::Serial("fc", SerialEvent::Idle)) => bridge.handle_fc_idle(clock.now()),
             Ok(Event::Serial("fc", SerialEvent::Closed)) => bridge.fc_port_closed(),
             Ok(Event::Serial(_, SerialEvent::Closed)) => bridge.radio_port_closed(),
             Ok(Event::Serial(_, SerialEvent::Bytes(b))) => {
                 bridge.handle_radio_bytes(clock.now(), &b);
             }
-            Ok(Event::Serial(..) | Event::Udp(..) | Event::Tcp(..))
-            | Err(RecvTimeoutError::Timeout) => {}
+            Ok(Event::Serial(_, SerialEvent::Idle)) => bridge.handle_radio_idle(clock.now()),
+            Ok(Event::Serial(..) | Event::Udp(..) | Event::Tcp(..)) | Err(PopError::Timeout) => {}
             Ok(Event::Stop) => {
                 info!("signal received, shutting down");
                 break;
             }
-            Err(RecvTimeoutError::Disconnected) => break,
+            Err(PopError::Closed) => break,
         }
         let now = clock.now();
         bridge.handle_timeout(now);
@@ -122,28 +135,40 @@ fn run(o: Options) -> Result<()> {
             radio.write(f.as_bytes());
         }
         if now >= next_status {
-            status(&bridge, &fc, &radio);
+            status(&bridge, &fc, &radio, &inbox);
             next_status = now + status_every;
         }
     }
     stop.store(true, Ordering::Relaxed);
-    status(&bridge, &fc, &radio);
+    fc.stop();
+    radio.stop();
+    status(&bridge, &fc, &radio, &inbox);
     Ok(())
 }
 
-fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink) {
+fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink, inbox: &Inbox) {
     let s = bridge.stats();
     let peer_loss = bridge.quality().peer().and_then(|p| p.loss_ratio);
+    let (f, r, inbox) = (fc.counters(), radio.counters(), inbox.stats());
     info!(
         fc_rx = s.fc_reader.frames(),
         fc_tx = s.to_fc_frames,
-        fc_opens = fc.opens.load(Ordering::Relaxed),
+        fc_dropped_bytes = f.dropped_bytes,
+        fc_write_failures = f.write_failures,
+        fc_partials_dropped = s.fc_reader.partials_dropped,
+        fc_opens = f.opens,
         radio_rx = s.radio_reader.frames(),
         radio_lost = s.radio_reader.lost,
         radio_bad_crc = s.radio_reader.bad_crc,
         radio_tx = s.scheduler.sent_frames,
         radio_tx_bytes = s.scheduler.sent_bytes,
-        radio_opens = radio.opens.load(Ordering::Relaxed),
+        radio_offered_bytes = r.offered_bytes,
+        radio_written_bytes = r.written_bytes,
+        radio_dropped_bytes = r.dropped_bytes,
+        radio_queued_bytes = r.queued_bytes,
+        radio_write_failures = r.write_failures,
+        radio_partials_dropped = s.radio_reader.partials_dropped,
+        radio_opens = r.opens,
         filtered = s.filter.filtered,
         rate_limited = s.filter.rate_limited,
         replaced = s.scheduler.replaced,
@@ -156,6 +181,8 @@ fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink) {
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,
+        inbox_dropped = inbox.dropped_items,
+        inbox_peak_bytes = inbox.peak_bytes,
         peer_loss = ?peer_loss,
         "status"
     );

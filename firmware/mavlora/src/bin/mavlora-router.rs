@@ -9,7 +9,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError};
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -17,7 +16,8 @@ use serde::Deserialize;
 use tracing::{info, warn};
 
 use mavlora::io::{
-    Clock, Event, RadioOptions, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, on_signal,
+    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, SerialEvent, SerialLink, TcpEndpoint,
+    Tlog, UdpEndpoint, frame_gap, on_signal,
 };
 use mavlora::router::{Router, RouterConfig};
 
@@ -38,6 +38,9 @@ struct Options {
     /// `mavproxy.py --master=tcp:HOST:5760`); every client gets every frame.
     #[arg(long)]
     tcp_listen: Option<SocketAddr>,
+    /// TCP clients connected at once; one more is refused [default: 8].
+    #[arg(long)]
+    tcp_max_clients: Option<usize>,
     /// Write a MAVProxy-format telemetry log here.
     #[arg(long)]
     tlog: Option<PathBuf>,
@@ -67,17 +70,31 @@ fn run(o: Options) -> Result<()> {
         None => None,
     };
 
-    let (tx, rx) = mpsc::channel();
-    on_signal(tx.clone())?;
+    let inbox = Inbox::new(INBOX_BYTES);
+    on_signal(inbox.clone())?;
     let stop = Arc::new(AtomicBool::new(false));
     let peer = o.udp.unwrap_or(([127, 0, 0, 1], 14550).into());
     let bind = o.udp_bind.unwrap_or(([0, 0, 0, 0], 14555).into());
-    let mut udp = UdpEndpoint::spawn(bind, peer, tx.clone(), stop.clone())?;
+    let mut udp = UdpEndpoint::spawn(bind, peer, inbox.clone(), stop.clone())?;
     let tcp = match o.tcp_listen {
-        Some(addr) => Some(TcpEndpoint::spawn(addr, tx.clone(), stop.clone())?),
+        Some(addr) => {
+            let max = o
+                .tcp_max_clients
+                .unwrap_or(mavlora::io::DEFAULT_MAX_CLIENTS);
+            Some(TcpEndpoint::spawn(addr, max, inbox.clone(), stop.clone())?)
+        }
         None => None,
     };
-    let mut radio = SerialLink::spawn("radio", radio_path, o.shared.radio_baud(), tx, stop.clone());
+    let radio_baud = o.shared.radio_baud();
+    let gap = frame_gap(rate.min(radio_baud / 10));
+    let mut radio = SerialLink::spawn(
+        "radio",
+        radio_path,
+        radio_baud,
+        gap,
+        inbox.clone(),
+        stop.clone(),
+    );
     let clock = Clock::start();
     let mut router = Router::new(config, clock.now())?;
     info!(rate, burst, "router running");
@@ -96,26 +113,28 @@ fn run(o: Options) -> Result<()> {
             .poll_timeout()
             .unwrap_or(now + Duration::from_secs(1))
             .min(next_status);
-        match rx.recv_timeout(clock.until(deadline)) {
+        match inbox.recv_timeout(clock.until(deadline)) {
             Ok(Event::Serial(_, SerialEvent::Bytes(b))) => {
                 router.handle_radio_bytes(clock.now(), &b);
             }
+            Ok(Event::Serial(_, SerialEvent::Idle)) => router.handle_radio_idle(clock.now()),
             Ok(Event::Serial(_, SerialEvent::Closed)) => router.radio_port_closed(),
-            Ok(Event::Udp(b, from)) => {
+            // One whole frame each (framed per datagram / per client where it entered).
+            Ok(Event::Udp(frame, from)) => {
                 udp.learn(from);
-                record(&mut tlog, &b);
-                router.handle_gcs_bytes(clock.now(), &b);
+                record(&mut tlog, &frame);
+                router.handle_gcs_bytes(clock.now(), &frame);
             }
-            Ok(Event::Tcp(b, _)) => {
-                record(&mut tlog, &b);
-                router.handle_gcs_bytes(clock.now(), &b);
+            Ok(Event::Tcp(frame, _)) => {
+                record(&mut tlog, &frame);
+                router.handle_gcs_bytes(clock.now(), &frame);
             }
-            Ok(Event::Serial(_, SerialEvent::Opened)) | Err(RecvTimeoutError::Timeout) => {}
+            Ok(Event::Serial(_, SerialEvent::Opened)) | Err(PopError::Timeout) => {}
             Ok(Event::Stop) => {
                 info!("signal received, shutting down");
                 break;
             }
-            Err(RecvTimeoutError::Disconnected) => break,
+            Err(PopError::Closed) => break,
         }
         let now = clock.now();
         router.handle_timeout(now);
@@ -130,31 +149,55 @@ fn run(o: Options) -> Result<()> {
             radio.write(f.as_bytes());
         }
         if now >= next_status {
-            status(&router, &radio, tcp.as_ref());
+            status(&router, &radio, &udp, tcp.as_ref(), &inbox);
             next_status = now + status_every;
         }
     }
     stop.store(true, Ordering::Relaxed);
+    radio.stop();
     if let Some(t) = &mut tlog {
         t.flush().context("flushing tlog")?;
     }
-    status(&router, &radio, tcp.as_ref());
+    status(&router, &radio, &udp, tcp.as_ref(), &inbox);
     Ok(())
 }
 
-fn status(router: &Router, radio: &SerialLink, tcp: Option<&TcpEndpoint>) {
+fn status(
+    router: &Router,
+    radio: &SerialLink,
+    udp: &UdpEndpoint,
+    tcp: Option<&TcpEndpoint>,
+    inbox: &Inbox,
+) {
     let s = router.stats();
     let peer_loss = router.quality().peer().and_then(|p| p.loss_ratio);
+    let r = radio.counters();
+    let t = tcp.map(TcpEndpoint::counters).unwrap_or_default();
+    let (_, udp_partials, _) = udp.framing().snapshot();
+    let inbox = inbox.stats();
     info!(
         radio_rx = s.radio_reader.frames(),
         radio_lost = s.radio_reader.lost,
         radio_bad_crc = s.radio_reader.bad_crc,
         radio_tx = s.scheduler.sent_frames,
         radio_tx_bytes = s.scheduler.sent_bytes,
-        radio_opens = radio.opens.load(Ordering::Relaxed),
+        radio_offered_bytes = r.offered_bytes,
+        radio_written_bytes = r.written_bytes,
+        radio_dropped_bytes = r.dropped_bytes,
+        radio_queued_bytes = r.queued_bytes,
+        radio_write_failures = r.write_failures,
+        radio_partials_dropped = s.radio_reader.partials_dropped,
+        radio_opens = r.opens,
         gcs_rx = s.gcs_reader.frames(),
         gcs_tx = s.to_gcs_frames,
-        tcp_clients = tcp.map_or(0, TcpEndpoint::clients),
+        udp_partials_dropped = udp_partials,
+        tcp_clients = t.clients,
+        tcp_refused = t.refused,
+        tcp_dropped_bytes = t.dropped_bytes,
+        tcp_partials_dropped = t.partials_dropped,
+        inbox_dropped = inbox.dropped_items,
+        inbox_dropped_priority = inbox.dropped_priority,
+        inbox_peak_bytes = inbox.peak_bytes,
         expanded = s.expanded_frames,
         heartbeats_thinned = s.filter.rate_limited,
         mission_duplicates = s.mission_duplicates,

@@ -183,6 +183,14 @@ impl Bridge {
         }
     }
 
+    /// No byte came from the flight controller for longer than a frame takes: a partial
+    /// frame still buffered lost its tail; it is dropped and frames behind it are handled.
+    pub fn handle_fc_idle(&mut self, now: Instant) {
+        if self.fc_reader.flush_partial() {
+            self.handle_fc_bytes(now, &[]);
+        }
+    }
+
     /// The flight controller's port was closed (a reopened one starts a new byte stream).
     pub fn fc_port_closed(&mut self) {
         self.fc_reader.finish();
@@ -359,6 +367,14 @@ impl Bridge {
         self.radio_reader.finish();
         while let Some(rx) = self.radio_reader.next_frame() {
             debug!(msgid = rx.frame.message_id(), "frame completed at close");
+        }
+    }
+
+    /// No byte came from the radio for longer than a frame takes: a partial frame still
+    /// buffered lost its tail; it is dropped and frames behind it are handled.
+    pub fn handle_radio_idle(&mut self, now: Instant) {
+        if self.radio_reader.flush_partial() {
+            self.handle_radio_bytes(now, &[]);
         }
     }
 

@@ -3,16 +3,20 @@
 //! any of it: this module turns IO into `handle_*_bytes(now, bytes)` calls.
 
 mod clock;
+mod framing;
 mod options;
+mod queue;
 mod serial;
 mod tcp;
 mod tlog;
 mod udp;
 
 pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
+pub use framing::{DatagramFramer, FramingCounters};
 pub use options::{RadioOptions, main};
-pub use serial::{SerialEvent, SerialLink};
-pub use tcp::TcpEndpoint;
+pub use queue::{Lane, PopError, Queue, QueueStats};
+pub use serial::{SerialCounters, SerialEvent, SerialLink, frame_gap};
+pub use tcp::{DEFAULT_MAX_CLIENTS, TcpCounters, TcpEndpoint};
 pub use tlog::Tlog;
 pub use udp::UdpEndpoint;
 
@@ -21,7 +25,7 @@ pub use udp::UdpEndpoint;
 pub enum Event {
     /// Bytes from a serial port (by link name).
     Serial(&'static str, SerialEvent),
-    /// A datagram from the ground-station side.
+    /// One whole frame from a UDP ground station (a datagram's partial frame never comes).
     Udp(Vec<u8>, std::net::SocketAddr),
     /// One whole frame from a TCP ground station.
     Tcp(Vec<u8>, std::net::SocketAddr),
@@ -29,10 +33,56 @@ pub enum Event {
     Stop,
 }
 
+/// Bytes the main loop's [`Inbox`] holds at most (4 MB: 1 s of a 4 MB/s flood; a 64 KB
+/// datagram's frames fit 64 times).
+pub const INBOX_BYTES: usize = 4 * 1024 * 1024;
+/// What an event costs in the [`Inbox`] beyond its payload (the `Vec`'s allocation).
+const EVENT_OVERHEAD: usize = 64;
+
+/// The main loop's bounded event queue: IO threads [`send`](Self::send) without blocking; a
+/// full inbox drops the oldest serial bytes and telemetry frames first and ground commands
+/// last (see [`Queue`]); port and stop events are never dropped.
+#[derive(Debug, Clone)]
+pub struct Inbox(std::sync::Arc<Queue<Event>>);
+
+impl Inbox {
+    /// An inbox of `capacity` bytes.
+    pub fn new(capacity: usize) -> Self {
+        Self(std::sync::Arc::new(Queue::new(capacity)))
+    }
+
+    /// Queues an event; `false` if it was dropped.
+    pub fn send(&self, event: Event) -> bool {
+        use crate::schedule::Class;
+        let (bytes, lane) = match &event {
+            Event::Serial(_, SerialEvent::Bytes(b)) => (b.len(), Lane::Bulk),
+            Event::Udp(f, _) | Event::Tcp(f, _) => {
+                let lane = match crate::wire::Frame::new_checked(f.as_slice()) {
+                    Ok(f) if Class::of(f.message_id()) == Class::Priority => Lane::Priority,
+                    _ => Lane::Bulk,
+                };
+                (f.len(), lane)
+            }
+            Event::Serial(..) | Event::Stop => (0, Lane::Keep),
+        };
+        self.0.push(event, bytes + EVENT_OVERHEAD, lane)
+    }
+
+    /// The next event, waiting at most `timeout`.
+    pub fn recv_timeout(&self, timeout: std::time::Duration) -> Result<Event, PopError> {
+        self.0.pop_until(Some(std::time::Instant::now() + timeout))
+    }
+
+    /// What the inbox has dropped.
+    pub fn stats(&self) -> QueueStats {
+        self.0.stats()
+    }
+}
+
 /// Installs the SIGINT/SIGTERM handler: it sends [`Event::Stop`] to the main loop.
-pub fn on_signal(tx: std::sync::mpsc::Sender<Event>) -> anyhow::Result<()> {
+pub fn on_signal(inbox: Inbox) -> anyhow::Result<()> {
     ctrlc::set_handler(move || {
-        let _ = tx.send(Event::Stop);
+        inbox.send(Event::Stop);
     })?;
     Ok(())
 }

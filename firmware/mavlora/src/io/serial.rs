@@ -1,17 +1,39 @@
-//! A serial port read by its own thread, reopened with backoff when it disappears (USB radios
-//! re-enumerate; a pty whose other side closed reads EOF or EIO).
+//! A serial port with a reader thread and a writer thread, closed and reopened with backoff
+//! when it disappears (USB radios re-enumerate; a pty whose other side closed reads EOF or
+//! EIO) *or* when a write fails or stalls (a radio that stopped reading: before, one write
+//! timeout dropped the writer for good while the reader kept the port open, so nothing was
+//! sent again).
+//!
+//! Writes go through a bounded [`Queue`] to the writer thread, so the main loop never blocks
+//! on a port. Every byte offered to [`SerialLink::write`] ends up counted once: written, or
+//! dropped (queue full, port closed, the unwritten rest of a frame whose write failed), or
+//! still queued — see [`SerialCounters`].
 
 use std::io::{ErrorKind, Read, Write};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::Sender;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
-use std::thread;
+use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
 use serialport::SerialPort;
 use tracing::{info, warn};
 
-use super::Event;
+use super::queue::{Lane, Queue};
+use super::{Event, Inbox};
+use crate::schedule::Class;
+use crate::wire::Frame;
+
+/// A write that makes no progress for this long is a stall: the port is closed and reopened.
+pub const WRITE_STALL: Duration = Duration::from_secs(1);
+/// Bytes queued towards one port at most (16 KB: 2.8 s of a 57600-baud radio).
+pub const WRITE_QUEUE_BYTES: usize = 16 * 1024;
+/// First wait before reopening; doubled on each consecutive failure.
+const BACKOFF_MIN: Duration = Duration::from_millis(100);
+/// Longest wait before trying to open a port that cannot be opened.
+const BACKOFF_MAX_OPEN: Duration = Duration::from_secs(5);
+/// Longest wait before reopening a port whose writes stall (bounds the recovery time once
+/// the far end reads again: this plus [`WRITE_STALL`]).
+const BACKOFF_MAX_STALL: Duration = Duration::from_secs(2);
 
 /// What happened on a port.
 #[derive(Debug)]
@@ -20,131 +42,297 @@ pub enum SerialEvent {
     Opened,
     /// Bytes read.
     Bytes(Vec<u8>),
-    /// The port failed or vanished; the reader is trying to reopen it.
+    /// No byte for the port's idle gap after some arrived: a partial frame still buffered
+    /// will never complete (its tail was lost) and should be dropped.
+    Idle,
+    /// The port failed, vanished or stalled; it is being reopened.
     Closed,
 }
 
-type Port = Arc<Mutex<Option<Box<dyn SerialPort>>>>;
+/// A port's byte counters: `offered = written + dropped + queued` once the link is stopped
+/// (while running, give or take the one frame being written).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SerialCounters {
+    /// Times the port was (re)opened.
+    pub opens: u64,
+    /// Write stalls and failures (each closed and reopened the port).
+    pub write_failures: u64,
+    /// Bytes given to [`SerialLink::write`].
+    pub offered_bytes: u64,
+    /// Bytes the port accepted.
+    pub written_bytes: u64,
+    /// Bytes never written: queue full, port closed, or after a failed write.
+    pub dropped_bytes: u64,
+    /// Bytes waiting in the write queue.
+    pub queued_bytes: u64,
+}
 
-/// One serial port with a reader thread.
+#[derive(Debug, Default)]
+struct Shared {
+    /// The writer's handle on the open port; `None` while closed.
+    port: Mutex<Option<Box<dyn SerialPort>>>,
+    /// Set by the writer when a write failed: the reader closes and reopens the port.
+    broken: AtomicBool,
+    /// A write succeeded since the port was last opened (resets the backoff).
+    wrote: AtomicBool,
+    opens: AtomicU64,
+    write_failures: AtomicU64,
+    offered: AtomicU64,
+    written: AtomicU64,
+    /// Dropped by the writer (port closed, failed write); queue drops are in the queue.
+    dropped: AtomicU64,
+}
+
+/// One serial port with its reader and writer threads.
 #[derive(Debug)]
 pub struct SerialLink {
     name: &'static str,
-    writer: Port,
-    /// Bytes dropped because the port was closed when they were to be written.
-    pub dropped_bytes: u64,
-    /// Times the port was (re)opened.
-    pub opens: Arc<std::sync::atomic::AtomicU64>,
+    out: Arc<Queue<Vec<u8>>>,
+    shared: Arc<Shared>,
+    writer: Option<JoinHandle<()>>,
 }
 
 impl SerialLink {
-    /// Starts the reader thread for `path` at `baud`; events go to `tx`.
+    /// Starts the threads for `path` at `baud`; events go to `inbox`. `idle_gap`: after bytes,
+    /// this long without any sends [`SerialEvent::Idle`] (see [`frame_gap`]).
     pub fn spawn(
         name: &'static str,
         path: String,
         baud: u32,
-        tx: Sender<Event>,
+        idle_gap: Duration,
+        inbox: Inbox,
         stop: Arc<AtomicBool>,
     ) -> Self {
-        let writer: Port = Arc::new(Mutex::new(None));
-        let opens = Arc::new(std::sync::atomic::AtomicU64::new(0));
-        let (w, o) = (writer.clone(), opens.clone());
+        let shared = Arc::new(Shared::default());
+        let out = Arc::new(Queue::new(WRITE_QUEUE_BYTES));
+        let s = shared.clone();
         thread::Builder::new()
             .name(format!("serial-{name}"))
-            .spawn(move || reader(name, &path, baud, &tx, &stop, &w, &o))
+            .spawn(move || reader(name, &path, baud, idle_gap, &inbox, &stop, &s))
             .expect("spawn serial reader");
+        let (s, q) = (shared.clone(), out.clone());
+        let writer = thread::Builder::new()
+            .name(format!("serial-{name}-tx"))
+            .spawn(move || writer(name, &q, &s))
+            .expect("spawn serial writer");
         Self {
             name,
-            writer,
-            dropped_bytes: 0,
-            opens,
+            out,
+            shared,
+            writer: Some(writer),
         }
     }
 
-    /// Writes a frame; returns `false` (and counts it) if the port is not open.
-    pub fn write(&mut self, bytes: &[u8]) -> bool {
-        let mut guard = self.writer.lock().unwrap_or_else(|e| e.into_inner());
-        let Some(port) = guard.as_mut() else {
-            self.dropped_bytes += bytes.len() as u64;
-            return false;
+    /// Queues one frame for the port; never blocks. Returns `false` if it was dropped (the
+    /// queue is full of frames that matter more, or the link is stopped). A full queue drops
+    /// its oldest periodic frame first, commands and mission traffic last.
+    pub fn write(&self, bytes: &[u8]) -> bool {
+        self.shared
+            .offered
+            .fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        let lane = match Frame::new_checked(bytes).map(|f| Class::of(f.message_id())) {
+            Ok(Class::Priority) => Lane::Priority,
+            _ => Lane::Bulk,
         };
-        if let Err(e) = port.write_all(bytes) {
-            warn!(port = self.name, error = %e, "write failed, waiting for reopen");
-            *guard = None;
-            self.dropped_bytes += bytes.len() as u64;
-            return false;
-        }
-        true
+        self.out.push(bytes.to_vec(), bytes.len(), lane)
     }
+
+    /// The counters now (never blocks). While the writer runs, the frame it is writing is
+    /// in none of `written`, `dropped` and `queued`; after [`stop`](Self::stop) they add up.
+    pub fn counters(&self) -> SerialCounters {
+        let s = &self.shared;
+        let q = self.out.stats();
+        SerialCounters {
+            opens: s.opens.load(Ordering::Relaxed),
+            write_failures: s.write_failures.load(Ordering::Relaxed),
+            offered_bytes: s.offered.load(Ordering::Relaxed),
+            written_bytes: s.written.load(Ordering::Relaxed),
+            dropped_bytes: s.dropped.load(Ordering::Relaxed) + q.dropped_bytes,
+            queued_bytes: self.out.bytes() as u64,
+        }
+    }
+
+    /// Stops the writer: what is still queued is counted as dropped. The counters are final
+    /// afterwards.
+    pub fn stop(&mut self) {
+        self.out.close(true);
+        if let Some(w) = self.writer.take()
+            && w.join().is_err()
+        {
+            warn!(port = self.name, "serial writer panicked");
+        }
+    }
+}
+
+impl Drop for SerialLink {
+    fn drop(&mut self) {
+        self.out.close(true);
+    }
+}
+
+/// The idle gap of a port: twice the time the longest MAVLink frame (280 bytes) takes at
+/// `bytes_per_s`, and at least 100 ms (USB adapters and the OS deliver bytes in bursts).
+pub fn frame_gap(bytes_per_s: u32) -> Duration {
+    let frame = Duration::from_secs_f64(2.0 * 280.0 / f64::from(bytes_per_s.max(1)));
+    frame.max(Duration::from_millis(100))
+}
+
+fn writer(name: &'static str, out: &Queue<Vec<u8>>, s: &Shared) {
+    while let Ok(frame) = out.pop_until(None) {
+        let mut guard = s.port.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(port) = guard.as_mut() else {
+            s.dropped.fetch_add(frame.len() as u64, Ordering::Relaxed);
+            continue;
+        };
+        let mut done = 0;
+        while done < frame.len() {
+            match port.write(&frame[done..]) {
+                Ok(0) => {
+                    fail(name, s, &mut guard, &ErrorKind::WriteZero.into());
+                    break;
+                }
+                Ok(n) => {
+                    done += n;
+                    s.written.fetch_add(n as u64, Ordering::Relaxed);
+                    s.wrote.store(true, Ordering::Relaxed);
+                }
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => {
+                    fail(name, s, &mut guard, &e);
+                    break;
+                }
+            }
+        }
+        s.dropped
+            .fetch_add((frame.len() - done) as u64, Ordering::Relaxed);
+    }
+}
+
+/// A write failed or stalled: drop the writer's handle and have the reader reopen the port.
+fn fail(
+    name: &'static str,
+    s: &Shared,
+    port: &mut Option<Box<dyn SerialPort>>,
+    e: &std::io::Error,
+) {
+    let n = s.write_failures.fetch_add(1, Ordering::Relaxed) + 1;
+    // One line per failure: failures are at least one backoff apart.
+    warn!(port = name, error = %e, failures = n, "write failed or stalled, reopening the port");
+    *port = None;
+    s.broken.store(true, Ordering::Relaxed);
 }
 
 fn reader(
     name: &'static str,
     path: &str,
     baud: u32,
-    tx: &Sender<Event>,
+    idle_gap: Duration,
+    inbox: &Inbox,
     stop: &AtomicBool,
-    writer: &Port,
-    opens: &std::sync::atomic::AtomicU64,
+    s: &Shared,
 ) {
-    let mut backoff = Duration::from_millis(100);
+    let mut backoff = BACKOFF_MIN;
+    let mut open_failures = 0u64;
     while !stop.load(Ordering::Relaxed) {
-        let mut port = match serialport::new(path, baud)
-            .timeout(Duration::from_millis(50))
-            .open()
-        {
+        let mut port = match serialport::new(path, baud).timeout(idle_gap).open() {
             Ok(port) => port,
             Err(e) => {
-                warn!(port = name, path, error = %e, retry_in = ?backoff, "cannot open serial port");
+                open_failures += 1;
+                // First failure and then every 10th: a missing device must not fill the log.
+                if open_failures == 1 || open_failures.is_multiple_of(10) {
+                    warn!(port = name, path, error = %e, retry_in = ?backoff, failures = open_failures, "cannot open serial port");
+                }
                 thread::sleep(backoff);
-                backoff = (backoff * 2).min(Duration::from_secs(5));
+                backoff = (backoff * 2).min(BACKOFF_MAX_OPEN);
                 continue;
             }
         };
-        backoff = Duration::from_millis(100);
-        match port.try_clone() {
-            Ok(clone) => *writer.lock().unwrap_or_else(|e| e.into_inner()) = Some(clone),
+        open_failures = 0;
+        let mut writer = match port.try_clone() {
+            Ok(clone) => clone,
             Err(e) => {
                 warn!(port = name, error = %e, "cannot clone port for writing");
                 thread::sleep(backoff);
                 continue;
             }
+        };
+        if let Err(e) = writer.set_timeout(WRITE_STALL) {
+            warn!(port = name, error = %e, "cannot set write timeout");
         }
-        opens.fetch_add(1, Ordering::Relaxed);
+        s.broken.store(false, Ordering::Relaxed);
+        s.wrote.store(false, Ordering::Relaxed);
+        *s.port.lock().unwrap_or_else(|e| e.into_inner()) = Some(writer);
+        s.opens.fetch_add(1, Ordering::Relaxed);
         info!(port = name, path, baud, "serial port open");
-        if tx.send(Event::Serial(name, SerialEvent::Opened)).is_err() {
+        inbox.send(Event::Serial(name, SerialEvent::Opened));
+        let stalled = read_until_failure(name, &mut port, inbox, stop, s);
+        *s.port.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        drop(port);
+        if stop.load(Ordering::Relaxed) {
             return;
         }
-        let mut buf = [0u8; 1024];
-        loop {
-            if stop.load(Ordering::Relaxed) {
-                return;
-            }
-            match port.read(&mut buf) {
-                Ok(0) => {
-                    warn!(port = name, "end of file on serial port");
-                    break;
-                }
-                Ok(n) => {
-                    if tx
-                        .send(Event::Serial(name, SerialEvent::Bytes(buf[..n].to_vec())))
-                        .is_err()
-                    {
-                        return;
-                    }
-                }
-                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::Interrupted) => {}
-                Err(e) => {
-                    warn!(port = name, error = %e, "serial port failed");
-                    break;
-                }
-            }
-        }
-        *writer.lock().unwrap_or_else(|e| e.into_inner()) = None;
-        if tx.send(Event::Serial(name, SerialEvent::Closed)).is_err() {
-            return;
-        }
-        // A pty or a USB device that just vanished: give it a moment before reopening.
+        inbox.send(Event::Serial(name, SerialEvent::Closed));
+        // A stall that no write got through since the last open doubles the wait; anything
+        // else (a vanished device, a stall after good writes) starts again from the minimum.
+        backoff = if stalled && !s.wrote.load(Ordering::Relaxed) {
+            (backoff * 2).min(BACKOFF_MAX_STALL)
+        } else {
+            BACKOFF_MIN
+        };
         thread::sleep(backoff);
+    }
+}
+
+/// Reads until the port fails, the writer reports a failure (returns `true`) or `stop`.
+fn read_until_failure(
+    name: &'static str,
+    port: &mut Box<dyn SerialPort>,
+    inbox: &Inbox,
+    stop: &AtomicBool,
+    s: &Shared,
+) -> bool {
+    let mut buf = [0u8; 1024];
+    let mut since_bytes = false;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return false;
+        }
+        if s.broken.load(Ordering::Relaxed) {
+            return true;
+        }
+        match port.read(&mut buf) {
+            Ok(0) => {
+                warn!(port = name, "end of file on serial port");
+                return false;
+            }
+            Ok(n) => {
+                since_bytes = true;
+                inbox.send(Event::Serial(name, SerialEvent::Bytes(buf[..n].to_vec())));
+            }
+            Err(e) if e.kind() == ErrorKind::TimedOut => {
+                if since_bytes {
+                    since_bytes = false;
+                    inbox.send(Event::Serial(name, SerialEvent::Idle));
+                }
+            }
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            Err(e) => {
+                warn!(port = name, error = %e, "serial port failed");
+                return false;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_gap_follows_the_byte_rate_with_a_floor() {
+        assert_eq!(frame_gap(92_160), Duration::from_millis(100));
+        // A LoRa SF7 budget: a 280-byte frame takes 410 ms.
+        let lora = frame_gap(683);
+        assert!(lora > Duration::from_millis(800) && lora < Duration::from_millis(830));
     }
 }

@@ -4,61 +4,114 @@
 //!
 //! Each client has its own [`FrameReader`], so a frame split across TCP segments is put back
 //! together before the router sees it and bytes of two clients (or of UDP) never interleave
-//! inside the router's reader: only whole frames cross into the main loop.
+//! inside the router's reader: only whole frames cross into the main loop. A partial frame
+//! followed by [`CLIENT_IDLE_GAP`] of silence is dropped, so frames behind it come out.
+//!
+//! Each client also has its own bounded write queue and writer thread: a client that stops
+//! reading never blocks the main loop or the other clients; what does not fit its queue is
+//! dropped and counted for that client (before, every send blocked the main loop up to
+//! 200 ms per stalled client, and the client was then disconnected). At most `max_clients`
+//! are connected; one more is refused with a log line.
 
-use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::Sender;
-use std::sync::{Arc, Mutex};
+use std::io::{ErrorKind, Read, Write};
+use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread;
 use std::time::Duration;
 
 use tracing::{info, warn};
 
-use super::Event;
-use crate::wire::FrameReader;
+use super::queue::{Lane, Queue};
+use super::{Event, Inbox};
+use crate::schedule::Class;
+use crate::wire::{Frame, FrameReader};
 
-/// How long a write to one client may block before that client is dropped: a stalled ground
-/// station must not stall the radio side.
-const WRITE_TIMEOUT: Duration = Duration::from_millis(200);
+/// Clients connected at once unless configured (`--tcp-max-clients`).
+pub const DEFAULT_MAX_CLIENTS: usize = 8;
+/// Bytes queued towards one client at most (64 KB: several seconds of expanded telemetry).
+pub const CLIENT_QUEUE_BYTES: usize = 64 * 1024;
+/// A client's partial frame is dropped after this long without a byte from it.
+pub const CLIENT_IDLE_GAP: Duration = Duration::from_secs(1);
+
+/// What the TCP endpoint has done, summed over all clients so far.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TcpCounters {
+    /// Clients connected now.
+    pub clients: usize,
+    /// Connections refused because `max_clients` were connected.
+    pub refused: u64,
+    /// Bytes for clients dropped because their queue was full (they do not read).
+    pub dropped_bytes: u64,
+    /// Partial frames from clients dropped after an idle gap.
+    pub partials_dropped: u64,
+}
+
+#[derive(Debug)]
+struct Client {
+    addr: SocketAddr,
+    stream: TcpStream,
+    out: Queue<Vec<u8>>,
+}
+
+#[derive(Debug, Default)]
+struct Shared {
+    clients: Mutex<Vec<Arc<Client>>>,
+    refused: AtomicU64,
+    /// Dropped bytes of clients gone (those connected count in their queue).
+    gone_dropped: AtomicU64,
+    partials_dropped: AtomicU64,
+}
+
+impl Shared {
+    fn clients(&self) -> MutexGuard<'_, Vec<Arc<Client>>> {
+        self.clients.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn remove(&self, addr: SocketAddr) {
+        let mut clients = self.clients();
+        if let Some(i) = clients.iter().position(|c| c.addr == addr) {
+            let c = clients.swap_remove(i);
+            c.out.close(true);
+            self.gone_dropped
+                .fetch_add(c.out.stats().dropped_bytes, Ordering::Relaxed);
+            let _ = c.stream.shutdown(Shutdown::Both);
+        }
+    }
+}
 
 /// TCP listener towards ground stations.
 #[derive(Debug)]
 pub struct TcpEndpoint {
     local: SocketAddr,
-    clients: Arc<Mutex<Vec<(SocketAddr, TcpStream)>>>,
+    shared: Arc<Shared>,
 }
 
 impl TcpEndpoint {
     /// Listens on `bind` and starts the accept thread; each client gets a reader thread that
-    /// sends [`Event::Tcp`] with one whole frame each.
+    /// sends [`Event::Tcp`] with one whole frame each, and a writer thread.
     pub fn spawn(
         bind: SocketAddr,
-        tx: Sender<Event>,
+        max_clients: usize,
+        tx: Inbox,
         stop: Arc<AtomicBool>,
     ) -> anyhow::Result<Self> {
         let listener = TcpListener::bind(bind)
             .map_err(|e| anyhow::anyhow!("cannot listen on TCP {bind}: {e}"))?;
-        // Non-blocking accept, so the thread sees `stop` without a connection arriving.
-        listener.set_nonblocking(true)?;
         let local = listener.local_addr()?;
-        info!(%local, "TCP endpoint listening");
-        let clients: Arc<Mutex<Vec<(SocketAddr, TcpStream)>>> = Arc::default();
-        let accepted = clients.clone();
+        info!(%local, max_clients, "TCP endpoint listening");
+        let shared = Arc::new(Shared::default());
+        let accepted = shared.clone();
+        // Blocking accept: no polling while nobody connects; the thread ends with the process.
         thread::Builder::new()
             .name("tcp-accept".into())
             .spawn(move || {
-                while !stop.load(Ordering::Relaxed) {
-                    match listener.accept() {
-                        Ok((stream, from)) => {
-                            if let Err(e) = add_client(stream, from, &accepted, &tx, &stop) {
-                                warn!(%from, error = %e, "TCP client refused");
-                            }
-                        }
-                        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                            thread::sleep(Duration::from_millis(50));
-                        }
+                for stream in listener.incoming() {
+                    if stop.load(Ordering::Relaxed) {
+                        return;
+                    }
+                    match stream {
+                        Ok(stream) => accept(stream, max_clients, &accepted, &tx, &stop),
                         Err(e) => {
                             warn!(error = %e, "TCP accept failed");
                             thread::sleep(Duration::from_millis(200));
@@ -66,7 +119,7 @@ impl TcpEndpoint {
                     }
                 }
             })?;
-        Ok(Self { local, clients })
+        Ok(Self { local, shared })
     }
 
     /// The address listened on (useful when bound to port 0).
@@ -76,75 +129,118 @@ impl TcpEndpoint {
 
     /// Connected clients now.
     pub fn clients(&self) -> usize {
-        self.clients.lock().map_or(0, |c| c.len())
+        self.shared.clients().len()
     }
 
-    /// Sends one frame to every client; a client whose write fails or times out is dropped.
+    /// The counters now.
+    pub fn counters(&self) -> TcpCounters {
+        let clients = self.shared.clients();
+        let queued: u64 = clients.iter().map(|c| c.out.stats().dropped_bytes).sum();
+        TcpCounters {
+            clients: clients.len(),
+            refused: self.shared.refused.load(Ordering::Relaxed),
+            dropped_bytes: queued + self.shared.gone_dropped.load(Ordering::Relaxed),
+            partials_dropped: self.shared.partials_dropped.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Queues one frame for every client; never blocks. A client whose queue is full loses
+    /// its oldest periodic frames first (counted).
     pub fn send(&self, bytes: &[u8]) {
-        let Ok(mut clients) = self.clients.lock() else {
-            return;
+        let lane = match Frame::new_checked(bytes).map(|f| Class::of(f.message_id())) {
+            Ok(Class::Priority) => Lane::Priority,
+            _ => Lane::Bulk,
         };
-        clients.retain_mut(|(addr, stream)| match stream.write_all(bytes) {
-            Ok(()) => true,
-            Err(e) => {
-                warn!(client = %addr, error = %e, "TCP client dropped");
-                let _ = stream.shutdown(std::net::Shutdown::Both);
-                false
-            }
-        });
+        for c in self.shared.clients().iter() {
+            c.out.push(bytes.to_vec(), bytes.len(), lane);
+        }
+    }
+}
+
+fn accept(
+    stream: TcpStream,
+    max_clients: usize,
+    shared: &Arc<Shared>,
+    tx: &Inbox,
+    stop: &Arc<AtomicBool>,
+) {
+    let from = stream
+        .peer_addr()
+        .unwrap_or_else(|_| ([0, 0, 0, 0], 0).into());
+    let connected = shared.clients().len();
+    if connected >= max_clients {
+        let n = shared.refused.fetch_add(1, Ordering::Relaxed) + 1;
+        // First refusal and then every 100th: a connection storm must not fill the log.
+        if n == 1 || n.is_multiple_of(100) {
+            warn!(client = %from, max_clients, refused = n, "TCP client refused: too many clients");
+        }
+        let _ = stream.shutdown(Shutdown::Both);
+        return;
+    }
+    if let Err(e) = add_client(stream, from, shared, tx, stop) {
+        warn!(client = %from, error = %e, "TCP client refused");
     }
 }
 
 fn add_client(
     stream: TcpStream,
     from: SocketAddr,
-    clients: &Arc<Mutex<Vec<(SocketAddr, TcpStream)>>>,
-    tx: &Sender<Event>,
+    shared: &Arc<Shared>,
+    tx: &Inbox,
     stop: &Arc<AtomicBool>,
 ) -> std::io::Result<()> {
-    stream.set_nonblocking(false)?;
     stream.set_nodelay(true)?;
-    stream.set_write_timeout(Some(WRITE_TIMEOUT))?;
     let mut reader = stream.try_clone()?;
-    reader.set_read_timeout(Some(Duration::from_millis(100)))?;
+    reader.set_read_timeout(Some(CLIENT_IDLE_GAP))?;
+    let mut writer = stream.try_clone()?;
+    let client = Arc::new(Client {
+        addr: from,
+        stream,
+        out: Queue::new(CLIENT_QUEUE_BYTES),
+    });
     info!(client = %from, "TCP ground station connected");
-    clients
-        .lock()
-        .map_err(|_| std::io::Error::other("client list poisoned"))?
-        .push((from, stream));
-    let (tx, stop, clients) = (tx.clone(), stop.clone(), clients.clone());
+    shared.clients().push(client.clone());
+
+    let s = shared.clone();
     thread::Builder::new()
-        .name(format!("tcp-{from}"))
+        .name(format!("tcp-tx-{from}"))
+        .spawn(move || {
+            while let Ok(frame) = client.out.pop_until(None) {
+                if let Err(e) = writer.write_all(&frame) {
+                    warn!(client = %from, error = %e, "TCP write failed");
+                    s.remove(from);
+                    return;
+                }
+            }
+        })?;
+
+    let (tx, stop, s) = (tx.clone(), stop.clone(), shared.clone());
+    thread::Builder::new()
+        .name(format!("tcp-rx-{from}"))
         .spawn(move || {
             let mut frames = FrameReader::new();
             let mut buf = [0u8; 4096];
             while !stop.load(Ordering::Relaxed) {
                 match reader.read(&mut buf) {
                     Ok(0) => break,
-                    Ok(n) => {
-                        frames.push(&buf[..n]);
-                        while let Some(rx) = frames.next_frame() {
-                            let bytes = rx.frame.as_bytes().to_vec();
-                            if tx.send(Event::Tcp(bytes, from)).is_err() {
-                                return;
-                            }
+                    Ok(n) => frames.push(&buf[..n]),
+                    Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                        if frames.flush_partial() {
+                            s.partials_dropped.fetch_add(1, Ordering::Relaxed);
                         }
                     }
-                    Err(e)
-                        if matches!(
-                            e.kind(),
-                            std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                        ) => {}
+                    Err(e) if e.kind() == ErrorKind::Interrupted => {}
                     Err(e) => {
                         warn!(client = %from, error = %e, "TCP read failed");
                         break;
                     }
                 }
+                while let Some(rx) = frames.next_frame() {
+                    tx.send(Event::Tcp(rx.frame.into_inner(), from));
+                }
             }
             info!(client = %from, "TCP ground station disconnected");
-            if let Ok(mut c) = clients.lock() {
-                c.retain(|(addr, _)| *addr != from);
-            }
+            s.remove(from);
         })?;
     Ok(())
 }

@@ -5,42 +5,45 @@
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::Sender;
 use std::thread;
 use std::time::Duration;
 
 use tracing::{info, warn};
 
-use super::Event;
+use super::framing::{DatagramFramer, FramingCounters};
+use super::{Event, Inbox};
 
 /// UDP endpoint towards ground stations.
 #[derive(Debug)]
 pub struct UdpEndpoint {
     socket: UdpSocket,
     peer: SocketAddr,
+    framing: Arc<FramingCounters>,
 }
 
 impl UdpEndpoint {
-    /// Binds `bind`, sends to `peer` until it learns another, and starts the reader thread.
+    /// Binds `bind`, sends to `peer` until it learns another, and starts the reader thread,
+    /// which sends one [`Event::Udp`] per whole frame (see [`super::framing`]).
     pub fn spawn(
         bind: SocketAddr,
         peer: SocketAddr,
-        tx: Sender<Event>,
+        tx: Inbox,
         stop: Arc<AtomicBool>,
     ) -> anyhow::Result<Self> {
         let socket = UdpSocket::bind(bind)?;
         socket.set_read_timeout(Some(Duration::from_millis(100)))?;
         let reader = socket.try_clone()?;
         info!(local = %socket.local_addr()?, %peer, "UDP endpoint");
+        let framing = Arc::new(FramingCounters::default());
+        let counters = framing.clone();
         thread::Builder::new().name("udp".into()).spawn(move || {
             let mut buf = [0u8; 65_536];
+            let mut framer = DatagramFramer::default();
             while !stop.load(Ordering::Relaxed) {
                 match reader.recv_from(&mut buf) {
-                    Ok((n, from)) => {
-                        if tx.send(Event::Udp(buf[..n].to_vec(), from)).is_err() {
-                            return;
-                        }
-                    }
+                    Ok((n, from)) => framer.frames(&buf[..n], &counters, |frame| {
+                        tx.send(Event::Udp(frame, from));
+                    }),
                     Err(e)
                         if matches!(
                             e.kind(),
@@ -52,7 +55,16 @@ impl UdpEndpoint {
                 }
             }
         })?;
-        Ok(Self { socket, peer })
+        Ok(Self {
+            socket,
+            peer,
+            framing,
+        })
+    }
+
+    /// What the reader thread's framing has seen.
+    pub fn framing(&self) -> &FramingCounters {
+        &self.framing
     }
 
     /// The local address (useful when bound to port 0).

@@ -173,6 +173,14 @@ impl Router {
         while self.radio_reader.next_frame().is_some() {}
     }
 
+    /// No byte came from the radio for longer than a frame takes: a partial frame still
+    /// buffered lost its tail; it is dropped and frames behind it are handled.
+    pub fn handle_radio_idle(&mut self, now: Instant) {
+        if self.radio_reader.flush_partial() {
+            self.handle_radio_bytes(now, &[]);
+        }
+    }
+
     /// Bytes from a ground station (one UDP datagram, or a stream chunk).
     pub fn handle_gcs_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.gcs_reader.push(bytes);

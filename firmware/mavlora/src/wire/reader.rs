@@ -14,7 +14,10 @@
 //! - an unknown message id cannot be checked: it is accepted unless a checksum-valid frame of
 //!   a known id starts inside it (garbage must not swallow a good frame); deciding that may
 //!   wait for the inner candidate's bytes;
-//! - at end of input ([`FrameReader::finish`]) incomplete candidates are dropped as garbage.
+//! - at end of input ([`FrameReader::finish`]) incomplete candidates are dropped as garbage;
+//!   so are they when the caller knows no more bytes of them will come
+//!   ([`FrameReader::flush_partial`]: the end of a datagram, or a serial line idle for longer
+//!   than the frame would take), and frames buffered behind them come out.
 
 use tracing::debug;
 
@@ -93,15 +96,34 @@ impl FrameReader {
         }
     }
 
-    /// Appends received bytes. Pushing after [`finish`](Self::finish) starts a new input
-    /// (a reopened port), keeping the counters.
+    /// Appends received bytes. Pushing bytes after [`finish`](Self::finish) starts a new
+    /// input (a reopened port), keeping the counters; pushing nothing changes nothing.
     pub fn push(&mut self, bytes: &[u8]) {
         if self.start > 0 {
             self.buf.drain(..self.start);
             self.start = 0;
         }
-        self.finished = false;
+        if !bytes.is_empty() {
+            self.finished = false;
+        }
         self.buf.extend_from_slice(bytes);
+    }
+
+    /// Gives up on the partial frame the reader is waiting on, if any (call once
+    /// [`next_frame`](Self::next_frame) returned `None`): its bytes become garbage, frames
+    /// buffered behind it come out of the next [`next_frame`](Self::next_frame) calls, and
+    /// `partials_dropped` counts it. Returns whether there was one. The next bytes pushed
+    /// start a new input, as after [`finish`](Self::finish).
+    ///
+    /// Without it a reader waits for a partial frame's announced length however long that
+    /// takes: 10 bytes starting `FD FF` held the next command for 11 s.
+    pub fn flush_partial(&mut self) -> bool {
+        if self.buffered() == 0 {
+            return false;
+        }
+        self.stats.partials_dropped += 1;
+        self.finished = true;
+        true
     }
 
     /// Declares the end of input: buffered incomplete candidates become garbage, so frames

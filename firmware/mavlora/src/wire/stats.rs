@@ -38,6 +38,9 @@ pub struct ReaderStats {
     pub lost: u64,
     /// Bytes discarded while resynchronising (not part of any accepted frame).
     pub garbage_bytes: u64,
+    /// Partial frames given up by [`FrameReader::flush_partial`](super::FrameReader::flush_partial)
+    /// (their bytes are in `garbage_bytes`).
+    pub partials_dropped: u64,
     streams: BTreeMap<StreamId, StreamCounters>,
 }
 

@@ -349,3 +349,34 @@ proptest! {
         prop_assert_eq!(bytes_of(&chunked), bytes_of(&whole));
     }
 }
+
+#[test]
+fn flush_partial_releases_a_frame_held_behind_a_lost_tail() {
+    // The first 10 bytes of a frame announcing 255 payload bytes, then a whole heartbeat:
+    // the reader takes the heartbeat for the long frame's tail and waits.
+    let hb = frame(HEARTBEAT, 1, 1, 0);
+    let partial = [0xFD, 0xFF, 0, 0, 7, 1, 1, 0x30, 0, 0];
+    let mut reader = FrameReader::new();
+    reader.push(&partial);
+    reader.push(hb.as_bytes());
+    assert!(reader.next_frame().is_none());
+    assert!(reader.flush_partial());
+    // An empty push (no new bytes) does not cancel the flush.
+    reader.push(&[]);
+    let out = reader.next_frame().expect("the heartbeat comes out");
+    assert_eq!(out.frame.as_bytes(), hb.as_bytes());
+    assert!(reader.next_frame().is_none());
+    assert_eq!(reader.buffered(), 0);
+    let stats = reader.stats();
+    assert_eq!(stats.partials_dropped, 1);
+    assert_eq!(stats.garbage_bytes, partial.len() as u64);
+    // Nothing buffered: nothing to flush, nothing counted.
+    assert!(!reader.flush_partial());
+    assert_eq!(reader.stats().partials_dropped, 1);
+    // New bytes start a new input: a frame split across pushes is reassembled again.
+    let (a, b) = hb.as_bytes().split_at(5);
+    reader.push(a);
+    assert!(reader.next_frame().is_none());
+    reader.push(b);
+    assert!(reader.next_frame().is_some());
+}

@@ -1,0 +1,277 @@
+//! A bounded queue between IO threads: bytes may enter faster than they leave (a UDP flood,
+//! a radio that is not read), so every queue past the point where bytes enter holds at most a
+//! fixed number of bytes. A full queue never blocks the producer: it drops the oldest
+//! [`Lane::Bulk`] item first (periodic telemetry: a newer sample is coming), then the oldest
+//! [`Lane::Priority`] item (commands, mission, acks: last to go), and counts what it dropped.
+//! [`Lane::Keep`] items (port opened/closed, stop) are never dropped; they are rare.
+//!
+//! Items leave in the order they entered, whatever their lane.
+
+use std::collections::VecDeque;
+use std::sync::{Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+/// Which items go first when the queue is full.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lane {
+    /// Dropped first: periodic telemetry, raw stream bytes.
+    Bulk,
+    /// Dropped only when no bulk item is left: commands, acks, mission traffic.
+    Priority,
+    /// Never dropped: control events.
+    Keep,
+}
+
+/// What a queue has dropped so far.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct QueueStats {
+    /// Items dropped because the queue was full (or closed).
+    pub dropped_items: u64,
+    /// Their bytes.
+    pub dropped_bytes: u64,
+    /// Of those, priority items.
+    pub dropped_priority: u64,
+    /// Most bytes held at once.
+    pub peak_bytes: usize,
+}
+
+/// Why [`Queue::pop_until`] returned nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PopError {
+    /// The deadline passed.
+    Timeout,
+    /// The queue was closed and is empty.
+    Closed,
+}
+
+#[derive(Debug)]
+struct Entry<T> {
+    seq: u64,
+    bytes: usize,
+    item: T,
+}
+
+#[derive(Debug)]
+struct State<T> {
+    lanes: [VecDeque<Entry<T>>; 3],
+    next_seq: u64,
+    bytes: usize,
+    closed: bool,
+    stats: QueueStats,
+}
+
+/// A bounded multi-producer, single-consumer queue; see the module doc.
+#[derive(Debug)]
+pub struct Queue<T> {
+    capacity: usize,
+    state: Mutex<State<T>>,
+    ready: Condvar,
+}
+
+impl<T> Queue<T> {
+    /// A queue holding at most `capacity` bytes (as the producers count them).
+    pub fn new(capacity: usize) -> Self {
+        Self {
+            capacity,
+            state: Mutex::new(State {
+                lanes: [VecDeque::new(), VecDeque::new(), VecDeque::new()],
+                next_seq: 0,
+                bytes: 0,
+                closed: false,
+                stats: QueueStats::default(),
+            }),
+            ready: Condvar::new(),
+        }
+    }
+
+    fn lock(&self) -> MutexGuard<'_, State<T>> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Queues `item` of `bytes` bytes; never blocks. Returns `false` if `item` itself was
+    /// dropped (closed queue, or no room even after dropping every older droppable item).
+    pub fn push(&self, item: T, bytes: usize, lane: Lane) -> bool {
+        let mut s = self.lock();
+        if s.closed {
+            s.drop_counted(bytes, lane);
+            return false;
+        }
+        if lane != Lane::Keep {
+            while s.bytes + bytes > self.capacity {
+                let victim = if !s.lanes[0].is_empty() {
+                    Lane::Bulk
+                } else if lane == Lane::Priority && !s.lanes[1].is_empty() {
+                    Lane::Priority
+                } else {
+                    s.drop_counted(bytes, lane);
+                    return false;
+                };
+                let old = s.lanes[victim as usize]
+                    .pop_front()
+                    .expect("non-empty lane");
+                s.bytes -= old.bytes;
+                s.drop_counted(old.bytes, victim);
+            }
+        }
+        let seq = s.next_seq;
+        s.next_seq += 1;
+        s.bytes += bytes;
+        s.stats.peak_bytes = s.stats.peak_bytes.max(s.bytes);
+        s.lanes[lane as usize].push_back(Entry { seq, bytes, item });
+        drop(s);
+        self.ready.notify_one();
+        true
+    }
+
+    /// The oldest item, waiting until `deadline` (`None`: forever) for one.
+    pub fn pop_until(&self, deadline: Option<Instant>) -> Result<T, PopError> {
+        let mut s = self.lock();
+        loop {
+            if let Some(item) = s.pop() {
+                return Ok(item);
+            }
+            if s.closed {
+                return Err(PopError::Closed);
+            }
+            s = match deadline {
+                None => self.ready.wait(s).unwrap_or_else(|e| e.into_inner()),
+                Some(d) => {
+                    let left = d.saturating_duration_since(Instant::now());
+                    if left == Duration::ZERO {
+                        return Err(PopError::Timeout);
+                    }
+                    self.ready
+                        .wait_timeout(s, left)
+                        .unwrap_or_else(|e| e.into_inner())
+                        .0
+                }
+            };
+        }
+    }
+
+    /// Closes the queue: later pushes are dropped and counted; what is queued is counted as
+    /// dropped too when `discard` is set, else it can still be popped.
+    pub fn close(&self, discard: bool) {
+        let mut s = self.lock();
+        s.closed = true;
+        if discard {
+            for lane in [Lane::Bulk, Lane::Priority, Lane::Keep] {
+                while let Some(old) = s.lanes[lane as usize].pop_front() {
+                    s.bytes -= old.bytes;
+                    s.drop_counted(old.bytes, lane);
+                }
+            }
+        }
+        drop(s);
+        self.ready.notify_all();
+    }
+
+    /// Drops everything queued now (counted), leaving the queue open.
+    pub fn discard(&self) -> usize {
+        let mut s = self.lock();
+        let before = s.bytes;
+        for lane in [Lane::Bulk, Lane::Priority, Lane::Keep] {
+            while let Some(old) = s.lanes[lane as usize].pop_front() {
+                s.bytes -= old.bytes;
+                s.drop_counted(old.bytes, lane);
+            }
+        }
+        before
+    }
+
+    /// Bytes queued now.
+    pub fn bytes(&self) -> usize {
+        self.lock().bytes
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> QueueStats {
+        self.lock().stats
+    }
+}
+
+impl<T> State<T> {
+    fn pop(&mut self) -> Option<T> {
+        let lane = (0..3)
+            .filter_map(|i| self.lanes[i].front().map(|e| (e.seq, i)))
+            .min()?
+            .1;
+        let e = self.lanes[lane].pop_front()?;
+        self.bytes -= e.bytes;
+        Some(e.item)
+    }
+
+    fn drop_counted(&mut self, bytes: usize, lane: Lane) {
+        self.stats.dropped_items += 1;
+        self.stats.dropped_bytes += bytes as u64;
+        if lane == Lane::Priority {
+            self.stats.dropped_priority += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn drain(q: &Queue<u32>) -> Vec<u32> {
+        std::iter::from_fn(|| q.pop_until(Some(Instant::now())).ok()).collect()
+    }
+
+    #[test]
+    fn full_queue_drops_oldest_bulk_first_and_keeps_order() {
+        let q = Queue::new(40);
+        q.push(1, 10, Lane::Priority);
+        q.push(2, 10, Lane::Bulk);
+        q.push(3, 10, Lane::Bulk);
+        q.push(4, 10, Lane::Priority);
+        assert!(q.push(5, 10, Lane::Bulk));
+        assert_eq!(drain(&q), [1, 3, 4, 5]);
+        let s = q.stats();
+        assert_eq!(
+            (s.dropped_items, s.dropped_bytes, s.dropped_priority),
+            (1, 10, 0)
+        );
+        assert_eq!(s.peak_bytes, 40);
+    }
+
+    #[test]
+    fn priority_goes_last_and_bulk_never_evicts_priority() {
+        let q = Queue::new(20);
+        q.push(1, 10, Lane::Priority);
+        q.push(2, 10, Lane::Priority);
+        // A bulk item finds only priority items: it is the one dropped.
+        assert!(!q.push(3, 10, Lane::Bulk));
+        // A priority item evicts the oldest priority item.
+        assert!(q.push(4, 10, Lane::Priority));
+        assert_eq!(drain(&q), [2, 4]);
+        assert_eq!(q.stats().dropped_priority, 1);
+    }
+
+    #[test]
+    fn keep_items_are_never_dropped_and_bytes_stay_bounded_under_a_flood() {
+        let q = Queue::new(1000);
+        q.push(0, 0, Lane::Keep);
+        for i in 1..=100_000 {
+            q.push(i, 100, Lane::Bulk);
+            assert!(q.bytes() <= 1000);
+        }
+        let out = drain(&q);
+        assert_eq!(out[0], 0);
+        assert_eq!(out.len(), 11);
+        assert_eq!(*out.last().unwrap(), 100_000);
+        let s = q.stats();
+        // Offered = delivered + dropped.
+        assert_eq!(s.dropped_items + 10, 100_000);
+    }
+
+    #[test]
+    fn closed_queue_counts_what_it_discards() {
+        let q = Queue::new(100);
+        q.push(1, 30, Lane::Bulk);
+        q.close(true);
+        assert!(!q.push(2, 20, Lane::Bulk));
+        assert_eq!(q.pop_until(None), Err(PopError::Closed));
+        assert_eq!(q.stats().dropped_bytes, 50);
+    }
+}
