@@ -5,6 +5,7 @@
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
+use std::net::{TcpListener, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
@@ -15,13 +16,107 @@ use std::time::{Duration, Instant};
 use mavlink::MavlinkVersion;
 use serialport::{SerialPort as _, TTYPort};
 
-use mavlora::dialect::{MavMessage, MavParamType, PARAM_VALUE_DATA};
+use mavlora::dialect::{
+    COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd, MavMessage, MavParamType, MavResult,
+    PARAM_VALUE_DATA,
+};
 use mavlora::wire::{FrameReader, OwnedFrame, Sender};
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("mavlora-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Starts the router on `radio`, its UDP bound to `udp_port`, sending to `gcs`, plus `extra`.
+fn router(dir: &Path, radio: &TTYPort, udp_port: u16, gcs: &UdpSocket, extra: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--radio")
+        .arg(radio.name().unwrap())
+        .args(["--udp", &gcs.local_addr().unwrap().to_string()])
+        .args(["--udp-bind", &format!("127.0.0.1:{udp_port}")])
+        .args(["--status-interval", "1"])
+        .args(extra)
+        .env("RUST_LOG", "info")
+        .stderr(Stdio::from(
+            std::fs::File::create(dir.join("router.log")).unwrap(),
+        ))
+        .spawn()
+        .unwrap()
+}
+
+/// A COMMAND_LONG; distinct `command`s so the router's relay never takes one for a ground
+/// retry of another still in flight.
+fn command(sender: &mut Sender, command: MavCmd) -> OwnedFrame {
+    sender.frame(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command,
+        ..Default::default()
+    }))
+}
+
+/// Sends `frame` to `to` every 200 ms until the router relays a COMMAND_LONG `cmd` to `radio`.
+fn router_is_up(
+    gcs: &UdpSocket,
+    to: (&str, u16),
+    frame: &OwnedFrame,
+    radio: &mut TTYPort,
+    cmd: MavCmd,
+) -> bool {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while Instant::now() < deadline {
+        let _ = gcs.send_to(frame.as_bytes(), to);
+        if wait_frame(
+            radio,
+            Duration::from_millis(200),
+            |m| matches!(m, MavMessage::COMMAND_LONG(c) if c.command == cmd),
+        )
+        .is_some()
+        {
+            return true;
+        }
+    }
+    false
+}
+
+/// Reads frames from `read` until `want` accepts one or `timeout` passes: the time it took.
+fn wait_frame(
+    read: &mut dyn Read,
+    timeout: Duration,
+    mut want: impl FnMut(&MavMessage) -> bool,
+) -> Option<Duration> {
+    let start = Instant::now();
+    let mut reader = FrameReader::new();
+    let mut buf = [0u8; 4096];
+    while start.elapsed() < timeout {
+        if let Ok(n) = read.read(&mut buf) {
+            reader.push(&buf[..n]);
+            while let Some(rx) = reader.next_frame() {
+                if rx.frame.decode::<MavMessage>().is_ok_and(|m| want(&m)) {
+                    return Some(start.elapsed());
+                }
+            }
+        }
+    }
+    None
+}
+
+/// A `Read` over a UDP socket: each datagram in turn.
+struct UdpRead<'a>(&'a UdpSocket);
+
+impl Read for UdpRead<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        self.0.recv(buf)
+    }
 }
 
 /// Sends SIGTERM, waits, returns the log and whether it exited with 0.
@@ -182,4 +277,76 @@ fn radio_that_stops_reading_gets_traffic_again_and_every_byte_is_counted() {
     assert!(field(&s, "radio_write_failures") >= 1, "{s:?}");
     assert!(field(&s, "radio_opens") >= 2, "{s:?}");
     assert!(exited_ok, "{log_text}");
+}
+
+#[test]
+fn partial_frames_never_hold_the_next_frame() {
+    let dir = temp_dir("partial");
+    let (mut radio, radio_slave) = TTYPort::pair().unwrap();
+    radio.set_timeout(Duration::from_millis(100)).unwrap();
+    let gcs = UdpSocket::bind("127.0.0.1:0").unwrap();
+    gcs.set_read_timeout(Some(Duration::from_millis(100)))
+        .unwrap();
+    let port = free_port();
+    let child = router(&dir, &radio_slave, port, &gcs, &[]);
+    let to_router = ("127.0.0.1", port);
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    let probe = command(&mut ground, MavCmd::MAV_CMD_DO_SET_MODE);
+    let up = router_is_up(
+        &gcs,
+        to_router,
+        &probe,
+        &mut radio,
+        MavCmd::MAV_CMD_DO_SET_MODE,
+    );
+
+    // Ground leg: 10 bytes starting FD FF (a frame announcing 255 payload bytes) in one
+    // datagram, a command in the next. Invariant: a frame never spans datagrams, so the
+    // command reaches the radio at once (1 s bound for a loaded machine; before: 11 s).
+    gcs.send_to(&[0xFD, 0xFF, 0, 0, 0, 255, 190, 0x4C, 0, 0], to_router)
+        .unwrap();
+    let arm = MavCmd::MAV_CMD_COMPONENT_ARM_DISARM;
+    gcs.send_to(command(&mut ground, arm).as_bytes(), to_router)
+        .unwrap();
+    let ground_leg = wait_frame(
+        &mut radio,
+        Duration::from_secs(5),
+        |m| matches!(m, MavMessage::COMMAND_LONG(c) if c.command == arm),
+    );
+
+    // Radio leg: the first 40 bytes of a long frame whose tail was lost, then the vehicle's
+    // COMMAND_ACK. Invariant: after the line's idle gap (2 x 280 B at 683 B/s = 0.82 s) the
+    // partial frame is dropped and the ack reaches the ground (bound: gap + 1 s).
+    let mut partial = vec![0xFD, 0xFF, 0, 0, 9, 1, 1, 0x16, 0, 0];
+    partial.resize(40, 0x55);
+    let mut vehicle = Sender::new(1, 1, MavlinkVersion::V2);
+    let ack = vehicle.frame(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        result: MavResult::MAV_RESULT_ACCEPTED,
+    }));
+    radio
+        .write_all(&[partial.as_slice(), ack.as_bytes()].concat())
+        .unwrap();
+    let radio_leg = wait_frame(&mut UdpRead(&gcs), Duration::from_secs(8), |m| {
+        matches!(m, MavMessage::COMMAND_ACK(_))
+    });
+
+    let (log, exited_ok) = terminate(child, &dir.join("router.log"));
+    let _ = std::fs::remove_dir_all(&dir);
+    eprintln!(
+        "command after a partial datagram: {ground_leg:?}; ack after a partial radio frame: {radio_leg:?}"
+    );
+    assert!(up, "router never relayed a command:\n{log}");
+    assert!(
+        ground_leg.is_some_and(|t| t < Duration::from_secs(1)),
+        "command held behind a partial datagram: {ground_leg:?}\n{log}"
+    );
+    assert!(
+        radio_leg.is_some_and(|t| t < Duration::from_millis(1820)),
+        "ack held behind a partial radio frame: {radio_leg:?}\n{log}"
+    );
+    let s = last_status(&log);
+    assert_eq!(field(&s, "udp_partials_dropped"), 1, "{s:?}");
+    assert_eq!(field(&s, "radio_partials_dropped"), 1, "{s:?}");
+    assert!(exited_ok, "{log}");
 }
