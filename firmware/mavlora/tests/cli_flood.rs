@@ -1,0 +1,172 @@
+//! Load on the router's ground UDP port (issue "Faults and load: the links recover by
+//! themselves, nothing is lost"): one local sender of 64 KB datagrams took the router from
+//! 4 MB to 1.2 GB in 6 s, and a command sent after the flood had not reached the radio 10 s
+//! later. Target from the issue: under a 5 s flood, peak RSS < 64 MB, and a COMMAND_LONG sent
+//! after the flood reaches the radio within 1 s. The flood goes to 127.0.0.1 only, bounded in
+//! count and time; the router is killed early if its RSS passes 256 MB.
+
+use std::io::Read;
+use std::net::{TcpListener, UdpSocket};
+use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use mavlink::MavlinkVersion;
+use serialport::{SerialPort as _, TTYPort};
+
+use mavlora::dialect::{ATTITUDE_DATA, COMMAND_LONG_DATA, MavCmd, MavMessage};
+use mavlora::wire::{FrameReader, Sender};
+
+const FLOOD: Duration = Duration::from_secs(5);
+const MAX_DATAGRAMS: usize = 1_000_000;
+const RSS_LIMIT_KB: u64 = 64 * 1024;
+const KILL_KB: u64 = 256 * 1024;
+
+fn rss_kb(pid: u32, key: &str) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = status.lines().find(|l| l.starts_with(key))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+#[test]
+fn udp_flood_keeps_router_memory_bounded_and_commands_flowing() {
+    let dir = std::env::temp_dir().join(format!("mavlora-flood-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (mut radio, radio_slave) = TTYPort::pair().unwrap();
+    radio.set_timeout(Duration::from_millis(100)).unwrap();
+    let gcs = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let log = dir.join("router.log");
+    let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--radio")
+        .arg(radio_slave.name().unwrap())
+        .args(["--udp", &gcs.local_addr().unwrap().to_string()])
+        .args(["--udp-bind", &format!("127.0.0.1:{port}")])
+        .arg("--tlog")
+        .arg(dir.join("flood.tlog"))
+        .env("RUST_LOG", "info")
+        .stderr(Stdio::from(std::fs::File::create(&log).unwrap()))
+        .spawn()
+        .unwrap();
+    let pid = router.id();
+    thread::sleep(Duration::from_millis(300));
+    let rss_before = rss_kb(pid, "VmRSS:").unwrap_or(0);
+
+    // The radio keeps reading (its content is not the point here).
+    let draining = Arc::new(AtomicBool::new(true));
+    let mut drain_port = radio.try_clone_native().unwrap();
+    let d = draining.clone();
+    let drainer = thread::spawn(move || {
+        let mut buf = [0u8; 4096];
+        while d.load(Ordering::Relaxed) {
+            let _ = drain_port.read(&mut buf);
+        }
+    });
+
+    // 64 KB datagrams of valid ATTITUDE frames, each ending in a partial frame.
+    let mut sender = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut datagram = Vec::with_capacity(65_507);
+    loop {
+        let f = sender.frame(&MavMessage::ATTITUDE(ATTITUDE_DATA {
+            roll: 0.1,
+            ..Default::default()
+        }));
+        if datagram.len() + f.as_bytes().len() > 65_507 - 10 {
+            break;
+        }
+        datagram.extend_from_slice(f.as_bytes());
+    }
+    datagram.extend_from_slice(&[0xFD, 0xFF, 0, 0, 0, 255, 190, 0x1E, 0, 0]);
+    let flooding = Arc::new(AtomicBool::new(true));
+    let f = flooding.clone();
+    let flooder = thread::spawn(move || {
+        let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let start = Instant::now();
+        let mut sent = 0usize;
+        while f.load(Ordering::Relaxed) && start.elapsed() < FLOOD && sent < MAX_DATAGRAMS {
+            if sock.send_to(&datagram, ("127.0.0.1", port)).is_ok() {
+                sent += 1;
+            }
+        }
+        (sent, start.elapsed())
+    });
+    let mut peak_kb = 0;
+    while !flooder.is_finished() {
+        let rss = rss_kb(pid, "VmRSS:").unwrap_or(0);
+        peak_kb = peak_kb.max(rss);
+        if rss > KILL_KB {
+            flooding.store(false, Ordering::Relaxed);
+            let _ = router.kill();
+            break;
+        }
+        thread::sleep(Duration::from_millis(50));
+    }
+    let (sent, flood_time) = flooder.join().unwrap();
+    peak_kb = peak_kb.max(rss_kb(pid, "VmHWM:").unwrap_or(0));
+    draining.store(false, Ordering::Relaxed);
+    drainer.join().unwrap();
+
+    // After the flood: one COMMAND_LONG, sent once, must reach the radio within 1 s.
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    let cmd = ground.frame(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    }));
+    let sent_at = Instant::now();
+    let _ = gcs.send_to(cmd.as_bytes(), ("127.0.0.1", port));
+    let mut reader = FrameReader::new();
+    let mut buf = [0u8; 4096];
+    let mut latency = None;
+    while latency.is_none() && sent_at.elapsed() < Duration::from_secs(10) {
+        if let Ok(n) = radio.read(&mut buf) {
+            reader.push(&buf[..n]);
+            while let Some(rx) = reader.next_frame() {
+                if let Ok(MavMessage::COMMAND_LONG(c)) = rx.frame.decode::<MavMessage>()
+                    && c.command == MavCmd::MAV_CMD_COMPONENT_ARM_DISARM
+                {
+                    latency = Some(sent_at.elapsed());
+                }
+            }
+        }
+    }
+    peak_kb = peak_kb.max(rss_kb(pid, "VmHWM:").unwrap_or(0));
+
+    let _ = Command::new("kill")
+        .args(["-TERM", &pid.to_string()])
+        .status();
+    let exited_ok = router.wait().unwrap().success();
+    let log_text = std::fs::read_to_string(&log).unwrap();
+    let tlog = std::fs::metadata(dir.join("flood.tlog")).map_or(0, |m| m.len());
+    let _ = std::fs::remove_dir_all(&dir);
+    let status = log_text
+        .lines()
+        .rev()
+        .find(|l| l.contains(" status "))
+        .unwrap_or("")
+        .to_string();
+    eprintln!(
+        "flood: {sent} datagrams of {} B in {flood_time:?}; router RSS {rss_before} kB before, \
+         peak {peak_kb} kB (limit {RSS_LIMIT_KB} kB); command after the flood: {latency:?}; \
+         tlog {tlog} B\n{status}",
+        65_507
+    );
+    assert!(sent > 100, "the flood did not happen: {sent} datagrams");
+    assert!(
+        peak_kb < RSS_LIMIT_KB,
+        "router peak RSS {peak_kb} kB >= {RSS_LIMIT_KB} kB\n{status}"
+    );
+    assert!(
+        latency.is_some_and(|t| t < Duration::from_secs(1)),
+        "command after the flood reached the radio after {latency:?} (limit 1 s)\n{status}"
+    );
+    assert!(exited_ok, "{log_text}");
+}
