@@ -5,7 +5,7 @@
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
-use std::net::{TcpListener, UdpSocket};
+use std::net::{TcpListener, TcpStream, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
@@ -348,5 +348,131 @@ fn partial_frames_never_hold_the_next_frame() {
     let s = last_status(&log);
     assert_eq!(field(&s, "udp_partials_dropped"), 1, "{s:?}");
     assert_eq!(field(&s, "radio_partials_dropped"), 1, "{s:?}");
+    assert!(exited_ok, "{log}");
+}
+
+#[test]
+fn tcp_clients_that_never_read_block_nobody_and_a_ninth_is_refused() {
+    let dir = temp_dir("tcp-stall");
+    let (mut radio, radio_slave) = TTYPort::pair().unwrap();
+    radio.set_timeout(Duration::from_millis(100)).unwrap();
+    let gcs = UdpSocket::bind("127.0.0.1:0").unwrap();
+    gcs.set_read_timeout(Some(Duration::from_millis(100)))
+        .unwrap();
+    let (udp_port, tcp_port) = (free_port(), free_port());
+    let tcp_addr = format!("127.0.0.1:{tcp_port}");
+    let child = router(
+        &dir,
+        &radio_slave,
+        udp_port,
+        &gcs,
+        &["--tcp-listen", &tcp_addr],
+    );
+    let to_router = ("127.0.0.1", udp_port);
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    let probe = command(&mut ground, MavCmd::MAV_CMD_DO_SET_MODE);
+    let up = router_is_up(
+        &gcs,
+        to_router,
+        &probe,
+        &mut radio,
+        MavCmd::MAV_CMD_DO_SET_MODE,
+    );
+
+    // One client that reads and seven that never do: the default cap of 8 is reached.
+    let mut reading = TcpStream::connect(&tcp_addr).unwrap();
+    reading
+        .set_read_timeout(Some(Duration::from_millis(100)))
+        .unwrap();
+    let stalled: Vec<TcpStream> = (0..7)
+        .map(|_| TcpStream::connect(&tcp_addr).unwrap())
+        .collect();
+    thread::sleep(Duration::from_millis(300));
+    // Invariant: the ninth is refused: closed by the router (EOF) within 2 s.
+    let mut ninth = TcpStream::connect(&tcp_addr).unwrap();
+    ninth
+        .set_read_timeout(Some(Duration::from_secs(2)))
+        .unwrap();
+    let refused = match ninth.read(&mut [0u8; 64]) {
+        Ok(0) => true,
+        Err(e) => e.kind() == std::io::ErrorKind::ConnectionReset,
+        Ok(_) => false,
+    };
+
+    // The vehicle sends 250,000 numbered PARAM_VALUEs (9 MB), far more than the stalled
+    // clients' socket buffers hold; the reading client counts what it gets.
+    let total = 250_000u32;
+    let counter = thread::spawn(move || {
+        let mut reader = FrameReader::new();
+        let mut buf = [0u8; 8192];
+        let (mut got, mut last) = (0u32, None);
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while Instant::now() < deadline && last != Some(total - 1) {
+            if let Ok(n) = reading.read(&mut buf) {
+                reader.push(&buf[..n]);
+                while let Some(rx) = reader.next_frame() {
+                    if let Ok(MavMessage::PARAM_VALUE(p)) = rx.frame.decode::<MavMessage>() {
+                        got += 1;
+                        last = Some(p.param_value as u32);
+                    }
+                }
+            }
+        }
+        (got, last, Instant::now())
+    });
+    let mut vehicle = Sender::new(1, 1, MavlinkVersion::V2);
+    let mut radio_w = radio.try_clone_native().unwrap();
+    for chunk in (0..total).collect::<Vec<_>>().chunks(500) {
+        let burst: Vec<u8> = chunk
+            .iter()
+            .flat_map(|&i| param_value(&mut vehicle, i).as_bytes().to_vec())
+            .collect();
+        radio_w.write_all(&burst).unwrap();
+        thread::sleep(Duration::from_millis(5));
+    }
+    let written = Instant::now();
+    // Invariant: the loop is not blocked by the stalled clients: a ground command sent now
+    // reaches the radio within 1 s.
+    let arm = MavCmd::MAV_CMD_COMPONENT_ARM_DISARM;
+    gcs.send_to(command(&mut ground, arm).as_bytes(), to_router)
+        .unwrap();
+    let command_latency = wait_frame(
+        &mut radio,
+        Duration::from_secs(5),
+        |m| matches!(m, MavMessage::COMMAND_LONG(c) if c.command == arm),
+    );
+    let (got, last, done) = counter.join().unwrap();
+    thread::sleep(Duration::from_millis(1200));
+    let (log, exited_ok) = terminate(child, &dir.join("router.log"));
+    drop(stalled);
+    let _ = std::fs::remove_dir_all(&dir);
+    let last_delay = done.saturating_duration_since(written);
+    eprintln!(
+        "reading client: {got}/{total} frames, last {last:?} {last_delay:?} after the last write; \
+         command during the stall: {command_latency:?}"
+    );
+    assert!(up, "router never relayed a command:\n{log}");
+    assert!(refused, "a ninth TCP client was accepted:\n{log}");
+    assert!(
+        log.contains("TCP client refused: too many clients"),
+        "{log}"
+    );
+    // Invariant: the client that reads gets the stream up to its last frame, promptly.
+    assert_eq!(
+        last,
+        Some(total - 1),
+        "reading client got {got} frames:\n{log}"
+    );
+    assert!(last_delay < Duration::from_secs(2), "{last_delay:?}");
+    assert!(
+        command_latency.is_some_and(|t| t < Duration::from_secs(1)),
+        "command during the TCP stall: {command_latency:?}\n{log}"
+    );
+    let s = last_status(&log);
+    // The seven stalled clients are kept (their frames dropped and counted), not
+    // disconnected; the reading one has left.
+    assert_eq!(field(&s, "tcp_clients"), 7, "{s:?}");
+    assert_eq!(field(&s, "tcp_refused"), 1, "{s:?}");
+    assert!(field(&s, "tcp_dropped_bytes") > 0, "{s:?}");
     assert!(exited_ok, "{log}");
 }

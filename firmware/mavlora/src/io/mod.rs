@@ -41,7 +41,8 @@ const EVENT_OVERHEAD: usize = 64;
 
 /// The main loop's bounded event queue: IO threads [`send`](Self::send) without blocking; a
 /// full inbox drops the oldest serial bytes and telemetry frames first and ground commands
-/// last (see [`Queue`]); port and stop events are never dropped.
+/// last, and hands ground commands to the loop first (see [`Queue`]); port and stop events
+/// are never dropped.
 #[derive(Debug, Clone)]
 pub struct Inbox(std::sync::Arc<Queue<Event>>);
 

@@ -5,7 +5,9 @@
 //! [`Lane::Priority`] item (commands, mission, acks: last to go), and counts what it dropped.
 //! [`Lane::Keep`] items (port opened/closed, stop) are never dropped; they are rare.
 //!
-//! Items leave in the order they entered, whatever their lane.
+//! Priority items leave first (a ground command does not wait behind megabytes of radio
+//! bytes when the main loop falls behind); bulk and keep items leave in the order they
+//! entered, so a port's bytes and its open/idle/closed events stay in order.
 
 use std::collections::VecDeque;
 use std::sync::{Condvar, Mutex, MutexGuard};
@@ -192,10 +194,15 @@ impl<T> Queue<T> {
 
 impl<T> State<T> {
     fn pop(&mut self) -> Option<T> {
-        let lane = (0..3)
-            .filter_map(|i| self.lanes[i].front().map(|e| (e.seq, i)))
-            .min()?
-            .1;
+        let lane = if self.lanes[Lane::Priority as usize].is_empty() {
+            [Lane::Bulk as usize, Lane::Keep as usize]
+                .into_iter()
+                .filter_map(|i| self.lanes[i].front().map(|e| (e.seq, i)))
+                .min()?
+                .1
+        } else {
+            Lane::Priority as usize
+        };
         let e = self.lanes[lane].pop_front()?;
         self.bytes -= e.bytes;
         Some(e.item)
@@ -219,20 +226,23 @@ mod tests {
     }
 
     #[test]
-    fn full_queue_drops_oldest_bulk_first_and_keeps_order() {
-        let q = Queue::new(40);
+    fn full_queue_drops_oldest_bulk_first_and_priority_leaves_first() {
+        let q = Queue::new(50);
         q.push(1, 10, Lane::Priority);
         q.push(2, 10, Lane::Bulk);
         q.push(3, 10, Lane::Bulk);
+        q.push(6, 0, Lane::Keep);
         q.push(4, 10, Lane::Priority);
+        q.push(7, 10, Lane::Bulk);
         assert!(q.push(5, 10, Lane::Bulk));
-        assert_eq!(drain(&q), [1, 3, 4, 5]);
+        // Priority first; bulk and keep in the order they came.
+        assert_eq!(drain(&q), [1, 4, 3, 6, 7, 5]);
         let s = q.stats();
         assert_eq!(
             (s.dropped_items, s.dropped_bytes, s.dropped_priority),
             (1, 10, 0)
         );
-        assert_eq!(s.peak_bytes, 40);
+        assert_eq!(s.peak_bytes, 50);
     }
 
     #[test]
