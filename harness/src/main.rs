@@ -1,7 +1,6 @@
 //! `rig`: runs C2-link scenarios on a bench or emulated, and writes evidence.
 //!
-//! Exit codes: 0 every phase passed; 1 a phase failed or errored; 2 the rig
-//! file, a device config or the command line is wrong (nothing ran).
+//! Exit codes: see [`EXIT_CODES`] (also in `rig --help`).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -14,9 +13,19 @@ use harness::rigfile::{DeviceSetup, Mode, RigFile};
 use harness::runner::{self, RunOptions};
 use harness::strategy::firmware;
 
+/// The exit codes, as `rig --help` lists them.
+const EXIT_CODES: &str = "\
+Exit codes:
+  0    every phase passed
+  1    a phase failed or errored (results.json says which)
+  2    the rig file, a device config or the command line is wrong, or --filter
+       selects no phase: nothing ran, nothing was written
+  130  interrupted by SIGINT, 143 by SIGTERM: results.json says `interrupted`,
+       the programs the rig started were stopped";
+
 /// Test rig for SORA-grade drone C2 links (MultiRX, MavLora).
 #[derive(Debug, Parser)]
-#[command(version, about)]
+#[command(version, about, after_help = EXIT_CODES)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -193,6 +202,14 @@ fn execute(command: Command) -> Result<ExitCode> {
         Command::Report { results } => {
             let paths = report::rerender(&results)?;
             println!("{}\n{}", paths.junit.display(), paths.summary.display());
+            let outcome = harness::record::RunRecord::load(&results)?.outcome;
+            if matches!(outcome, RunOutcome::Running | RunOutcome::Interrupted) {
+                eprintln!(
+                    "rig: {}: the run is {} (not finished): no verdict",
+                    results.display(),
+                    outcome.as_str()
+                );
+            }
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -113,6 +113,12 @@ pub enum RunOutcome {
     Fail,
     /// At least one phase could not run to completion.
     Error,
+    /// The run has not finished: the record is saved at start and after each
+    /// phase with this outcome, so a record left by a rig that died says so.
+    Running,
+    /// The rig was stopped (SIGINT, SIGTERM) before every phase ran: the
+    /// phases done are kept, the one in progress is marked interrupted.
+    Interrupted,
 }
 
 impl RunOutcome {
@@ -133,6 +139,8 @@ impl RunOutcome {
             RunOutcome::Pass => "pass",
             RunOutcome::Fail => "fail",
             RunOutcome::Error => "error",
+            RunOutcome::Running => "running",
+            RunOutcome::Interrupted => "interrupted",
         }
     }
 }
@@ -150,6 +158,8 @@ pub enum PhaseOutcome {
     Error,
     /// The phase was not run; the reason is in [`PhaseRecord::error`].
     Skipped,
+    /// The rig was stopped while the phase ran: it has no verdict.
+    Interrupted,
 }
 
 impl PhaseOutcome {
@@ -175,6 +185,7 @@ impl PhaseOutcome {
             PhaseOutcome::Fail => "fail",
             PhaseOutcome::Error => "error",
             PhaseOutcome::Skipped => "skipped",
+            PhaseOutcome::Interrupted => "interrupted",
         }
     }
 }
@@ -244,6 +255,26 @@ impl PhaseRecord {
             measurements,
             attachments: Vec::new(),
             error: Some(why),
+            log: Vec::new(),
+        }
+    }
+
+    /// The phase that was running when the rig was stopped: no measurements
+    /// (what it recorded so far was never judged), the signal as its error.
+    pub fn interrupted(
+        name: impl Into<String>,
+        started: impl Into<String>,
+        duration_s: f64,
+        why: impl Into<String>,
+    ) -> Self {
+        PhaseRecord {
+            name: name.into(),
+            started: started.into(),
+            duration_s,
+            outcome: PhaseOutcome::Interrupted,
+            measurements: Vec::new(),
+            attachments: Vec::new(),
+            error: Some(why.into()),
             log: Vec::new(),
         }
     }

@@ -5,6 +5,16 @@ use std::process::Command;
 
 const RIG: &str = env!("CARGO_BIN_EXE_rig");
 
+/// The tests that run real-time phases take turns: two at once on a loaded
+/// machine miss the timing limits.
+static REALTIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn realtime_turn() -> std::sync::MutexGuard<'static, ()> {
+    REALTIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -72,6 +82,7 @@ fn list_names_every_phase_in_both_modes() {
 /// One real scenario end to end: ptys, the emulated device, Python receivers.
 #[test]
 fn handover_scenario_runs_and_writes_its_evidence() {
+    let _turn = realtime_turn();
     let emulator = Path::new(RIG).with_file_name("multirx-emu");
     assert!(
         emulator.exists(),
@@ -120,4 +131,133 @@ fn handover_scenario_runs_and_writes_its_evidence() {
     );
     assert!(dir.path().join("junit.xml").exists());
     assert!(stdout.contains("report: "), "{stdout}");
+}
+
+/// Regression: a `--filter` that matched nothing exited 0 with PASS and zero phases.
+#[test]
+fn filter_matching_nothing_exits_2_names_the_filter_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let out = rig(&[
+        "run",
+        "rigs/emulated.toml",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--filter",
+        "no_such_phase",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("\"no_such_phase\""), "{stderr}");
+    assert!(stderr.contains("--list"), "{stderr}");
+    assert!(!out_dir.exists(), "nothing is written");
+}
+
+#[test]
+fn help_lists_the_exit_codes() {
+    let out = rig(&["--help"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for code in ["  0 ", "  1 ", "  2 ", "130", "143"] {
+        assert!(stdout.contains(code), "{code}:\n{stdout}");
+    }
+}
+
+/// Processes whose environment holds `marker` (the rig's children inherit it).
+fn processes_with(marker: &str) -> Vec<(u32, String)> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(environ) = std::fs::read(entry.path().join("environ")) else {
+            continue;
+        };
+        if environ
+            .split(|&b| b == 0)
+            .any(|var| var == marker.as_bytes())
+        {
+            let cmdline = std::fs::read(entry.path().join("cmdline")).unwrap_or_default();
+            let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+            // A zombie (exited, not yet reaped) has an empty cmdline and runs nothing.
+            if !cmdline.is_empty() {
+                found.push((pid, cmdline));
+            }
+        }
+    }
+    found
+}
+
+/// Regression: SIGTERM mid-phase exited 143 with the previous run's PASS still in
+/// results.json, and the emulator and fixtures it started kept running.
+#[test]
+fn sigterm_mid_phase_records_interrupted_and_leaves_no_process_behind() {
+    let _turn = realtime_turn();
+    let emulator = Path::new(RIG).with_file_name("multirx-emu");
+    assert!(
+        emulator.exists(),
+        "{} missing: run `cargo build -p multirx-emulator` first",
+        emulator.display()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    // A previous run's verdict, which must not survive this run.
+    std::fs::write(
+        dir.path().join("results.json"),
+        r#"{"outcome": "pass", "stale": true}"#,
+    )
+    .unwrap();
+    let marker = format!("RIG_TEST_RUN={}", dir.path().display());
+    let (key, value) = marker.split_once('=').unwrap();
+    let child = Command::new(RIG)
+        .args([
+            "run",
+            "rigs/emulated.toml",
+            "--out",
+            dir.path().to_str().unwrap(),
+            "--filter",
+            "multirx::parallel::c_loiter",
+            "--exact",
+        ])
+        .env(key, value)
+        .current_dir(repo())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the phase has started its programs, then stop the rig.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+    while processes_with(&marker).len() < 3 && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let running: Vec<_> = processes_with(&marker)
+        .into_iter()
+        .filter(|(pid, _)| *pid != child.id())
+        .collect();
+    assert!(!running.is_empty(), "the phase started no program");
+    rustix::process::kill_process(
+        rustix::process::Pid::from_raw(child.id() as i32).unwrap(),
+        rustix::process::Signal::TERM,
+    )
+    .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(143), "{stderr}");
+
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("results.json")).unwrap())
+            .unwrap();
+    assert_eq!(record["outcome"], "interrupted", "{record:#}");
+    let phases = record["phases"].as_array().unwrap();
+    let last = phases.last().expect("the phase in progress is recorded");
+    assert_eq!(last["name"], "multirx::parallel::c_loiter");
+    assert_eq!(last["outcome"], "interrupted");
+    let summary = std::fs::read_to_string(dir.path().join("summary.txt")).unwrap();
+    assert!(summary.contains("INTERRUPTED"), "{summary}");
+
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let left = processes_with(&marker);
+    assert!(
+        left.is_empty(),
+        "still running after the rig exited (it started {running:?}): {left:?}"
+    );
 }

@@ -1,12 +1,72 @@
 //! Programs the rig starts (the emulated device, fixtures): stderr goes to a
 //! log file kept as evidence; they are stopped when dropped.
+//!
+//! Nothing outlives the rig: each program runs in its own process group (so a
+//! terminal's Ctrl-C reaches the rig, which decides), is listed while it runs so
+//! [`kill_all`] can end every group when the rig is interrupted, and on Linux
+//! gets `SIGKILL` from the kernel if the rig dies without cleaning up
+//! (`PR_SET_PDEATHSIG`).
 
 use std::fs::File;
+use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, ExitStatus, Stdio};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
+use rustix::process::{Pid, Signal};
+
+/// Process groups (= the leaders' pids) of the programs running now.
+static RUNNING: Mutex<Vec<i32>> = Mutex::new(Vec::new());
+
+fn running() -> std::sync::MutexGuard<'static, Vec<i32>> {
+    RUNNING
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Ends every program the rig started and has not stopped yet, with whatever
+/// they started: `SIGTERM` to each process group, then `SIGKILL` after `grace`.
+/// For an interrupted rig, which exits right after.
+pub fn kill_all(grace: Duration) {
+    let groups = std::mem::take(&mut *running());
+    let signal_all = |signal| {
+        for &pgid in &groups {
+            if let Some(pid) = Pid::from_raw(pgid) {
+                let _ = rustix::process::kill_process_group(pid, signal);
+            }
+        }
+    };
+    signal_all(Signal::TERM);
+    if !groups.is_empty() {
+        std::thread::sleep(grace);
+    }
+    signal_all(Signal::KILL);
+}
+
+/// Puts the program in a process group of its own and, on Linux, has the
+/// kernel kill it when the rig dies.
+fn detach_and_tie(command: &mut Command) {
+    command.process_group(0);
+    #[cfg(target_os = "linux")]
+    {
+        let rig = rustix::process::getpid();
+        // SAFETY: the closure runs between fork and exec and only makes system
+        // calls (prctl, getppid, _exit), which are async-signal-safe.
+        #[allow(unsafe_code)]
+        unsafe {
+            command.pre_exec(move || {
+                rustix::process::set_parent_process_death_signal(Some(Signal::KILL))?;
+                // The rig may have died before the prctl: then nobody will send it.
+                if rustix::process::getppid() != Some(rig) {
+                    libc::_exit(1);
+                }
+                Ok(())
+            });
+        }
+    }
+}
 
 /// A started program.
 pub struct Process {
@@ -21,6 +81,7 @@ impl Process {
         let stderr =
             File::create(log).with_context(|| format!("cannot create {}", log.display()))?;
         let program = command.get_program().to_string_lossy().into_owned();
+        detach_and_tie(&mut command);
         let child = command
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
@@ -28,6 +89,7 @@ impl Process {
             .spawn()
             .with_context(|| format!("cannot start {name} ({program})"))?;
         tracing::debug!(name, pid = child.id(), "started");
+        running().push(child.id() as i32);
         Ok(Process {
             name: name.to_string(),
             child,
@@ -122,5 +184,7 @@ impl Process {
 impl Drop for Process {
     fn drop(&mut self) {
         self.stop(Duration::from_secs(2));
+        let pid = self.child.id() as i32;
+        running().retain(|&p| p != pid);
     }
 }

@@ -103,6 +103,13 @@ fn test_case(rig_name: &str, phase: &PhaseRecord) -> TestCase {
             s.set_description(text.join("\n"));
             s
         }
+        PhaseOutcome::Interrupted => {
+            let why = phase.error.as_deref().unwrap_or("the rig was stopped");
+            let mut s = TestCaseStatus::non_success(NonSuccessKind::Error);
+            s.set_type("interrupted");
+            s.set_message(why);
+            s
+        }
         PhaseOutcome::Skipped => {
             let mut s = TestCaseStatus::skipped();
             if let Some(why) = &phase.error {

@@ -10,7 +10,7 @@ use std::io;
 use std::path::{Path, PathBuf};
 
 use crate::measurement::{Measurement, Outcome};
-use crate::record::{PhaseOutcome, PhaseRecord, RESULTS_FILE, RunRecord};
+use crate::record::{PhaseOutcome, PhaseRecord, RESULTS_FILE, RunOutcome, RunRecord};
 
 use super::JUNIT_FILE;
 
@@ -47,6 +47,21 @@ pub fn render_summary(record: &RunRecord, dir: &Path) -> String {
         record.ended,
         record.outcome.as_str().to_ascii_uppercase()
     );
+    match record.outcome {
+        RunOutcome::Running => {
+            let _ = writeln!(
+                out,
+                "NOT FINISHED: the rig was still running (or died) when this was saved"
+            );
+        }
+        RunOutcome::Interrupted => {
+            let _ = writeln!(
+                out,
+                "NOT FINISHED: the rig was stopped; phases after the interrupted one did not run"
+            );
+        }
+        _ => {}
+    }
     out.push('\n');
 
     let rows: Vec<&Measurement> = record.phases.iter().flat_map(|p| &p.measurements).collect();
@@ -64,6 +79,7 @@ pub fn render_summary(record: &RunRecord, dir: &Path) -> String {
         if let Some(text) = &phase.error {
             let label = match phase.outcome {
                 PhaseOutcome::Skipped => "skipped",
+                PhaseOutcome::Interrupted => "interrupted",
                 _ => "error",
             };
             for (i, line) in text.lines().enumerate() {
@@ -131,6 +147,7 @@ pub fn closing_line(record: &RunRecord, dir: &Path) -> String {
     for (o, word) in [
         (PhaseOutcome::Error, "errored"),
         (PhaseOutcome::Skipped, "skipped"),
+        (PhaseOutcome::Interrupted, "interrupted"),
     ] {
         let c = count(o);
         if c > 0 {

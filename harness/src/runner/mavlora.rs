@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use libtest_mimic::Trial;
 
-use super::{Phases, conclude, run_phase};
+use super::{Phases, phase_trial, run_phase};
 use crate::driver::program::{MAVLORA_BRIDGE, MAVLORA_ROUTER};
 use crate::measurement::Declarations;
 use crate::rigfile::{MavloraSection, RigFile, Suite};
@@ -51,17 +51,11 @@ pub fn add_trials(
             let script = (scenario.plan)(&mut declared, &radios);
             names.extend(super::names(&declared));
             let name = format!("mavlora::simulated::{}", scenario.name);
-            let (rig, phases, out_dir, radios) = (
-                rig.clone(),
-                phases.clone(),
-                out_dir.to_path_buf(),
-                radios.clone(),
-            );
-            trials.push(Trial::test(name.clone(), move || {
-                let record = run_phase(&rig, &out_dir, &name, scenario.summary, declared, |ctx| {
+            let (rig, out_dir, radios) = (rig.clone(), out_dir.to_path_buf(), radios.clone());
+            trials.push(phase_trial(phases, name.clone(), move || {
+                run_phase(&rig, &out_dir, &name, scenario.summary, declared, |ctx| {
                     script(ctx, &radios)
-                });
-                conclude(&phases, record)
+                })
             }));
         }
     }
@@ -72,17 +66,11 @@ pub fn add_trials(
             let script = (scenario.plan)(&mut declared);
             names.extend(super::names(&declared));
             let name = format!("mavlora::realtime::{}", scenario.name);
-            let (rig, phases, out_dir, defaults) = (
-                rig.clone(),
-                phases.clone(),
-                out_dir.to_path_buf(),
-                defaults.clone(),
-            );
-            trials.push(Trial::test(name.clone(), move || {
-                let record = run_phase(&rig, &out_dir, &name, scenario.summary, declared, |ctx| {
+            let (rig, out_dir, defaults) = (rig.clone(), out_dir.to_path_buf(), defaults.clone());
+            trials.push(phase_trial(phases, name.clone(), move || {
+                run_phase(&rig, &out_dir, &name, scenario.summary, declared, |ctx| {
                     script(ctx, &defaults)
-                });
-                conclude(&phases, record)
+                })
             }));
         }
     }

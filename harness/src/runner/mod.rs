@@ -1,14 +1,21 @@
 //! Runs a rig's scenarios as libtest-mimic trials (so `cargo test`-style
-//! filters, `--list` and `--exact` work), one phase record per trial, then
-//! writes the run record and the reports rendered from it.
+//! filters, `--list` and `--exact` work), one phase record per trial, and
+//! keeps the run record (`results.json`, with the reports rendered from it)
+//! true at every moment: saved as `running` before the first phase, again as
+//! each phase ends, and finalised at the end; a phase that panics is recorded
+//! as an error; SIGINT or SIGTERM finalises it as `interrupted`, ends every
+//! program the rig started and exits 128 + the signal's number.
 
+use std::any::Any;
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use libtest_mimic::{Arguments, Failed, Trial};
 
+use crate::driver::process;
 use crate::driver::program::MULTIRX_EMU;
 use crate::measurement::{Declarations, Dimension, Handle, Outcome, Selector, Spec};
 use crate::record::{
@@ -22,6 +29,7 @@ use crate::scenario::multirx::{self, ModeLimits, Scenario, SessionMeasurements};
 use crate::strategy::firmware::{self, FirmwareImage};
 use crate::strategy::multirx::MultirxSession;
 
+pub mod interrupt;
 mod mavlora;
 
 /// What to run and where to write.
@@ -38,15 +46,150 @@ pub struct RunResult {
     pub paths: Option<ReportPaths>,
 }
 
-type Phases = Arc<Mutex<Vec<PhaseRecord>>>;
 /// Firmware images flashed during the run, for the device identities.
 type Images = Arc<Mutex<Vec<(Mode, FirmwareImage)>>>;
+
+/// Locks `mutex` even if a phase panicked while holding it: the data is a
+/// list that a panic leaves whole.
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The run record as it grows, shared by the trials: saved (with the reports)
+/// when the run opens, after each phase, and when it is finalised.
+#[derive(Clone)]
+pub(crate) struct Phases(Arc<Live>);
+
+struct Live {
+    out_dir: PathBuf,
+    state: Mutex<LiveState>,
+}
+
+struct LiveState {
+    record: RunRecord,
+    /// The phase running now: name, start (RFC 3339) and its clock.
+    current: Option<(String, String, Instant)>,
+    /// Saved to disk as it changes: after [`Phases::open`], until final.
+    saving: bool,
+}
+
+impl Phases {
+    /// A record of a run that has not started: nothing is saved until [`Phases::open`].
+    fn new(record: RunRecord, out_dir: &Path) -> Self {
+        Phases(Arc::new(Live {
+            out_dir: out_dir.to_path_buf(),
+            state: Mutex::new(LiveState {
+                record,
+                current: None,
+                saving: false,
+            }),
+        }))
+    }
+
+    /// Starts the run: saves the record as `running`, replacing any earlier
+    /// run's, so what is in the folder is never mistaken for this run's verdict.
+    fn open(&self) -> Result<()> {
+        let mut state = lock(&self.0.state);
+        state.record.started = now_rfc3339();
+        state.record.ended = state.record.started.clone();
+        state.record.outcome = RunOutcome::Running;
+        report::write_all(&state.record, &self.0.out_dir).with_context(|| {
+            format!(
+                "cannot write the run record in {}",
+                self.0.out_dir.display()
+            )
+        })?;
+        state.saving = true;
+        Ok(())
+    }
+
+    /// A phase starts: if the run is interrupted now, this phase is the one interrupted.
+    fn begin(&self, name: &str) {
+        lock(&self.0.state).current = Some((name.to_owned(), now_rfc3339(), Instant::now()));
+    }
+
+    /// A phase ended: kept, and the record (still `running`) saved.
+    fn push(&self, phase: PhaseRecord) {
+        let mut state = lock(&self.0.state);
+        state.current = None;
+        state.record.phases.push(phase);
+        if state.saving {
+            state.record.ended = now_rfc3339();
+            if let Err(e) = report::write_all(&state.record, &self.0.out_dir) {
+                eprintln!("rig: warning: cannot save the run record: {e}");
+            }
+        }
+    }
+
+    /// Reads the phases ended so far.
+    fn with_phases<R>(&self, f: impl FnOnce(&[PhaseRecord]) -> R) -> R {
+        f(&lock(&self.0.state).record.phases)
+    }
+
+    /// The run ended: the outcome is judged from the phases (an error if the
+    /// trial runner saw a failure no phase recorded), the record saved for good.
+    fn finish(
+        &self,
+        devices: Vec<DeviceIdentity>,
+        runner_failed: bool,
+    ) -> Result<(RunRecord, ReportPaths)> {
+        let mut state = lock(&self.0.state);
+        let record = &mut state.record;
+        record.devices = devices;
+        record.ended = now_rfc3339();
+        record.outcome = match RunOutcome::from_phases(&record.phases) {
+            RunOutcome::Pass if runner_failed => RunOutcome::Error,
+            outcome => outcome,
+        };
+        let paths = report::write_all(record, &self.0.out_dir)?;
+        state.saving = false;
+        Ok((state.record.clone(), paths))
+    }
+
+    /// The rig was stopped by `signal`: the phase in progress is recorded as
+    /// interrupted and the record saved as `interrupted`; nothing is saved after.
+    fn interrupt(&self, devices: Vec<DeviceIdentity>, signal: &str) -> Result<ReportPaths> {
+        let mut state = lock(&self.0.state);
+        state.saving = false;
+        let why = format!("interrupted by {signal}");
+        if let Some((name, started, clock)) = state.current.take() {
+            let phase = PhaseRecord::interrupted(name, started, clock.elapsed().as_secs_f64(), why);
+            state.record.phases.push(phase);
+        }
+        let record = &mut state.record;
+        record.devices = devices;
+        record.ended = now_rfc3339();
+        record.outcome = RunOutcome::Interrupted;
+        Ok(report::write_all(record, &self.0.out_dir)?)
+    }
+}
+
+/// No phase is selected: nothing runs and nothing is written (exit code 2).
+#[derive(Debug, thiserror::Error)]
+#[error("{what}: nothing to run (`rig run {rig} --list` names the phases)")]
+pub struct NothingSelected {
+    /// What selected nothing: the filter, or the rig file.
+    pub what: String,
+    /// The rig file, for the hint.
+    pub rig: String,
+}
 
 /// Runs everything the rig file describes.
 pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
     let rig = Arc::new(rig);
-    let phases: Phases = Arc::default();
     let out_dir = options.out_dir.clone();
+    let phases = Phases::new(
+        RunRecord {
+            tool: ToolIdentity::this_build(git_commit()),
+            rig: RigIdentity::of_file(rig.rig.name.clone(), &rig.path)?,
+            devices: devices(&rig, &[]),
+            started: String::new(),
+            ended: String::new(),
+            outcome: RunOutcome::Running,
+            phases: Vec::new(),
+        },
+        &out_dir,
+    );
     let mut trials = Vec::new();
     let mut known_names = Vec::new();
     let images: Images = Arc::default();
@@ -92,7 +235,8 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
         filter: options.filter.clone(),
         exact: options.exact,
         list: options.list,
-        // Scenarios time real devices and processes: one at a time.
+        // Scenarios time real devices and processes: one at a time (and on the
+        // main thread, which the children's PR_SET_PDEATHSIG is tied to).
         test_threads: Some(1),
         ..Arguments::default()
     };
@@ -103,25 +247,85 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
             paths: None,
         });
     }
+    if !trials.iter().any(|t| !args.is_filtered_out(t)) {
+        return Err(NothingSelected {
+            what: match &options.filter {
+                Some(f) => format!(
+                    "--filter {f:?}{} matches no phase of {}",
+                    if options.exact { " --exact" } else { "" },
+                    rig.path.display()
+                ),
+                None => format!("{} describes no phase", rig.path.display()),
+            },
+            rig: rig.path.display().to_string(),
+        }
+        .into());
+    }
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("cannot create output folder {}", out_dir.display()))?;
-    let started = now_rfc3339();
-    let _conclusion = libtest_mimic::run(&args, trials);
-    let phases = std::mem::take(&mut *phases.lock().unwrap());
-    let record = RunRecord {
-        tool: ToolIdentity::this_build(git_commit()),
-        rig: RigIdentity::of_file(rig.rig.name.clone(), &rig.path)?,
-        devices: devices(&rig, &images.lock().unwrap()),
-        started,
-        ended: now_rfc3339(),
-        outcome: RunOutcome::from_phases(&phases),
-        phases,
-    };
-    let paths = report::write_all(&record, &out_dir)?;
+    phases.open()?;
+    {
+        let (phases, rig, images) = (phases.clone(), rig.clone(), images.clone());
+        interrupt::on_interrupt(move |signal, name| {
+            eprintln!("\nrig: {name}: recording the run as interrupted, stopping its programs");
+            let devices = devices(&rig, &lock(&images));
+            match phases.interrupt(devices, name) {
+                Ok(paths) => eprintln!("rig: interrupted; report: {}", paths.results.display()),
+                Err(e) => eprintln!("rig: error: cannot save the interrupted record: {e:#}"),
+            }
+            process::kill_all(Duration::from_millis(300));
+            std::process::exit(128 + signal);
+        })
+        .context("cannot handle SIGINT/SIGTERM")?;
+    }
+    let conclusion = libtest_mimic::run(&args, trials);
+    let devices = devices(&rig, &lock(&images));
+    let (record, paths) = phases.finish(devices, conclusion.has_failed())?;
     Ok(RunResult {
         record: Some(record),
         paths: Some(paths),
     })
+}
+
+/// One trial: the phase `body` runs with the run told it started, and its
+/// record is kept even if it panics (as an error naming the panic).
+fn phase_trial(
+    phases: &Phases,
+    name: String,
+    body: impl FnOnce() -> PhaseRecord + Send + 'static,
+) -> Trial {
+    let phases = phases.clone();
+    Trial::test(name.clone(), move || run_guarded(&phases, &name, body))
+}
+
+fn run_guarded(
+    phases: &Phases,
+    name: &str,
+    body: impl FnOnce() -> PhaseRecord,
+) -> Result<(), Failed> {
+    let started = now_rfc3339();
+    let clock = Instant::now();
+    phases.begin(name);
+    let record = catch_unwind(AssertUnwindSafe(body)).unwrap_or_else(|payload| {
+        PhaseRecord::ran(
+            name,
+            started,
+            clock.elapsed().as_secs_f64(),
+            Vec::new(),
+            Some(panicked(payload.as_ref())),
+        )
+    });
+    conclude(phases, record)
+}
+
+/// The error a panicking phase is recorded with.
+fn panicked(payload: &(dyn Any + Send)) -> String {
+    let message = payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".to_owned());
+    format!("panicked: {message}")
 }
 
 /// The flat names of declared measurements, for the `[limits]` check.
@@ -148,10 +352,9 @@ fn scenario_trial(
     plan: ScenarioPlan,
 ) -> Trial {
     let name = format!("multirx::{}::{}", mode.as_str(), scenario.name);
-    let (rig, phases, out_dir) = (rig.clone(), phases.clone(), out_dir.to_path_buf());
-    Trial::test(name.clone(), move || {
-        let record = run_scenario(&rig, &out_dir, &name, mode, &scenario, &limits, plan);
-        conclude(&phases, record)
+    let (rig, out_dir) = (rig.clone(), out_dir.to_path_buf());
+    phase_trial(phases, name.clone(), move || {
+        run_scenario(&rig, &out_dir, &name, mode, &scenario, &limits, plan)
     })
 }
 
@@ -231,7 +434,11 @@ fn run_phase(
     let clock = Instant::now();
     let mut ctx = PhaseContext::new(rig, &phase_dir(out_dir, name), measurements);
     ctx.log(summary);
-    let error = body(&mut ctx).err().map(|e| format!("{e:#}"));
+    // A panic keeps what the phase recorded, logged and attached so far.
+    let error = match catch_unwind(AssertUnwindSafe(|| body(&mut ctx))) {
+        Ok(result) => result.err().map(|e| format!("{e:#}")),
+        Err(payload) => Some(panicked(payload.as_ref())),
+    };
     let (measurements, log, files) = ctx.into_parts();
     let mut record = PhaseRecord::ran(
         name,
@@ -288,8 +495,8 @@ fn flash_trial(
     (declared, [flash_bytes, ram_bytes]): (Declarations, [Handle; 2]),
 ) -> Trial {
     let name = format!("multirx::{}::flash", mode.as_str());
-    let (rig, phases, images) = (rig.clone(), phases.clone(), images.clone());
-    Trial::test(name.clone(), move || {
+    let (rig, images) = (rig.clone(), images.clone());
+    phase_trial(phases, name.clone(), move || {
         let started = now_rfc3339();
         let clock = Instant::now();
         let mut ctx = PhaseContext::new(&rig, Path::new(""), declared);
@@ -319,7 +526,7 @@ fn flash_trial(
                 flashed.probe,
                 flashed.duration.as_secs_f64()
             ));
-            images.lock().unwrap().push((mode, image));
+            lock(&images).push((mode, image));
             Ok(())
         })();
         let (measurements, log, _) = ctx.into_parts();
@@ -331,7 +538,7 @@ fn flash_trial(
             result.err().map(|e| format!("{e:#}")),
         );
         record.log = log;
-        conclude(&phases, record)
+        record
     })
 }
 
@@ -351,16 +558,15 @@ fn whole_run_trial(
     (declared, whole): (Declarations, SessionMeasurements),
 ) -> Trial {
     let name = format!("multirx::{}::whole_run", mode.as_str());
-    let (rig, phases) = (rig.clone(), phases.clone());
-    Trial::test(name.clone(), move || {
+    let (rig, ran) = (rig.clone(), phases.clone());
+    phase_trial(phases, name.clone(), move || {
         let started = now_rfc3339();
         let mut ctx = PhaseContext::new(&rig, Path::new(""), declared);
         // Each whole-run measurement is the same measurement of every scenario of this mode,
         // which the scenario dimension tells apart.
         let [gap, fc_gap, losses] = multirx::session_specs(&limits, None)
             .map(|spec| Selector::like(&spec).has(Dimension::Scenario));
-        let (gaps, fc_gaps, losses) = {
-            let ran = phases.lock().unwrap();
+        let (gaps, fc_gaps, losses) = ran.with_phases(|ran| {
             let values = |selector: &Selector| -> Vec<f64> {
                 ran.iter()
                     .flat_map(|p| p.select(selector))
@@ -368,9 +574,9 @@ fn whole_run_trial(
                     .collect()
             };
             (values(&gap), values(&fc_gap), values(&losses))
-        };
+        });
         let count = gaps.len();
-        let record = if count == 0 {
+        if count == 0 {
             let (measurements, _, _) = ctx.into_parts();
             PhaseRecord::skipped(&name, started, measurements, "no scenario of this mode ran")
         } else {
@@ -386,8 +592,7 @@ fn whole_run_trial(
             let mut r = PhaseRecord::ran(&name, started, 0.0, measurements, None);
             r.log = log;
             r
-        };
-        conclude(&phases, record)
+        }
     })
 }
 
@@ -402,7 +607,9 @@ fn conclude(phases: &Phases, record: PhaseRecord) -> Result<(), Failed> {
                 .collect();
             Err(Failed::from(failing.join("; ")))
         }
-        PhaseOutcome::Error => Err(Failed::from(record.error.clone().unwrap_or_default())),
+        PhaseOutcome::Error | PhaseOutcome::Interrupted => {
+            Err(Failed::from(record.error.clone().unwrap_or_default()))
+        }
     };
     for m in &record.measurements {
         if m.outcome != Outcome::Unset {
@@ -415,7 +622,7 @@ fn conclude(phases: &Phases, record: PhaseRecord) -> Result<(), Failed> {
             );
         }
     }
-    phases.lock().unwrap().push(record);
+    phases.push(record);
     verdict
 }
 
@@ -473,4 +680,107 @@ fn git_commit() -> Option<String> {
     out.status
         .success()
         .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::record::tests::sample_record;
+
+    fn open_run(dir: &Path) -> Phases {
+        let mut record = sample_record();
+        record.phases.clear();
+        let phases = Phases::new(record, dir);
+        phases.open().unwrap();
+        phases
+    }
+
+    fn saved(dir: &Path) -> RunRecord {
+        RunRecord::load(&dir.join(crate::record::RESULTS_FILE)).unwrap()
+    }
+
+    #[test]
+    fn the_record_says_running_from_the_start_and_after_each_phase() {
+        let dir = tempfile::tempdir().unwrap();
+        let phases = open_run(dir.path());
+        assert_eq!(saved(dir.path()).outcome, RunOutcome::Running);
+        run_guarded(&phases, "p1", || {
+            PhaseRecord::ran("p1", now_rfc3339(), 0.0, Vec::new(), None)
+        })
+        .unwrap();
+        let record = saved(dir.path());
+        assert_eq!(record.outcome, RunOutcome::Running);
+        assert_eq!(record.phases.len(), 1);
+        let summary = std::fs::read_to_string(dir.path().join("summary.txt")).unwrap();
+        assert!(summary.contains(": RUNNING"), "{summary}");
+        assert!(!summary.contains(": PASS"), "{summary}");
+        let (record, _) = phases.finish(Vec::new(), false).unwrap();
+        assert_eq!(record.outcome, RunOutcome::Pass);
+        assert_eq!(saved(dir.path()).outcome, RunOutcome::Pass);
+    }
+
+    #[test]
+    fn a_panicking_phase_is_recorded_as_an_error_and_the_run_does_not_pass() {
+        let dir = tempfile::tempdir().unwrap();
+        let phases = open_run(dir.path());
+        let verdict = run_guarded(&phases, "boom", || panic!("the fixture went away"));
+        assert!(verdict.is_err());
+        let record = saved(dir.path());
+        assert_eq!(record.phases.len(), 1, "the panicking phase is recorded");
+        let phase = &record.phases[0];
+        assert_eq!(phase.name, "boom");
+        assert_eq!(phase.outcome, PhaseOutcome::Error);
+        assert_eq!(
+            phase.error.as_deref(),
+            Some("panicked: the fixture went away")
+        );
+        let (record, _) = phases.finish(Vec::new(), true).unwrap();
+        assert_eq!(record.outcome, RunOutcome::Error);
+    }
+
+    #[test]
+    fn a_failure_only_the_trial_runner_saw_makes_the_run_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let phases = open_run(dir.path());
+        let (record, _) = phases.finish(Vec::new(), true).unwrap();
+        assert_eq!(record.outcome, RunOutcome::Error);
+    }
+
+    #[test]
+    fn an_interrupt_keeps_the_phases_done_and_marks_the_one_in_progress() {
+        let dir = tempfile::tempdir().unwrap();
+        let phases = open_run(dir.path());
+        run_guarded(&phases, "done", || {
+            PhaseRecord::ran("done", now_rfc3339(), 0.0, Vec::new(), None)
+        })
+        .unwrap();
+        phases.begin("in_progress");
+        phases.interrupt(Vec::new(), "SIGTERM").unwrap();
+        let record = saved(dir.path());
+        assert_eq!(record.outcome, RunOutcome::Interrupted);
+        let outcomes: Vec<_> = record
+            .phases
+            .iter()
+            .map(|p| (p.name.as_str(), p.outcome))
+            .collect();
+        assert_eq!(
+            outcomes,
+            [
+                ("done", PhaseOutcome::Pass),
+                ("in_progress", PhaseOutcome::Interrupted)
+            ]
+        );
+        // A phase that ends after the interrupt does not overwrite the final record.
+        phases.push(PhaseRecord::ran(
+            "late",
+            now_rfc3339(),
+            0.0,
+            Vec::new(),
+            None,
+        ));
+        assert_eq!(saved(dir.path()).phases.len(), 2);
+        let summary = std::fs::read_to_string(dir.path().join("summary.txt")).unwrap();
+        assert!(summary.contains(": INTERRUPTED"), "{summary}");
+        assert!(summary.contains("interrupted by SIGTERM"), "{summary}");
+    }
 }
