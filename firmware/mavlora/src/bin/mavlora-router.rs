@@ -19,7 +19,7 @@ use tracing::{info, warn};
 use mavlora::io::{
     Clock, Event, RadioOptions, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, on_signal,
 };
-use mavlora::router::{Router, RouterConfig};
+use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
 
 /// MavLora router: radio serial port <-> ground stations on UDP and TCP.
 #[derive(Parser, Deserialize, Default, Debug)]
@@ -31,9 +31,21 @@ struct Options {
     /// Where to send until a ground station talks to us [default: 127.0.0.1:14550].
     #[arg(long)]
     udp: Option<SocketAddr>,
-    /// Local UDP address [default: 0.0.0.0:14555].
+    /// Local UDP address [default: 127.0.0.1:14555, this host only; 0.0.0.0:14555 opens it
+    /// to the network, together with --allow].
     #[arg(long)]
     udp_bind: Option<SocketAddr>,
+    /// Source networks (UDP and TCP) that may reach the vehicle and become the UDP peer,
+    /// comma-separated, e.g. 127.0.0.1,10.0.0.0/24 [default: 127.0.0.1,::1].
+    #[arg(long, value_delimiter = ',')]
+    allow: Option<Vec<IpNet>>,
+    /// System ids whose frames from the ground go to the radio, comma-separated
+    /// [default: 255].
+    #[arg(long, value_delimiter = ',')]
+    allow_sysid: Option<Vec<u8>>,
+    /// Commands one ground source may have in the relay at once [default: 4].
+    #[arg(long)]
+    commands_per_source: Option<usize>,
     /// Also listen for ground stations on TCP here, e.g. 0.0.0.0:5760 (QGroundControl "TCP",
     /// `mavproxy.py --master=tcp:HOST:5760`); every client gets every frame.
     #[arg(long)]
@@ -61,6 +73,20 @@ fn run(o: Options) -> Result<()> {
         config.quality.period = period;
     }
     config.signing = o.shared.signing(2)?;
+    if let Some(allow) = o.allow {
+        config.ground.allow = allow;
+    }
+    if let Some(ids) = o.allow_sysid {
+        config.ground.allow_sysid = ids;
+    }
+    if let Some(n) = o.commands_per_source {
+        anyhow::ensure!(
+            n > 0,
+            "--commands-per-source / `commands_per_source` must be at least 1"
+        );
+        config.ground.commands_in_flight = n;
+    }
+    info!(allow = ?config.ground.allow, allow_sysid = ?config.ground.allow_sysid, "ground policy");
     let status_every = o.shared.status_every();
     let mut tlog = match o.tlog {
         Some(p) => Some(Tlog::create(&p).with_context(|| format!("creating {}", p.display()))?),
@@ -71,7 +97,7 @@ fn run(o: Options) -> Result<()> {
     on_signal(tx.clone())?;
     let stop = Arc::new(AtomicBool::new(false));
     let peer = o.udp.unwrap_or(([127, 0, 0, 1], 14550).into());
-    let bind = o.udp_bind.unwrap_or(([0, 0, 0, 0], 14555).into());
+    let bind = o.udp_bind.unwrap_or(([127, 0, 0, 1], 14555).into());
     let mut udp = UdpEndpoint::spawn(bind, peer, tx.clone(), stop.clone())?;
     let tcp = match o.tcp_listen {
         Some(addr) => Some(TcpEndpoint::spawn(addr, tx.clone(), stop.clone())?),
@@ -102,13 +128,19 @@ fn run(o: Options) -> Result<()> {
             }
             Ok(Event::Serial(_, SerialEvent::Closed)) => router.radio_port_closed(),
             Ok(Event::Udp(b, from)) => {
-                udp.learn(from);
-                record(&mut tlog, &b);
-                router.handle_gcs_bytes(&b, clock.now());
+                let input = router.handle_gcs_input(from.ip(), &b, clock.now());
+                report(from, &input);
+                if input.learn_peer() {
+                    udp.learn(from);
+                    record(&mut tlog, &b);
+                }
             }
-            Ok(Event::Tcp(b, _)) => {
-                record(&mut tlog, &b);
-                router.handle_gcs_bytes(&b, clock.now());
+            Ok(Event::Tcp(b, from)) => {
+                let input = router.handle_gcs_input(from.ip(), &b, clock.now());
+                report(from, &input);
+                if input.accepted > 0 {
+                    record(&mut tlog, &b);
+                }
             }
             Ok(Event::Serial(_, SerialEvent::Opened)) | Err(RecvTimeoutError::Timeout) => {}
             Ok(Event::Stop) => {
@@ -142,6 +174,13 @@ fn run(o: Options) -> Result<()> {
     Ok(())
 }
 
+/// Logs a rejection the router says is due (at most one per source and reason per 10 s).
+fn report(from: SocketAddr, input: &GroundInput) {
+    if let Some(why) = input.report {
+        warn!(%from, %why, rejected = input.rejected, "ground input rejected (reported once per 10 s)");
+    }
+}
+
 fn status(router: &Router, radio: &SerialLink, tcp: Option<&TcpEndpoint>) {
     let s = router.stats();
     let peer_loss = router.quality().peer().and_then(|p| p.loss_ratio);
@@ -160,6 +199,7 @@ fn status(router: &Router, radio: &SerialLink, tcp: Option<&TcpEndpoint>) {
         mission_duplicates = s.mission_duplicates,
         command_resends = s.commands.retransmissions,
         command_ground_retries_dropped = s.commands.ground_duplicates,
+        ground_rejected = s.ground.total(),
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,

@@ -20,7 +20,7 @@ mod ack_cache;
 mod retransmit;
 
 pub use ack_cache::{AckCache, AckCacheStats, CacheVerdict};
-pub use retransmit::{CommandRetransmitter, RetransmitStats};
+pub use retransmit::{Admission, CommandRetransmitter, RetransmitStats};
 
 use crate::dialect::MavMessage;
 

@@ -1,5 +1,6 @@
 //! The router's half of the command relay: retransmission over the radio.
 
+use std::net::IpAddr;
 use std::time::Duration;
 
 use super::command_key;
@@ -23,8 +24,20 @@ pub struct RetransmitStats {
     pub given_up: u64,
 }
 
+/// What to do with a command from the ground.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Admission {
+    /// New: send it over the radio (the relay now retries it).
+    Forward,
+    /// A retry of a command in flight: drop it (the relay is already retrying).
+    Retry,
+    /// Its source already has its budget of commands in flight: drop it.
+    OverBudget,
+}
+
 #[derive(Debug)]
 struct Pending {
+    source: IpAddr,
     key: (u8, u32),
     frame: OwnedFrame,
     sent: Instant,
@@ -36,6 +49,7 @@ struct Pending {
 pub struct CommandRetransmitter {
     rtt: RttEstimator,
     max_attempts: u32,
+    per_source: usize,
     pending: Vec<Pending>,
     stats: RetransmitStats,
 }
@@ -47,9 +61,21 @@ impl CommandRetransmitter {
         Self {
             rtt: RttEstimator::new(initial, min, max),
             max_attempts: max_attempts.max(1),
+            per_source: usize::MAX,
             pending: Vec::new(),
             stats: RetransmitStats::default(),
         }
+    }
+
+    /// At most `n` commands from one source in flight at once (at least 1).
+    pub fn with_source_limit(mut self, n: usize) -> Self {
+        self.per_source = n.max(1);
+        self
+    }
+
+    /// Commands from `source` in flight.
+    pub fn in_flight_from(&self, source: IpAddr) -> usize {
+        self.pending.iter().filter(|p| p.source == source).count()
     }
 
     /// Counters so far.
@@ -62,24 +88,33 @@ impl CommandRetransmitter {
         &self.rtt
     }
 
-    /// A frame from the ground station; `false` if it is a retry of a command in flight and
-    /// must not go on the radio again.
-    pub fn from_ground(&mut self, frame: &OwnedFrame, msg: &MavMessage, now: Instant) -> bool {
+    /// A frame from the ground station at `source`: whether it goes on the radio.
+    pub fn from_ground(
+        &mut self,
+        source: IpAddr,
+        frame: &OwnedFrame,
+        msg: &MavMessage,
+        now: Instant,
+    ) -> Admission {
         let Some(key) = command_key(msg) else {
-            return true;
+            return Admission::Forward;
         };
         if self.pending.iter().any(|p| p.key == key) {
             self.stats.ground_duplicates += 1;
-            return false;
+            return Admission::Retry;
+        }
+        if self.in_flight_from(source) >= self.per_source {
+            return Admission::OverBudget;
         }
         self.stats.commands += 1;
         self.pending.push(Pending {
+            source,
             key,
             frame: frame.clone(),
             sent: now,
             attempts: 1,
         });
-        true
+        Admission::Forward
     }
 
     /// A frame from the radio: a `COMMAND_ACK` from `system` ends that command's retries
@@ -138,6 +173,7 @@ mod tests {
     use crate::wire::Sender;
 
     const MS: fn(u64) -> Duration = Duration::from_millis;
+    const GCS: IpAddr = IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
 
     fn command(s: &mut Sender, cmd: MavCmd) -> (OwnedFrame, MavMessage) {
         let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
@@ -166,13 +202,16 @@ mod tests {
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
         let t0 = Instant::from_millis(0);
-        assert!(r.from_ground(&frame, &msg, t0));
+        assert_eq!(r.from_ground(GCS, &frame, &msg, t0), Admission::Forward);
         assert_eq!(r.poll_timeout(), Some(t0 + MS(1000)));
         assert!(r.poll_retransmit(t0 + MS(999)).is_none());
         let again = r.poll_retransmit(t0 + MS(1000)).expect("due");
         assert_eq!(again.as_bytes(), frame.as_bytes());
         // the ground station's own retry while we are at it goes nowhere
-        assert!(!r.from_ground(&frame, &msg, t0 + MS(1500)));
+        assert_eq!(
+            r.from_ground(GCS, &frame, &msg, t0 + MS(1500)),
+            Admission::Retry
+        );
         r.from_radio(1, &ack(MavCmd::MAV_CMD_DO_SET_MODE), t0 + MS(1600));
         assert!(r.poll_timeout().is_none());
         assert!(r.poll_retransmit(t0 + MS(10_000)).is_none());
@@ -192,7 +231,7 @@ mod tests {
         let mut now = Instant::from_millis(0);
         for _ in 0..20 {
             let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
-            assert!(r.from_ground(&frame, &msg, now));
+            assert_eq!(r.from_ground(GCS, &frame, &msg, now), Admission::Forward);
             now = now + MS(150);
             r.from_radio(1, &ack(MavCmd::MAV_CMD_DO_SET_MODE), now);
             now = now + MS(1000);
@@ -206,7 +245,7 @@ mod tests {
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
         let t0 = Instant::from_millis(0);
-        r.from_ground(&frame, &msg, t0);
+        r.from_ground(GCS, &frame, &msg, t0);
         r.from_radio(2, &ack(MavCmd::MAV_CMD_DO_SET_MODE), t0 + MS(100));
         r.from_radio(1, &ack(MavCmd::MAV_CMD_NAV_LAND), t0 + MS(100));
         assert!(r.poll_retransmit(t0 + MS(1000)).is_some());
@@ -217,7 +256,7 @@ mod tests {
         let mut r = retransmitter();
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
-        r.from_ground(&frame, &msg, Instant::from_millis(0));
+        r.from_ground(GCS, &frame, &msg, Instant::from_millis(0));
         let mut sent = 0;
         let mut now = Instant::from_millis(0);
         while let Some(t) = r.poll_timeout() {
@@ -229,6 +268,9 @@ mod tests {
         assert_eq!(sent, 3, "4 attempts in all");
         assert_eq!(r.stats().given_up, 1);
         // a later retry by the ground station is a new command
-        assert!(r.from_ground(&frame, &msg, now + MS(1)));
+        assert_eq!(
+            r.from_ground(GCS, &frame, &msg, now + MS(1)),
+            Admission::Forward
+        );
     }
 }

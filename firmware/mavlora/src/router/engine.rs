@@ -1,11 +1,13 @@
 //! The router state machine.
 
 use std::collections::{HashMap, VecDeque};
+use std::net::{IpAddr, Ipv4Addr};
 use std::time::Duration;
 
 use mavlink::{MavHeader, MavlinkVersion};
 
-use crate::command::{CommandRetransmitter, RetransmitStats};
+use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
+use crate::command::{Admission, CommandRetransmitter, RetransmitStats};
 use crate::compact::Expander;
 use crate::dialect::MavMessage;
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
@@ -14,7 +16,7 @@ use crate::quality::{LinkQuality, LinkQualityConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
 use crate::signing::{RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, encode, ids, known};
+use crate::wire::{FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, encode, ids, known};
 
 /// Router settings.
 #[derive(Debug, Clone)]
@@ -42,6 +44,8 @@ pub struct RouterConfig {
     pub command_attempts: u32,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
+    /// Who on the ground may reach the vehicle (addresses, system ids, command budget).
+    pub ground: GroundPolicy,
 }
 
 impl RouterConfig {
@@ -58,6 +62,7 @@ impl RouterConfig {
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,
             signing: None,
+            ground: GroundPolicy::default(),
         }
     }
 }
@@ -89,6 +94,8 @@ pub struct RouterStats {
     pub link_quality_sent: u64,
     /// Radio link signing (all zero when signing is off).
     pub signing: SigningStats,
+    /// What the ground-side gate rejected.
+    pub ground: TrustStats,
 }
 
 /// Sans-IO router engine.
@@ -110,8 +117,13 @@ pub struct Router {
     /// Renumbers what leaves on the radio (thinned heartbeats must not read as loss).
     /// Renumbers and signs what leaves on the radio, verifies what arrives.
     radio_leg: RadioLeg,
+    /// When each (source, reason) rejection was last reported.
+    reported: HashMap<(IpAddr, GroundRejection), Instant>,
     stats: RouterStats,
 }
+
+/// The source [`Router::handle_gcs_bytes`] stands for: an in-process ground station.
+const IN_PROCESS: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
 
 impl Router {
     /// A router started at `now`.
@@ -138,11 +150,13 @@ impl Router {
                 Duration::from_millis(200),
                 Duration::from_millis(1500),
                 config.command_attempts,
-            ),
+            )
+            .with_source_limit(config.ground.commands_in_flight),
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
             radio_leg: RadioLeg::new(config.signing.as_ref()),
+            reported: HashMap::new(),
             stats: RouterStats::default(),
             config,
         })
@@ -173,12 +187,58 @@ impl Router {
         while self.radio_reader.next_frame().is_some() {}
     }
 
-    /// Bytes from a ground station (one UDP datagram, or a stream chunk).
-    pub fn handle_gcs_bytes(&mut self, bytes: &[u8], now: Instant) {
+    /// Bytes from an in-process ground station (tests, the simulated world): as from
+    /// `127.0.0.1`, see [`handle_gcs_input`](Self::handle_gcs_input).
+    pub fn handle_gcs_bytes(&mut self, bytes: &[u8], now: Instant) -> GroundInput {
+        self.handle_gcs_input(IN_PROCESS, bytes, now)
+    }
+
+    /// One UDP datagram (or one whole frame from a TCP client) from the ground station at
+    /// `from`, framed on its own (a partial frame at its end is dropped: one sender's bytes
+    /// never join another's). Frames go to the radio only if the ground policy allows the
+    /// address and the frame's system id and the source's command budget has room; the
+    /// answer says whether `from` may become the UDP peer and what to report.
+    pub fn handle_gcs_input(&mut self, from: IpAddr, bytes: &[u8], now: Instant) -> GroundInput {
+        let mut input = GroundInput::default();
+        if !self.config.ground.allows_address(from) {
+            input.rejected = 1;
+            self.reject(from, GroundRejection::Address, now, &mut input);
+            return input;
+        }
         self.gcs_reader.push(bytes);
+        self.gcs_reader.finish();
         while let Some(rx) = self.gcs_reader.next_frame() {
             let frame = rx.frame;
+            if !self.config.ground.allows_system(frame.system_id()) {
+                input.rejected += 1;
+                self.reject(
+                    from,
+                    GroundRejection::SystemId(frame.system_id()),
+                    now,
+                    &mut input,
+                );
+                continue;
+            }
             let id = frame.message_id();
+            if matches!(id, ids::COMMAND_INT | ids::COMMAND_LONG)
+                && let Ok(msg) = frame.decode::<MavMessage>()
+            {
+                match self.commands.from_ground(from, &frame, &msg, now) {
+                    Admission::Forward => {}
+                    Admission::Retry => {
+                        input.accepted += 1;
+                        continue;
+                    }
+                    Admission::OverBudget => {
+                        input.rejected += 1;
+                        self.reject(from, GroundRejection::CommandBudget, now, &mut input);
+                        continue;
+                    }
+                }
+            }
+            if rx.integrity == Integrity::Checked {
+                input.accepted += 1;
+            }
             if id == ids::HEARTBEAT {
                 if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
                     continue;
@@ -188,13 +248,34 @@ impl Router {
                 && !self.dedup.from_ground(&msg, now)
             {
                 continue;
-            } else if matches!(id, ids::COMMAND_INT | ids::COMMAND_LONG)
-                && let Ok(msg) = frame.decode::<MavMessage>()
-                && !self.commands.from_ground(&frame, &msg, now)
-            {
-                continue;
             }
             self.scheduler.push(frame, Class::of(id), now);
+        }
+        input
+    }
+
+    /// Counts a rejection; sets `input.report` when none was reported for this source and
+    /// reason within the policy's `log_every`.
+    fn reject(
+        &mut self,
+        from: IpAddr,
+        why: GroundRejection,
+        now: Instant,
+        input: &mut GroundInput,
+    ) {
+        self.stats.ground.count(why);
+        let every = self.config.ground.log_every;
+        if self.reported.len() > 1024 {
+            self.reported
+                .retain(|_, at| now.saturating_duration_since(*at) < every);
+        }
+        let due = self
+            .reported
+            .get(&(from, why))
+            .is_none_or(|at| now.saturating_duration_since(*at) >= every);
+        if due {
+            self.reported.insert((from, why), now);
+            input.report.get_or_insert(why);
         }
     }
 

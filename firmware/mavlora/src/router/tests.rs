@@ -6,6 +6,7 @@ use crate::dialect::{
     COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavAutopilot,
     MavMessage, MavType,
 };
+use crate::router::{GroundPolicy, GroundRejection};
 use crate::schedule::SchedulerConfig;
 use crate::time::Instant;
 use crate::wire::{FrameReader, OwnedFrame, Sender, ids, known};
@@ -194,4 +195,81 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
         (s.commands, s.retransmissions, s.ground_duplicates, s.acked),
         (1, 1, 1, 1)
     );
+}
+
+#[test]
+fn ground_frames_from_other_addresses_or_system_ids_never_reach_the_radio() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
+    let mut r = router();
+    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    });
+    let intruder: std::net::IpAddr = "192.168.1.66".parse().unwrap();
+    let mut spoof = Sender::new(255, 190, MavlinkVersion::V2);
+    let input = r.handle_gcs_input(intruder, spoof.frame(&arm).as_bytes(), ms(0));
+    assert!(!input.learn_peer());
+    assert_eq!(input.report, Some(GroundRejection::Address));
+    // the vehicle's own id from loopback: not a ground station
+    let mut fake_vehicle = Sender::new(1, 1, MavlinkVersion::V2);
+    let input = r.handle_gcs_bytes(fake_vehicle.frame(&arm).as_bytes(), ms(10));
+    assert!(!input.learn_peer());
+    assert_eq!(input.report, Some(GroundRejection::SystemId(1)));
+    // a corrupted frame from the allowed station teaches nothing either
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut bad = gcs.frame(&arm).as_bytes().to_vec();
+    let last = bad.len() - 1;
+    bad[last] ^= 0xff;
+    assert!(!r.handle_gcs_bytes(&bad, ms(20)).learn_peer());
+    assert_eq!(commands(&radio_out(&mut r, ms(30))), 0);
+    // reports are rate-limited per source and reason, counts are not
+    let again = r.handle_gcs_input(intruder, spoof.frame(&arm).as_bytes(), ms(40));
+    assert_eq!(again.report, None);
+    let s = r.stats().ground;
+    assert_eq!((s.rejected_address, s.rejected_sysid, s.total()), (2, 1, 3));
+    // the pilot's own command goes
+    assert!(
+        r.handle_gcs_bytes(gcs.frame(&arm).as_bytes(), ms(50))
+            .learn_peer()
+    );
+    assert_eq!(commands(&radio_out(&mut r, ms(50))), 1);
+}
+
+#[test]
+fn one_source_cannot_fill_the_command_relay() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
+    let mut r = router();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let other: std::net::IpAddr = "::1".parse().unwrap();
+    // distinct commands (to ten vehicles) from one source: only the budget goes out
+    let budget = GroundPolicy::default().commands_in_flight;
+    for k in 0..10u8 {
+        let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            target_system: k + 1,
+            target_component: 1,
+            command: MavCmd::MAV_CMD_DO_SET_SERVO,
+            ..Default::default()
+        });
+        r.handle_gcs_bytes(gcs.frame(&msg).as_bytes(), ms(0));
+    }
+    assert_eq!(commands(&radio_out(&mut r, ms(0))), budget);
+    // another station's command still goes
+    let mut other_gcs = Sender::new(255, 191, MavlinkVersion::V2);
+    let input = r.handle_gcs_input(
+        other,
+        other_gcs
+            .frame(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+                target_system: 1,
+                command: MavCmd::MAV_CMD_NAV_LAND,
+                ..Default::default()
+            }))
+            .as_bytes(),
+        ms(10),
+    );
+    assert!(input.learn_peer());
+    assert_eq!(commands(&radio_out(&mut r, ms(10))), 1);
+    assert_eq!(r.stats().ground.rejected_budget, 10 - budget as u64);
 }
