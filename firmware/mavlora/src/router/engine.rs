@@ -224,8 +224,12 @@ impl Router {
                 && let Ok(msg) = frame.decode::<MavMessage>()
             {
                 match self.commands.from_ground(from, &frame, &msg, now) {
-                    Admission::Forward => {}
-                    Admission::Retry => {
+                    Admission::Forward(f) => {
+                        input.accepted += usize::from(rx.integrity == Integrity::Checked);
+                        self.scheduler.push(f, Class::Priority, now);
+                        continue;
+                    }
+                    Admission::Hold | Admission::Retry => {
                         input.accepted += 1;
                         continue;
                     }
@@ -300,8 +304,15 @@ impl Router {
                     self.push_gcs(frame);
                 }
                 ids::COMMAND_ACK => {
-                    if let Ok(msg) = frame.decode::<MavMessage>() {
-                        self.commands.from_radio(frame.system_id(), &msg, now);
+                    if let Ok(msg) = frame.decode::<MavMessage>()
+                        && !self.commands.from_radio(
+                            frame.system_id(),
+                            frame.component_id(),
+                            &msg,
+                            now,
+                        )
+                    {
+                        continue;
                     }
                     self.push_gcs(frame);
                 }

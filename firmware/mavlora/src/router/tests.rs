@@ -175,8 +175,15 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
     // lost on the radio: resent after the initial 1 s timeout, not at the ground's 1.5 s
     assert_eq!(commands(&radio_out(&mut r, ms(999))), 0);
     assert_eq!(commands(&radio_out(&mut r, ms(1000))), 1);
-    // the ground station's own retry is not sent again
-    r.handle_gcs_bytes(gcs.frame(&cmd).as_bytes(), ms(1500));
+    // the ground station's own retry (confirmation 1) is not sent again
+    let MavMessage::COMMAND_LONG(mut retry) = cmd.clone() else {
+        unreachable!()
+    };
+    retry.confirmation = 1;
+    r.handle_gcs_bytes(
+        gcs.frame(&MavMessage::COMMAND_LONG(retry)).as_bytes(),
+        ms(1500),
+    );
     assert_eq!(commands(&radio_out(&mut r, ms(1500))), 0);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
     let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
