@@ -17,7 +17,8 @@ use serde::Deserialize;
 use tracing::{info, warn};
 
 use mavlora::io::{
-    Clock, Event, RadioOptions, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, on_signal,
+    Clock, Event, RadioOptions, Seconds, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint,
+    UsageError, on_signal,
 };
 use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
 
@@ -53,9 +54,9 @@ struct Options {
     /// Write a MAVProxy-format telemetry log here.
     #[arg(long)]
     tlog: Option<PathBuf>,
-    /// Seconds between ground heartbeats sent over the radio [default: 5].
+    /// Seconds between ground heartbeats sent over the radio, 0.1..=86400 [default: 5].
     #[arg(long)]
-    gcs_heartbeat_period: Option<f64>,
+    gcs_heartbeat_period: Option<Seconds>,
 }
 
 fn main() -> ExitCode {
@@ -65,9 +66,9 @@ fn main() -> ExitCode {
 fn run(o: Options) -> Result<()> {
     let radio_path = o.shared.radio_port()?;
     let (rate, burst) = (o.shared.rate(), o.shared.burst());
-    let mut config = RouterConfig::new(o.shared.scheduler());
+    let mut config = RouterConfig::new(o.shared.scheduler()?);
     if let Some(p) = o.gcs_heartbeat_period {
-        config.gcs_heartbeat_period = Duration::from_secs_f64(p);
+        config.gcs_heartbeat_period = p.into();
     }
     if let Some(period) = o.shared.link_quality_period() {
         config.quality.period = period;
@@ -80,10 +81,9 @@ fn run(o: Options) -> Result<()> {
         config.ground.allow_sysid = ids;
     }
     if let Some(n) = o.commands_per_source {
-        anyhow::ensure!(
-            n > 0,
-            "--commands-per-source / `commands_per_source` must be at least 1"
-        );
+        if n == 0 {
+            return Err(UsageError::option("commands_per_source", "must be at least 1").into());
+        }
         config.ground.commands_in_flight = n;
     }
     info!(allow = ?config.ground.allow, allow_sysid = ?config.ground.allow_sysid, "ground policy");
