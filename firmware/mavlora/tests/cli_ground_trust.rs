@@ -31,12 +31,16 @@ fn free_udp_port() -> u16 {
 }
 
 /// pymavlink ground station: listens where the router sends, answers with 2 Hz heartbeats,
-/// sends one DO_SET_MODE at 1 s, counts the vehicle's heartbeats per second for 8 s.
+/// sends one DO_SET_MODE at 1 s, counts the vehicle's heartbeats per second for 8 s. With a
+/// second argument (a key in hex) it signs what it sends and, as pymavlink does once signing
+/// is set up, accepts only frames signed with that key.
 const PILOT: &str = r#"
 import json, os, sys, time
 os.environ["MAVLINK20"] = "1"
 from pymavlink import mavutil
 conn = mavutil.mavlink_connection(sys.argv[1], source_system=255, source_component=190)
+if len(sys.argv) > 2:
+    conn.setup_signing(bytes.fromhex(sys.argv[2]), sign_outgoing=True, link_id=5)
 start = time.monotonic()
 per_second = [0] * 8
 last_hb = 0.0
@@ -57,13 +61,34 @@ print(json.dumps({"per_second": per_second, "sent_command": sent_command}))
 
 #[test]
 fn an_intruder_on_another_address_neither_gets_telemetry_nor_reaches_the_radio() {
-    let dir = std::env::temp_dir().join(format!("mavlora-trust-{}", std::process::id()));
+    scenario("address", "127.0.0.2", None);
+}
+
+/// With a ground key the router accepts only signed frames even from its own host: an
+/// unsigned intruder on 127.0.0.1 is rejected, and the pilot (pymavlink, signing) receives
+/// telemetry only because the router signs it with that key.
+#[test]
+fn with_a_ground_key_an_unsigned_intruder_on_the_same_host_is_rejected() {
+    scenario("signed", "127.0.0.1", Some([0x5a; 32]));
+}
+
+fn scenario(name: &str, intruder_addr: &str, ground_key: Option<[u8; 32]>) {
+    let dir = std::env::temp_dir().join(format!("mavlora-trust-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (mut radio, slave) = TTYPort::pair().unwrap();
     radio.set_timeout(Duration::from_millis(50)).unwrap();
     let (pilot_port, router_port) = (free_udp_port(), free_udp_port());
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
+    let key_hex: Option<String> =
+        ground_key.map(|k| k.iter().map(|b| format!("{b:02x}")).collect());
+    let mut key_args = Vec::new();
+    if let Some(hex) = &key_hex {
+        let path = dir.join("ground.key");
+        std::fs::write(&path, hex).unwrap();
+        key_args = vec!["--ground-key".to_owned(), path.display().to_string()];
+    }
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .args(&key_args)
         .arg("--radio")
         .arg(slave.name().unwrap())
         .args(["--udp", &format!("127.0.0.1:{pilot_port}")])
@@ -108,8 +133,14 @@ fn an_intruder_on_another_address_neither_gets_telemetry_nor_reaches_the_radio()
         })
     };
 
+    let mut pilot_args = vec![
+        "-c".to_owned(),
+        PILOT.to_owned(),
+        format!("udpin:127.0.0.1:{pilot_port}"),
+    ];
+    pilot_args.extend(key_hex.clone());
     let pilot = Command::new("python3")
-        .args(["-c", PILOT, &format!("udpin:127.0.0.1:{pilot_port}")])
+        .args(&pilot_args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -117,7 +148,7 @@ fn an_intruder_on_another_address_neither_gets_telemetry_nor_reaches_the_radio()
 
     // The intruder: from 2.5 s to 5.5 s, a GCS heartbeat and a forced ARM every 100 ms.
     thread::sleep(Duration::from_millis(2500));
-    let intruder = UdpSocket::bind("127.0.0.2:0").expect("127.0.0.2 is loopback on Linux");
+    let intruder = UdpSocket::bind((intruder_addr, 0)).expect("127.0.0.2 is loopback on Linux");
     intruder.set_nonblocking(true).unwrap();
     let mut spoof = Sender::new(255, 190, MavlinkVersion::V2);
     let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
@@ -196,6 +227,9 @@ fn an_intruder_on_another_address_neither_gets_telemetry_nor_reaches_the_radio()
         .and_then(|v| v.split_whitespace().next())
         .and_then(|v| v.parse::<u64>().ok());
     assert!(rejected >= Some(20), "ground_rejected: {rejected:?}\n{log}");
-    assert!(log.contains("127.0.0.2"), "rejection not logged\n{log}");
+    assert!(
+        log.contains("ground input rejected"),
+        "rejection not logged\n{log}"
+    );
     assert!(status.success(), "exit status {status:?}\n{log}");
 }

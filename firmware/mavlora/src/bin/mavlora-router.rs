@@ -18,9 +18,10 @@ use tracing::{info, warn};
 
 use mavlora::io::{
     Clock, Event, RadioOptions, Seconds, SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint,
-    UsageError, on_signal,
+    UsageError, on_signal, signing_epoch_now,
 };
 use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
+use mavlora::signing::{SigningConfig, SigningKey};
 
 /// MavLora router: radio serial port <-> ground stations on UDP and TCP.
 #[derive(Parser, Deserialize, Default, Debug)]
@@ -44,6 +45,11 @@ struct Options {
     /// [default: 255].
     #[arg(long, value_delimiter = ',')]
     allow_sysid: Option<Vec<u8>>,
+    /// MAVLink 2 signing key file for the ground side (64 hex characters or 32 bytes; not
+    /// the radio's --key): frames from ground stations must be signed with it, frames to
+    /// them are signed with it.
+    #[arg(long)]
+    ground_key: Option<PathBuf>,
     /// Commands one ground source may have in the relay at once [default: 4].
     #[arg(long)]
     commands_per_source: Option<usize>,
@@ -85,6 +91,15 @@ fn run(o: Options) -> Result<()> {
             return Err(UsageError::option("commands_per_source", "must be at least 1").into());
         }
         config.ground.commands_in_flight = n;
+    }
+    if let Some(path) = &o.ground_key {
+        config.ground_signing = Some(SigningConfig {
+            key: SigningKey::load(path)
+                .with_context(|| format!("ground key {}", path.display()))?,
+            link_id: 3,
+            epoch: signing_epoch_now(),
+        });
+        info!(key = %path.display(), "ground signing on");
     }
     info!(allow = ?config.ground.allow, allow_sysid = ?config.ground.allow_sysid, "ground policy");
     let status_every = o.shared.status_every();

@@ -14,7 +14,7 @@ use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::DuplicateSuppressor;
 use crate::quality::{LinkQuality, LinkQualityConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
-use crate::signing::{RadioLeg, SigningConfig, SigningStats};
+use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
 use crate::wire::{FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, encode, ids, known};
 
@@ -46,6 +46,10 @@ pub struct RouterConfig {
     pub signing: Option<SigningConfig>,
     /// Who on the ground may reach the vehicle (addresses, system ids, command budget).
     pub ground: GroundPolicy,
+    /// MAVLink 2 signing towards the ground stations with their own key (not the radio
+    /// link's): frames from the ground must be signed with it (and fresh), frames to the
+    /// ground are signed with it. `None`: the ground side is unsigned.
+    pub ground_signing: Option<SigningConfig>,
 }
 
 impl RouterConfig {
@@ -63,6 +67,7 @@ impl RouterConfig {
             command_attempts: 8,
             signing: None,
             ground: GroundPolicy::default(),
+            ground_signing: None,
         }
     }
 }
@@ -96,6 +101,8 @@ pub struct RouterStats {
     pub signing: SigningStats,
     /// What the ground-side gate rejected.
     pub ground: TrustStats,
+    /// Ground-side signing (all zero when it is off).
+    pub ground_signing: SigningStats,
 }
 
 /// Sans-IO router engine.
@@ -117,6 +124,10 @@ pub struct Router {
     /// Renumbers what leaves on the radio (thinned heartbeats must not read as loss).
     /// Renumbers and signs what leaves on the radio, verifies what arrives.
     radio_leg: RadioLeg,
+    /// Verifies what the ground sends and signs what it gets, with the ground key.
+    ground_signer: Option<LinkSigner>,
+    /// The latest `now` seen (signing frames for the ground when they are polled).
+    last_now: Instant,
     /// When each (source, reason) rejection was last reported.
     reported: HashMap<(IpAddr, GroundRejection), Instant>,
     stats: RouterStats,
@@ -157,6 +168,8 @@ impl Router {
             to_gcs: VecDeque::new(),
             radio_leg: RadioLeg::new(config.signing.as_ref()),
             reported: HashMap::new(),
+            ground_signer: config.ground_signing.as_ref().map(SigningConfig::signer),
+            last_now: now,
             stats: RouterStats::default(),
             config,
         })
@@ -172,6 +185,11 @@ impl Router {
             mission_duplicates: self.dedup.suppressed(),
             commands: self.commands.stats(),
             signing: self.radio_leg.stats(),
+            ground_signing: self
+                .ground_signer
+                .as_ref()
+                .map(LinkSigner::stats)
+                .unwrap_or_default(),
             ..self.stats.clone()
         }
     }
@@ -200,6 +218,7 @@ impl Router {
     /// answer says whether `from` may become the UDP peer and what to report.
     pub fn handle_gcs_input(&mut self, from: IpAddr, bytes: &[u8], now: Instant) -> GroundInput {
         let mut input = GroundInput::default();
+        self.last_now = self.last_now.max(now);
         if !self.config.ground.allows_address(from) {
             input.rejected = 1;
             self.reject(from, GroundRejection::Address, now, &mut input);
@@ -208,7 +227,17 @@ impl Router {
         self.gcs_reader.push(bytes);
         self.gcs_reader.finish();
         while let Some(rx) = self.gcs_reader.next_frame() {
-            let frame = rx.frame;
+            let mut frame = rx.frame;
+            if let Some(signer) = &mut self.ground_signer {
+                match signer.verify(&frame, now) {
+                    Ok(plain) => frame = plain,
+                    Err(_) => {
+                        input.rejected += 1;
+                        self.reject(from, GroundRejection::Signature, now, &mut input);
+                        continue;
+                    }
+                }
+            }
             if !self.config.ground.allows_system(frame.system_id()) {
                 input.rejected += 1;
                 self.reject(
@@ -285,6 +314,7 @@ impl Router {
 
     /// Bytes from the radio's serial port.
     pub fn handle_radio_bytes(&mut self, bytes: &[u8], now: Instant) {
+        self.last_now = self.last_now.max(now);
         self.radio_reader.push(bytes);
         while let Some(rx) = self.radio_reader.next_frame() {
             let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
@@ -366,6 +396,7 @@ impl Router {
     /// Does what is due at `now`: our link-quality report (also shown to the ground
     /// station), command retransmissions.
     pub fn handle_timeout(&mut self, now: Instant) {
+        self.last_now = self.last_now.max(now);
         while let Some(frame) = self.commands.poll_retransmit(now) {
             self.scheduler.push(frame, Class::Priority, now);
         }
@@ -377,9 +408,19 @@ impl Router {
         }
     }
 
-    /// The next frame for the ground station.
+    /// The next frame for the ground station (signed with the ground key when ground
+    /// signing is on; frames that cannot be signed, MAVLink 1 or unknown ids, are dropped:
+    /// a station that signs would reject them).
     pub fn poll_gcs_transmit(&mut self) -> Option<OwnedFrame> {
-        self.to_gcs.pop_front()
+        loop {
+            let frame = self.to_gcs.pop_front()?;
+            let Some(signer) = &mut self.ground_signer else {
+                return Some(frame);
+            };
+            if let Some(signed) = signer.sign(&frame, self.last_now) {
+                return Some(signed);
+            }
+        }
     }
 
     /// The next frame for the radio if the budget allows at `now` and it fits `room` bytes.

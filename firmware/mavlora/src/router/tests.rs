@@ -280,3 +280,62 @@ fn one_source_cannot_fill_the_command_relay() {
     assert_eq!(commands(&radio_out(&mut r, ms(10))), 1);
     assert_eq!(r.stats().ground.rejected_budget, 10 - budget as u64);
 }
+
+#[test]
+fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_gets_signed_ones() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
+    use crate::signing::{LinkSigner, SigningConfig, SigningKey};
+    let key = SigningKey([7; 32]);
+    let mut config = RouterConfig::new(SchedulerConfig {
+        rate_bytes_per_s: 1000,
+        burst_bytes: 300,
+        max_queued_bytes: 4000,
+    });
+    config.ground_signing = Some(SigningConfig {
+        key: key.clone(),
+        link_id: 2,
+        epoch: 1_000_000,
+    });
+    let mut r = Router::new(config, Instant::ZERO).unwrap();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut station = LinkSigner::new(key, 9, 1_000_000);
+    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    });
+    // unsigned, from an allowed address and system id: not enough
+    let input = r.handle_gcs_bytes(gcs.frame(&arm).as_bytes(), ms(0));
+    assert!(!input.learn_peer());
+    assert_eq!(input.report, Some(GroundRejection::Signature));
+    // signed with another key: no
+    let mut stranger = LinkSigner::new(SigningKey([8; 32]), 9, 1_000_000);
+    let forged = stranger.sign(&gcs.frame(&arm), ms(5)).unwrap();
+    assert!(!r.handle_gcs_bytes(forged.as_bytes(), ms(5)).learn_peer());
+    assert_eq!(commands(&radio_out(&mut r, ms(10))), 0);
+    // signed with the ground key: goes, without the ground's signature
+    let signed = station.sign(&gcs.frame(&arm), ms(20)).unwrap();
+    assert!(r.handle_gcs_bytes(signed.as_bytes(), ms(20)).learn_peer());
+    let out: Vec<OwnedFrame> = std::iter::from_fn(|| r.poll_radio_transmit(ms(20), usize::MAX))
+        .filter(|f| f.message_id() == ids::COMMAND_LONG)
+        .collect();
+    assert_eq!(out.len(), 1);
+    assert!(!out[0].is_signed());
+    // ... and a replay of it does not
+    assert!(!r.handle_gcs_bytes(signed.as_bytes(), ms(30)).learn_peer());
+    assert_eq!(r.stats().ground.rejected_signature, 3);
+    // what the ground gets is signed with the ground key
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+    r.handle_radio_bytes(fc.frame(&hb).as_bytes(), ms(40));
+    let to_ground = gcs_out(&mut r);
+    assert!(!to_ground.is_empty());
+    for f in &to_ground {
+        assert!(f.is_signed());
+        station
+            .verify(f, ms(41))
+            .expect("signed with the ground key");
+    }
+}

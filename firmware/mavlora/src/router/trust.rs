@@ -12,7 +12,11 @@
 //! - each source (address) has at most `commands_in_flight` commands being relayed at once, so
 //!   one sender cannot fill the radio's priority queue and push another's commands out.
 //!
-//! Only a checksum-valid frame that passed both checks teaches the router its UDP peer
+//! - with a ground key (`--ground-key`, MAVLink 2 signing between ground station and router,
+//!   not the radio's key), each frame must carry a valid, fresh signature: this is the only
+//!   check here that authenticates a sender rather than trusting where it says it is from.
+//!
+//! Only a checksum-valid frame that passed these checks teaches the router its UDP peer
 //! ([`GroundInput::learn_peer`]): a stray or hostile datagram never redirects telemetry.
 //! Rejections are counted ([`TrustStats`]) and reported once per source and reason per
 //! [`GroundPolicy::log_every`] (the IO layer logs them).
@@ -158,6 +162,8 @@ pub enum GroundRejection {
     SystemId(u8),
     /// The source already has `commands_in_flight` commands in the relay.
     CommandBudget,
+    /// Ground signing is on and the frame is unsigned, badly signed or replayed.
+    Signature,
 }
 
 impl fmt::Display for GroundRejection {
@@ -166,6 +172,7 @@ impl fmt::Display for GroundRejection {
             Self::Address => f.write_str("source address not allowed"),
             Self::SystemId(id) => write!(f, "system id {id} not allowed"),
             Self::CommandBudget => f.write_str("too many commands in flight from this source"),
+            Self::Signature => f.write_str("not signed with the ground key (or replayed)"),
         }
     }
 }
@@ -179,12 +186,14 @@ pub struct TrustStats {
     pub rejected_sysid: u64,
     /// Commands over their source's in-flight budget.
     pub rejected_budget: u64,
+    /// Frames not signed with the ground key, badly signed or replayed (ground signing on).
+    pub rejected_signature: u64,
 }
 
 impl TrustStats {
     /// Everything rejected (`ground_rejected` on the status line).
     pub fn total(&self) -> u64 {
-        self.rejected_address + self.rejected_sysid + self.rejected_budget
+        self.rejected_address + self.rejected_sysid + self.rejected_budget + self.rejected_signature
     }
 
     pub(crate) fn count(&mut self, why: GroundRejection) {
@@ -192,6 +201,7 @@ impl TrustStats {
             GroundRejection::Address => self.rejected_address += 1,
             GroundRejection::SystemId(_) => self.rejected_sysid += 1,
             GroundRejection::CommandBudget => self.rejected_budget += 1,
+            GroundRejection::Signature => self.rejected_signature += 1,
         }
     }
 }
