@@ -101,7 +101,7 @@ fn run(o: Options) -> Result<()> {
         });
         info!(key = %path.display(), "ground signing on");
     }
-    info!(allow = ?config.ground.allow, allow_sysid = ?config.ground.allow_sysid, "ground policy");
+    info!(allow = ?config.ground.allow.iter().map(ToString::to_string).collect::<Vec<_>>(), allow_sysid = ?config.ground.allow_sysid, "ground policy");
     let status_every = o.shared.status_every();
     let mut tlog = match o.tlog {
         Some(p) => Some(Tlog::create(&p).with_context(|| format!("creating {}", p.display()))?),
