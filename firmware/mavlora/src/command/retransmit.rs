@@ -166,9 +166,12 @@ impl CommandRetransmitter {
     }
 
     fn expire(&mut self, now: Instant) {
-        let window = self.window;
+        // A finished command stays known for the whole RETRANSMIT_WINDOW, not just for the
+        // router's own attempts (`window`): with few attempts (1: the ground's copies are
+        // the only ones) the ground's retry 1.5 s later must still go as that command,
+        // and the bridge holds it for ACK_HOLD, longer than RETRANSMIT_WINDOW.
         self.finished
-            .retain(|f| now.saturating_duration_since(f.pending.first_sent) < window);
+            .retain(|f| now.saturating_duration_since(f.pending.first_sent) < RETRANSMIT_WINDOW);
         self.draining.retain(|d| d.1 > now);
         self.generations
             .retain(|_, g| now.saturating_duration_since(g.1) < ACK_HOLD + MAX_RTO);
@@ -299,7 +302,23 @@ impl CommandRetransmitter {
             .iter()
             .position(|p| p.id.answered_by(system, component, command))
         else {
-            if self.draining.iter().any(|d| d.0 == (system, command)) {
+            // The first ack of a command the router gave up on (it sent every attempt it
+            // had; with one attempt, the ground's copies are the resends) answers it: the
+            // ground still waits for it unless a newer command with the same id waits.
+            let slot = (system, command);
+            let newer_waits = self.waiting.iter().any(|w| w.id.slot() == slot);
+            if !newer_waits
+                && let Some(f) = self.finished.iter_mut().rev().find(|f| {
+                    !f.acked
+                        && f.pending.attempts > 0
+                        && f.pending.id.answered_by(system, component, command)
+                })
+            {
+                f.acked = true;
+                self.stats.acked += 1;
+                return true;
+            }
+            if self.draining.iter().any(|d| d.0 == slot) {
                 self.stats.late_acks += 1;
                 return false;
             }
