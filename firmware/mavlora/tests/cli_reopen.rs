@@ -96,9 +96,10 @@ fn config_file_with_an_unknown_key_is_an_error_naming_the_file() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     let _ = std::fs::remove_dir_all(&dir);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    // a bad config file is bad usage, like a bad flag: exit 2, naming file:line and key
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("router.toml") && stderr.contains("radoi_baud"),
+        stderr.contains("router.toml:2") && stderr.contains("radoi_baud"),
         "{stderr}"
     );
     // a bad flag is a usage error

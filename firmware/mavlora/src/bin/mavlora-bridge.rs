@@ -18,8 +18,8 @@ use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::io::{
-    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, SerialEvent, SerialLink, frame_gap,
-    on_signal,
+    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, SerialEvent, SerialLink, UsageError,
+    frame_gap, on_signal,
 };
 
 /// MavLora bridge: flight controller serial port <-> radio serial port.
@@ -42,7 +42,8 @@ struct Options {
     #[arg(long, num_args = 0, default_missing_value = "true")]
     compact: Option<bool>,
     /// With --compact: hold compact frames this many ms so they share one radio packet
-    /// (LoRa under a duty-cycle rule: 1500 fits EU 433 MHz's 10 % at SF7/125 kHz) [default: 0].
+    /// (LoRa under a duty-cycle rule: 1500 fits EU 433 MHz's 10 % at SF7/125 kHz), at most
+    /// 60000 [default: 0].
     #[arg(long)]
     coalesce_ms: Option<u64>,
     /// Vehicle system id, until the flight controller's heartbeat tells [default: 1].
@@ -62,15 +63,20 @@ fn run(o: Options) -> Result<()> {
         None => Profile::parse("", "(no profile: everything passes)")?,
     };
     let (rate, burst) = (o.shared.rate(), o.shared.burst());
-    let mut config = BridgeConfig::new(profile, o.shared.scheduler());
+    let mut config = BridgeConfig::new(profile, o.shared.scheduler()?);
     let coalesce_ms = o.coalesce_ms;
+    if coalesce_ms.is_some_and(|ms| ms > 60_000) {
+        return Err(UsageError::option("coalesce_ms", "must be at most 60000 ms").into());
+    }
     if o.compact.unwrap_or(false) {
         config.compact = Some(CompactConfig {
             coalesce: Duration::from_millis(coalesce_ms.unwrap_or(0)),
             ..CompactConfig::default()
         });
     } else if coalesce_ms.is_some() {
-        anyhow::bail!("--coalesce-ms / `coalesce_ms` needs compact telemetry (--compact)");
+        return Err(
+            UsageError::option("coalesce_ms", "needs compact telemetry (--compact)").into(),
+        );
     }
     if let Some(id) = o.system_id {
         config.system_id = id;

@@ -16,10 +16,11 @@ use serde::Deserialize;
 use tracing::{info, warn};
 
 use mavlora::io::{
-    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, SerialEvent, SerialLink, TcpEndpoint,
-    Tlog, UdpEndpoint, frame_gap, on_signal,
+    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, Seconds, SerialEvent, SerialLink,
+    TcpEndpoint, Tlog, UdpEndpoint, UsageError, frame_gap, on_signal, signing_epoch_now,
 };
-use mavlora::router::{Router, RouterConfig};
+use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
+use mavlora::signing::{SigningConfig, SigningKey};
 
 /// MavLora router: radio serial port <-> ground stations on UDP and TCP.
 #[derive(Parser, Deserialize, Default, Debug)]
@@ -31,9 +32,26 @@ struct Options {
     /// Where to send until a ground station talks to us [default: 127.0.0.1:14550].
     #[arg(long)]
     udp: Option<SocketAddr>,
-    /// Local UDP address [default: 0.0.0.0:14555].
+    /// Local UDP address [default: 127.0.0.1:14555, this host only; 0.0.0.0:14555 opens it
+    /// to the network, together with --allow].
     #[arg(long)]
     udp_bind: Option<SocketAddr>,
+    /// Source networks (UDP and TCP) that may reach the vehicle and become the UDP peer,
+    /// comma-separated, e.g. 127.0.0.1,10.0.0.0/24 [default: 127.0.0.1,::1].
+    #[arg(long, value_delimiter = ',')]
+    allow: Option<Vec<IpNet>>,
+    /// System ids whose frames from the ground go to the radio, comma-separated
+    /// [default: 255].
+    #[arg(long, value_delimiter = ',')]
+    allow_sysid: Option<Vec<u8>>,
+    /// MAVLink 2 signing key file for the ground side (64 hex characters or 32 bytes; not
+    /// the radio's --key): frames from ground stations must be signed with it, frames to
+    /// them are signed with it.
+    #[arg(long)]
+    ground_key: Option<PathBuf>,
+    /// Commands one ground source may have in the relay at once [default: 4].
+    #[arg(long)]
+    commands_per_source: Option<usize>,
     /// Also listen for ground stations on TCP here, e.g. 0.0.0.0:5760 (QGroundControl "TCP",
     /// `mavproxy.py --master=tcp:HOST:5760`); every client gets every frame.
     #[arg(long)]
@@ -44,9 +62,9 @@ struct Options {
     /// Write a MAVProxy-format telemetry log here.
     #[arg(long)]
     tlog: Option<PathBuf>,
-    /// Seconds between ground heartbeats sent over the radio [default: 5].
+    /// Seconds between ground heartbeats sent over the radio, 0.1..=86400 [default: 5].
     #[arg(long)]
-    gcs_heartbeat_period: Option<f64>,
+    gcs_heartbeat_period: Option<Seconds>,
 }
 
 fn main() -> ExitCode {
@@ -56,14 +74,36 @@ fn main() -> ExitCode {
 fn run(o: Options) -> Result<()> {
     let radio_path = o.shared.radio_port()?;
     let (rate, burst) = (o.shared.rate(), o.shared.burst());
-    let mut config = RouterConfig::new(o.shared.scheduler());
+    let mut config = RouterConfig::new(o.shared.scheduler()?);
     if let Some(p) = o.gcs_heartbeat_period {
-        config.gcs_heartbeat_period = Duration::from_secs_f64(p);
+        config.gcs_heartbeat_period = p.into();
     }
     if let Some(period) = o.shared.link_quality_period() {
         config.quality.period = period;
     }
     config.signing = o.shared.signing(2)?;
+    if let Some(allow) = o.allow {
+        config.ground.allow = allow;
+    }
+    if let Some(ids) = o.allow_sysid {
+        config.ground.allow_sysid = ids;
+    }
+    if let Some(n) = o.commands_per_source {
+        if n == 0 {
+            return Err(UsageError::option("commands_per_source", "must be at least 1").into());
+        }
+        config.ground.commands_in_flight = n;
+    }
+    if let Some(path) = &o.ground_key {
+        config.ground_signing = Some(SigningConfig {
+            key: SigningKey::load(path)
+                .with_context(|| format!("ground key {}", path.display()))?,
+            link_id: 3,
+            epoch: signing_epoch_now(),
+        });
+        info!(key = %path.display(), "ground signing on");
+    }
+    info!(allow = ?config.ground.allow.iter().map(ToString::to_string).collect::<Vec<_>>(), allow_sysid = ?config.ground.allow_sysid, "ground policy");
     let status_every = o.shared.status_every();
     let mut tlog = match o.tlog {
         Some(p) => Some(Tlog::create(&p).with_context(|| format!("creating {}", p.display()))?),
@@ -74,7 +114,7 @@ fn run(o: Options) -> Result<()> {
     on_signal(inbox.clone())?;
     let stop = Arc::new(AtomicBool::new(false));
     let peer = o.udp.unwrap_or(([127, 0, 0, 1], 14550).into());
-    let bind = o.udp_bind.unwrap_or(([0, 0, 0, 0], 14555).into());
+    let bind = o.udp_bind.unwrap_or(([127, 0, 0, 1], 14555).into());
     let mut udp = UdpEndpoint::spawn(bind, peer, inbox.clone(), stop.clone())?;
     let tcp = match o.tcp_listen {
         Some(addr) => {
@@ -119,15 +159,23 @@ fn run(o: Options) -> Result<()> {
             }
             Ok(Event::Serial(_, SerialEvent::Idle)) => router.handle_radio_idle(clock.now()),
             Ok(Event::Serial(_, SerialEvent::Closed)) => router.radio_port_closed(),
-            // One whole frame each (framed per datagram / per client where it entered).
+            // One whole frame each (framed per datagram / per client where it entered), let
+            // through only as far as the ground policy allows; the tlog records what it let
+            // through, and only a sender it accepted becomes the UDP peer.
             Ok(Event::Udp(frame, from)) => {
-                udp.learn(from);
-                record(&mut tlog, &frame);
-                router.handle_gcs_bytes(clock.now(), &frame);
+                let input = router.handle_gcs_input(clock.now(), from.ip(), &frame);
+                report(from, &input);
+                if input.learn_peer() {
+                    udp.learn(from);
+                    record(&mut tlog, &frame);
+                }
             }
-            Ok(Event::Tcp(frame, _)) => {
-                record(&mut tlog, &frame);
-                router.handle_gcs_bytes(clock.now(), &frame);
+            Ok(Event::Tcp(frame, from)) => {
+                let input = router.handle_gcs_input(clock.now(), from.ip(), &frame);
+                report(from, &input);
+                if input.learn_peer() {
+                    record(&mut tlog, &frame);
+                }
             }
             Ok(Event::Serial(_, SerialEvent::Opened)) | Err(PopError::Timeout) => {}
             Ok(Event::Stop) => {
@@ -160,6 +208,13 @@ fn run(o: Options) -> Result<()> {
     }
     status(&router, &radio, &udp, tcp.as_ref(), &inbox);
     Ok(())
+}
+
+/// Logs a rejection the router says is due (at most one per source and reason per 10 s).
+fn report(from: SocketAddr, input: &GroundInput) {
+    if let Some(why) = input.report {
+        warn!(%from, %why, rejected = input.rejected, "ground input rejected (reported once per 10 s)");
+    }
 }
 
 fn status(
@@ -203,6 +258,10 @@ fn status(
         mission_duplicates = s.mission_duplicates,
         command_resends = s.commands.retransmissions,
         command_ground_retries_dropped = s.commands.ground_duplicates,
+        commands_queued = s.commands.queued,
+        command_late_acks = s.commands.late_acks,
+        commands_abandoned = s.commands.abandoned,
+        ground_rejected = s.ground.total(),
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,

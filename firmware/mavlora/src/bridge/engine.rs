@@ -9,7 +9,7 @@ use tracing::{debug, info};
 use super::config::BridgeConfig;
 use super::fc_watch::{FcEvent, FcWatch};
 use super::gcs_heartbeat::GcsHeartbeat;
-use crate::command::{AckCache, AckCacheStats, CacheVerdict};
+use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
 use crate::dialect::{MavCmd, MavMessage, MavResult, MavType};
 use crate::filter::{
@@ -118,7 +118,7 @@ impl Bridge {
             quality: LinkQuality::new(config.quality, now),
             compactor: config.compact.map(Compactor::new),
             mission: MissionRelay::new(config.mission),
-            commands: AckCache::new(Duration::from_secs(5), Duration::from_secs(1)),
+            commands: AckCache::new(ACK_HOLD, Duration::from_secs(1)),
             watch: FcWatch::new(config.fc_silence),
             gcs_heartbeat: GcsHeartbeat::new(
                 config.gcs_heartbeat_period,
@@ -256,7 +256,8 @@ impl Bridge {
                 return;
             }
             if id == ids::COMMAND_ACK {
-                self.commands.ack(frame.system_id(), &frame, msg, now);
+                self.commands
+                    .ack(frame.system_id(), frame.component_id(), &frame, msg);
             }
             if let Some(compactor) = &mut self.compactor
                 && self.watch.is_fc(&frame)
@@ -420,7 +421,7 @@ impl Bridge {
             ids::COMMAND_INT | ids::COMMAND_LONG => {
                 if let Ok(msg) = frame.decode::<MavMessage>() {
                     match self.commands.command(&frame, &msg, now) {
-                        CacheVerdict::Forward => {}
+                        CacheVerdict::Forward(f) => return self.forward_to_fc(f),
                         CacheVerdict::Replay(ack) => {
                             self.scheduler.push(ack, Class::Priority, now);
                             return;

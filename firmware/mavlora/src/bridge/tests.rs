@@ -386,8 +386,13 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
             .count()
     };
     assert_eq!(acks(to_radio(&mut b, ms(120))), 1);
-    // the ack was lost on the radio and the router resends the command
-    b.handle_radio_bytes(ms(1100), gcs.frame(&cmd).as_bytes());
+    // the ack was lost on the radio and the router resends the command (confirmation 1)
+    let MavMessage::COMMAND_LONG(mut copy) = cmd.clone() else {
+        unreachable!()
+    };
+    copy.confirmation = 1;
+    let copy = MavMessage::COMMAND_LONG(copy);
+    b.handle_radio_bytes(ms(1100), gcs.frame(&copy).as_bytes());
     assert_eq!(
         to_fc(&mut b, ms(1100)).iter().filter(|m| is_cmd(m)).count(),
         0,

@@ -2,16 +2,16 @@
 
 use crate::time::Duration;
 
-use super::command_key;
-use crate::dialect::MavMessage;
+use super::{CommandId, confirmation, split_confirmation, with_confirmation};
+use crate::dialect::{MavMessage, MavResult};
 use crate::time::Instant;
 use crate::wire::OwnedFrame;
 
 /// What to do with a command from the radio.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum CacheVerdict {
-    /// New: forward it to the flight controller.
-    Forward,
+    /// New (or the flight controller may have lost it): forward this frame to it.
+    Forward(OwnedFrame),
     /// Already acknowledged: send this ack back over the radio instead.
     Replay(OwnedFrame),
     /// A copy of a command the flight controller is executing: drop it.
@@ -31,11 +31,15 @@ pub struct AckCacheStats {
 
 #[derive(Debug)]
 struct Entry {
-    key: (u8, u32),
-    /// The command's payload, so a changed command with the same id is a new one.
-    payload: Vec<u8>,
+    id: CommandId,
+    /// The router's generation of this identity (0 for `COMMAND_INT`).
+    generation: u8,
+    /// When its first copy arrived: the entry lives [`AckCache::new`]'s `hold` from then.
+    first: Instant,
     forwarded: Instant,
-    ack: Option<(OwnedFrame, Instant)>,
+    /// Times forwarded to the flight controller.
+    forwards: u8,
+    ack: Option<OwnedFrame>,
 }
 
 /// Sans-IO cache of recent commands and their acks.
@@ -48,9 +52,10 @@ pub struct AckCache {
 }
 
 impl AckCache {
-    /// Acks are replayed for `hold` after they were seen; a copy within `in_flight` of the
-    /// forwarded command, before its ack, is dropped (after that it goes to the flight
-    /// controller again: the first may have been lost on the wire).
+    /// Commands and their acks are kept `hold` after a command's first copy arrived (at
+    /// least [`ACK_HOLD`](super::ACK_HOLD): the router's copies arrive within it); a copy
+    /// within `in_flight` of the forwarded command, before its ack, is dropped (after that it
+    /// goes to the flight controller again: the first may have been lost on the wire).
     pub fn new(hold: Duration, in_flight: Duration) -> Self {
         Self {
             hold,
@@ -65,83 +70,84 @@ impl AckCache {
         self.stats
     }
 
-    /// A command from the radio (`frame` decodes to `msg`).
+    /// A command from the radio (`frame` decodes to `msg`). Its confirmation is read as the
+    /// router's (generation, attempt): attempt 0 is a new command, more is a copy of the
+    /// command with the same identity and generation (if none is known, its earlier copies
+    /// were lost: it is new here). `COMMAND_INT` has no confirmation: an identical one is a
+    /// copy.
     pub fn command(&mut self, frame: &OwnedFrame, msg: &MavMessage, now: Instant) -> CacheVerdict {
-        let Some(key) = command_key(msg) else {
-            return CacheVerdict::Forward;
+        let Some(id) = CommandId::of(msg) else {
+            return CacheVerdict::Forward(frame.clone());
         };
         self.expire(now);
-        let payload = comparable_payload(frame, msg);
-        if let Some(e) = self
-            .entries
-            .iter_mut()
-            .find(|e| e.key == key && e.payload == payload)
+        let (generation, attempt) = confirmation(msg).map_or((0, 1), split_confirmation);
+        if attempt > 0
+            && let Some(e) = self
+                .entries
+                .iter_mut()
+                .find(|e| e.id == id && e.generation == generation)
         {
-            match &e.ack {
-                Some((ack, _)) => {
+            return match &e.ack {
+                Some(ack) => {
                     self.stats.replayed += 1;
-                    return CacheVerdict::Replay(ack.clone());
+                    CacheVerdict::Replay(ack.clone())
                 }
                 None if now.saturating_duration_since(e.forwarded) < self.in_flight => {
                     self.stats.dropped += 1;
-                    return CacheVerdict::Drop;
+                    CacheVerdict::Drop
                 }
                 None => {
                     e.forwarded = now;
+                    e.forwards = e.forwards.saturating_add(1);
                     self.stats.forwarded += 1;
-                    return CacheVerdict::Forward;
+                    CacheVerdict::Forward(with_confirmation(frame, msg, e.forwards - 1))
                 }
-            }
+            };
         }
-        self.entries.retain(|e| e.key != key);
+        self.entries.retain(|e| e.id != id);
         self.entries.push(Entry {
-            key,
-            payload,
+            id,
+            generation,
+            first: now,
             forwarded: now,
+            forwards: 1,
             ack: None,
         });
         self.stats.forwarded += 1;
-        CacheVerdict::Forward
+        CacheVerdict::Forward(with_confirmation(frame, msg, 0))
     }
 
-    /// A `COMMAND_ACK` from the flight controller `system` on its way to the radio.
-    pub fn ack(&mut self, system: u8, frame: &OwnedFrame, msg: &MavMessage, now: Instant) {
+    /// A `COMMAND_ACK` from the flight controller's (`system`, `component`) on its way to
+    /// the radio: cached for the latest unanswered command it can answer (`IN_PROGRESS` is
+    /// replaced by the final ack).
+    pub fn ack(&mut self, system: u8, component: u8, frame: &OwnedFrame, msg: &MavMessage) {
         let MavMessage::COMMAND_ACK(ack) = msg else {
             return;
         };
-        let key = (system, ack.command as u32);
-        if let Some(e) = self.entries.iter_mut().find(|e| e.key == key) {
-            e.ack = Some((frame.clone(), now));
+        let command = ack.command as u32;
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .filter(|e| e.id.answered_by(system, component, command))
+            .filter(|e| {
+                e.ack.as_ref().is_none_or(|a| {
+                    matches!(
+                        a.decode::<MavMessage>(),
+                        Ok(MavMessage::COMMAND_ACK(a)) if a.result == MavResult::MAV_RESULT_IN_PROGRESS
+                    )
+                })
+            })
+            .max_by_key(|e| e.forwarded)
+        {
+            e.ack = Some(frame.clone());
         }
     }
 
     fn expire(&mut self, now: Instant) {
-        let (hold, in_flight) = (self.hold, self.in_flight);
-        self.entries.retain(|e| match &e.ack {
-            Some((_, at)) => now.saturating_duration_since(*at) < hold,
-            None => now.saturating_duration_since(e.forwarded) < hold.max(in_flight),
-        });
+        let hold = self.hold;
+        self.entries
+            .retain(|e| now.saturating_duration_since(e.first) < hold);
     }
-}
-
-/// `COMMAND_LONG` payload length on the wire and the offset of `confirmation` (last field,
-/// after seven floats, the u16 command and the two target bytes).
-const COMMAND_LONG_LEN: usize = 33;
-const CONFIRMATION_AT: usize = 32;
-
-/// The payload as sent before MAVLink 2 trimmed its trailing zeros, without
-/// `COMMAND_LONG.confirmation`, which a sender increments on each retry of the same command.
-fn comparable_payload(frame: &OwnedFrame, msg: &MavMessage) -> Vec<u8> {
-    let mut payload = frame.payload().to_vec();
-    if let MavMessage::COMMAND_LONG(_) = msg {
-        payload.resize(COMMAND_LONG_LEN, 0);
-        payload[CONFIRMATION_AT] = 0;
-    }
-    // Trailing zeros are trimmed in MAVLink 2 and not in 1: compare without them.
-    while payload.last() == Some(&0) {
-        payload.pop();
-    }
-    payload
 }
 
 #[cfg(test)]
@@ -149,7 +155,8 @@ mod tests {
     use mavlink::MavlinkVersion;
 
     use super::*;
-    use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd, MavResult};
+    use crate::command::{ACK_HOLD, radio_confirmation};
+    use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd};
     use crate::wire::Sender;
 
     const MS: fn(u64) -> Duration = Duration::from_millis;
@@ -174,19 +181,29 @@ mod tests {
         (fc.frame(&msg), msg)
     }
 
+    fn forwarded_confirmation(v: CacheVerdict) -> u8 {
+        match v {
+            CacheVerdict::Forward(f) => match f.decode::<MavMessage>() {
+                Ok(MavMessage::COMMAND_LONG(c)) => c.confirmation,
+                other => panic!("{other:?}"),
+            },
+            other => panic!("{other:?}"),
+        }
+    }
+
     #[test]
     fn a_copy_is_dropped_in_flight_and_answered_after_the_ack() {
-        let mut c = AckCache::new(MS(5000), MS(1000));
+        let mut c = AckCache::new(ACK_HOLD, MS(1000));
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
         let t0 = Instant::from_millis(0);
         let (f, m) = command(&mut gcs, 0, 4.0);
-        assert_eq!(c.command(&f, &m, t0), CacheVerdict::Forward);
+        assert_eq!(forwarded_confirmation(c.command(&f, &m, t0)), 0);
         // a retry (confirmation + 1) while the FC executes it
         let (f2, m2) = command(&mut gcs, 1, 4.0);
         assert_eq!(c.command(&f2, &m2, t0 + MS(300)), CacheVerdict::Drop);
         let (af, am) = ack(&mut fc);
-        c.ack(1, &af, &am, t0 + MS(400));
+        c.ack(1, 1, &af, &am);
         // the ack was lost on the radio: the next copy gets it again, not a second execution
         match c.command(&f2, &m2, t0 + MS(1200)) {
             CacheVerdict::Replay(a) => assert_eq!(a.as_bytes(), af.as_bytes()),
@@ -194,7 +211,10 @@ mod tests {
         }
         // a different command with the same id is new
         let (f3, m3) = command(&mut gcs, 0, 5.0);
-        assert_eq!(c.command(&f3, &m3, t0 + MS(1300)), CacheVerdict::Forward);
+        assert_eq!(
+            forwarded_confirmation(c.command(&f3, &m3, t0 + MS(1300))),
+            0
+        );
         assert_eq!(
             c.stats(),
             AckCacheStats {
@@ -206,7 +226,55 @@ mod tests {
     }
 
     #[test]
-    fn cached_acks_expire() {
+    fn a_late_copy_within_the_router_window_is_not_run_again() {
+        // the camera trigger ran, its acks were lost for 7 s: a copy at 7.1 s is answered
+        let mut c = AckCache::new(ACK_HOLD, MS(1000));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        let t0 = Instant::from_millis(0);
+        let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+        c.command(&f, &m, t0);
+        let (af, am) = ack(&mut fc);
+        c.ack(1, 1, &af, &am);
+        let (late, late_m) = command(&mut gcs, radio_confirmation(0, 7), 1.0);
+        assert!(matches!(
+            c.command(&late, &late_m, t0 + MS(7100)),
+            CacheVerdict::Replay(_)
+        ));
+        assert!(matches!(
+            c.command(&late, &late_m, t0 + ACK_HOLD - MS(1)),
+            CacheVerdict::Replay(_)
+        ));
+    }
+
+    #[test]
+    fn a_deliberate_repeat_runs_again_even_if_its_first_copy_was_lost() {
+        let mut c = AckCache::new(ACK_HOLD, MS(1000));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        let t0 = Instant::from_millis(0);
+        let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+        c.command(&f, &m, t0);
+        let (af, am) = ack(&mut fc);
+        c.ack(1, 1, &af, &am);
+        // the second trigger, 2.5 s later: its first copy arrives
+        let (f2, m2) = command(&mut gcs, radio_confirmation(1, 0), 1.0);
+        assert_eq!(
+            forwarded_confirmation(c.command(&f2, &m2, t0 + MS(2500))),
+            0
+        );
+        c.ack(1, 1, &af, &am);
+        // a third: only its second copy arrives; still a new command here
+        let (f3, m3) = command(&mut gcs, radio_confirmation(2, 1), 1.0);
+        assert_eq!(
+            forwarded_confirmation(c.command(&f3, &m3, t0 + MS(5000))),
+            0
+        );
+        assert_eq!(c.stats().forwarded, 3);
+    }
+
+    #[test]
+    fn cached_acks_expire_after_the_hold() {
         let mut c = AckCache::new(MS(5000), MS(1000));
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
@@ -214,10 +282,17 @@ mod tests {
         let (f, m) = command(&mut gcs, 0, 4.0);
         c.command(&f, &m, t0);
         let (af, am) = ack(&mut fc);
-        c.ack(1, &af, &am, t0 + MS(100));
-        // much later the same command is a new request the FC must see
-        assert_eq!(c.command(&f, &m, t0 + MS(6000)), CacheVerdict::Forward);
+        c.ack(1, 1, &af, &am);
+        let (f2, m2) = command(&mut gcs, 1, 4.0);
+        // after the hold a copy is unknown: forwarded (the router never sends one that late)
+        assert_eq!(
+            forwarded_confirmation(c.command(&f2, &m2, t0 + MS(6000))),
+            0
+        );
         // and a copy unanswered for longer than `in_flight` goes to the FC again
-        assert_eq!(c.command(&f, &m, t0 + MS(7100)), CacheVerdict::Forward);
+        assert_eq!(
+            forwarded_confirmation(c.command(&f2, &m2, t0 + MS(7100))),
+            1
+        );
     }
 }

@@ -13,22 +13,156 @@
 //!   being executed twice; a copy that arrives while the first is still being executed is
 //!   dropped.
 //!
-//! Commands are matched by (vehicle system id, command id): `COMMAND_ACK` in our generated
-//! dialect carries no target fields (MAVLink 2 extensions), so that is all an ack names.
+//! # Identity and confirmation (the MAVLink command protocol)
+//!
+//! A command is its [`CommandId`]: target system, target component, command id and every
+//! parameter. `COMMAND_LONG.confirmation` 0 is a new command, more is a retransmission of
+//! the same one; a new command with identical parameters is executed again.
+//!
+//! Between router and bridge (both ours) the radio carries `confirmation` as
+//! `generation << 3 | attempt` ([`radio_confirmation`]): `attempt` counts the router's sends
+//! of one command (0 first, saturating at 7), `generation` tells two commands with the same
+//! identity apart, so a re-issued command whose first copy was lost is not taken for a
+//! retransmission of the previous one. The bridge gives the flight controller a plain
+//! `confirmation` (0 on its first forward). `COMMAND_INT` has no confirmation field: an
+//! identical `COMMAND_INT` within the retransmission window is a copy.
+//!
+//! # Acks
+//!
+//! `COMMAND_ACK` carries only the command id (and our generated dialect no extension
+//! fields), so the router keeps at most one command per (target system, command id) on the
+//! radio: a newer one with the same id waits until the older one is acknowledged or given
+//! up, and after an older one that was sent more than once, until its late copies' acks can
+//! no longer arrive (one maximum timeout after its last send); acks arriving then are
+//! swallowed (counted), never given to the newer one. The ground thus sees the acks of two
+//! commands with the same id in the order it sent them, each answering its own.
+//!
+//! The choice when the ground moves on: an older command whose ground station stopped
+//! retrying it (1.4 s after its last copy) while a newer one with
+//! the same id waits is abandoned: no more copies, its acks swallowed (a station that gave
+//! up would take them for the newer one's). A waiting command the ground stopped retrying
+//! for two maximum timeouts is never sent. A ground retry (`confirmation` > 0) of a command
+//! the router already finished is sent again as that command (same generation: the bridge
+//! answers from its cache) within the window, and dropped after it.
+//!
+//! # How long
+//!
+//! The router sends one command for at most [`RETRANSMIT_WINDOW`] (its
+//! [`MAX_ATTEMPTS`] × [`MAX_RTO`]) after the first send, ground retries included; the
+//! bridge keeps each command [`ACK_HOLD`] (that window plus one more maximum timeout for the
+//! radio's latency) after it first arrived, so no copy can outlive its entry.
 
 mod ack_cache;
 mod retransmit;
 
+use crate::time::Duration;
+
 pub use ack_cache::{AckCache, AckCacheStats, CacheVerdict};
-pub use retransmit::{CommandRetransmitter, RetransmitStats};
+pub use retransmit::{Admission, CommandRetransmitter, RetransmitStats};
 
 use crate::dialect::MavMessage;
 
-/// (target system, command id) of a `COMMAND_LONG` or `COMMAND_INT`.
-pub fn command_key(msg: &MavMessage) -> Option<(u8, u32)> {
+/// The most sends of one command over the radio (the attempt field has 3 bits).
+pub const MAX_ATTEMPTS: u32 = 8;
+/// The router's longest retransmission timeout (a ground station's own 1.5 s retry).
+pub const MAX_RTO: Duration = Duration::from_millis(1500);
+/// How long after its first send the router may still send a copy of a command.
+pub const RETRANSMIT_WINDOW: Duration = Duration::from_millis(1500 * MAX_ATTEMPTS as u64);
+/// How long the bridge keeps a command and its ack after the first copy arrived.
+pub const ACK_HOLD: Duration = Duration::from_millis(1500 * (MAX_ATTEMPTS as u64 + 1));
+
+/// Which command a `COMMAND_LONG` or `COMMAND_INT` is, `confirmation` aside.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct CommandId {
+    /// Target system.
+    pub target_system: u8,
+    /// Target component (0: all).
+    pub target_component: u8,
+    /// Command id.
+    pub command: u32,
+    /// `COMMAND_INT` (frame, current, autocontinue), or `None` for `COMMAND_LONG`.
+    int: Option<(u8, u8, u8)>,
+    /// The seven parameters' bits.
+    params: [u32; 7],
+}
+
+impl CommandId {
+    /// The identity of a `COMMAND_LONG` or `COMMAND_INT`.
+    pub fn of(msg: &MavMessage) -> Option<Self> {
+        match msg {
+            MavMessage::COMMAND_LONG(c) => Some(Self {
+                target_system: c.target_system,
+                target_component: c.target_component,
+                command: c.command as u32,
+                int: None,
+                params: [
+                    c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+                ]
+                .map(f32::to_bits),
+            }),
+            MavMessage::COMMAND_INT(c) => Some(Self {
+                target_system: c.target_system,
+                target_component: c.target_component,
+                command: c.command as u32,
+                int: Some((c.frame as u8, c.current, c.autocontinue)),
+                params: [
+                    c.param1.to_bits(),
+                    c.param2.to_bits(),
+                    c.param3.to_bits(),
+                    c.param4.to_bits(),
+                    c.x as u32,
+                    c.y as u32,
+                    c.z.to_bits(),
+                ],
+            }),
+            _ => None,
+        }
+    }
+
+    /// The (target system, command id) an ack names: one command per slot on the radio.
+    pub fn slot(&self) -> (u8, u32) {
+        (self.target_system, self.command)
+    }
+
+    /// Whether a `COMMAND_ACK` for `command` from (`system`, `component`) can answer this.
+    pub fn answered_by(&self, system: u8, component: u8, command: u32) -> bool {
+        self.target_system == system
+            && self.command == command
+            && (self.target_component == 0 || self.target_component == component)
+    }
+}
+
+/// `COMMAND_LONG.confirmation`, `None` for `COMMAND_INT` and other messages.
+pub fn confirmation(msg: &MavMessage) -> Option<u8> {
     match msg {
-        MavMessage::COMMAND_LONG(c) => Some((c.target_system, c.command as u32)),
-        MavMessage::COMMAND_INT(c) => Some((c.target_system, c.command as u32)),
+        MavMessage::COMMAND_LONG(c) => Some(c.confirmation),
         _ => None,
     }
+}
+
+/// The confirmation the router puts on the radio: `generation` (0..32) and `attempt` (0 for
+/// the first send; saturates at 7).
+pub fn radio_confirmation(generation: u8, attempt: u32) -> u8 {
+    ((generation & 0x1f) << 3) | attempt.min(7) as u8
+}
+
+/// (generation, attempt) of a radio confirmation.
+pub fn split_confirmation(confirmation: u8) -> (u8, u8) {
+    (confirmation >> 3, confirmation & 7)
+}
+
+/// `frame` (a `COMMAND_LONG`) with its confirmation set and its checksum recomputed; other
+/// frames unchanged.
+pub fn with_confirmation(
+    frame: &crate::wire::OwnedFrame,
+    msg: &MavMessage,
+    confirmation: u8,
+) -> crate::wire::OwnedFrame {
+    let MavMessage::COMMAND_LONG(c) = msg else {
+        return frame.clone();
+    };
+    let mut c = c.clone();
+    c.confirmation = confirmation;
+    let version = frame.version();
+    crate::wire::encode(version, frame.header(), &MavMessage::COMMAND_LONG(c))
 }

@@ -1,8 +1,12 @@
 //! The router's half of the command relay: retransmission over the radio.
 
-use std::collections::VecDeque;
+use std::collections::{HashMap, VecDeque};
+use std::net::IpAddr;
 
-use super::command_key;
+use super::{
+    ACK_HOLD, CommandId, MAX_ATTEMPTS, MAX_RTO, RETRANSMIT_WINDOW, confirmation,
+    radio_confirmation, with_confirmation,
+};
 use crate::dialect::{MavMessage, MavResult};
 use crate::mission::RttEstimator;
 use crate::time::{Duration, Instant};
@@ -13,46 +17,138 @@ use crate::wire::OwnedFrame;
 pub struct RetransmitStats {
     /// Commands from the ground forwarded for the first time.
     pub commands: u64,
-    /// Copies resent over the radio by the router.
+    /// Copies resent over the radio by the router (ground retries sent again included).
     pub retransmissions: u64,
-    /// Ground-station retries of a command in flight, dropped.
+    /// Ground-station retries of a command in flight (or too old to send again), dropped.
     pub ground_duplicates: u64,
+    /// Commands that waited for an older one with the same target and id.
+    pub queued: u64,
     /// Commands whose ack came back.
     pub acked: u64,
+    /// Acks that came back after their command was answered or given up, swallowed.
+    pub late_acks: u64,
     /// Commands given up after the last attempt (the ground station still has its own).
     pub given_up: u64,
+    /// Commands the ground stopped asking for while a newer one with the same id waited,
+    /// or that waited until the ground stopped asking: not sent (further).
+    pub abandoned: u64,
 }
 
+/// What to do with a command from the ground.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Admission {
+    /// Send this frame over the radio (the command, numbered for the radio leg).
+    Forward(OwnedFrame),
+    /// A command with the same target and id is on the radio: this one waits its turn
+    /// ([`CommandRetransmitter::handle_timeout`] queues it when its turn comes).
+    Hold,
+    /// A retry of a command in flight: drop it (the relay is already retrying).
+    Retry,
+    /// Its source already has its budget of commands in flight: drop it.
+    OverBudget,
+}
+
+/// A command from the ground, waiting or on the radio.
 #[derive(Debug)]
 struct Pending {
-    key: (u8, u32),
+    source: IpAddr,
+    id: CommandId,
+    generation: u8,
     frame: OwnedFrame,
+    msg: MavMessage,
+    first_sent: Instant,
     sent: Instant,
+    /// Sends so far; 0 while waiting.
     attempts: u32,
+    /// The vehicle answered `IN_PROGRESS`: no more copies, the final ack will come.
+    in_progress: bool,
+    /// When the ground last sent it (first send or retry): it still waits for the ack until
+    /// about [`GROUND_PATIENCE`] later.
+    last_ground: Instant,
 }
 
-/// Sans-IO retransmitter for commands crossing the radio from the ground.
+/// How long after its last copy a ground station still waits for a command's ack: the
+/// protocol's 1.5 s retry timeout, less a margin so that an ack forwarded in time is not
+/// taken for the next command's by a station that has just given up.
+const GROUND_PATIENCE: Duration = Duration::from_millis(1400);
+
+impl Pending {
+    fn copy(&self) -> OwnedFrame {
+        let c = radio_confirmation(self.generation, self.attempts.saturating_sub(1));
+        with_confirmation(&self.frame, &self.msg, c)
+    }
+}
+
+/// A command answered or given up, remembered for the rest of its window.
+#[derive(Debug)]
+struct Finished {
+    pending: Pending,
+    /// The vehicle's ack came back (else: given up, outcome unknown).
+    acked: bool,
+}
+
+/// Sans-IO retransmitter for commands crossing the radio from the ground (see the module
+/// doc for identities, generations and how acks are matched).
 #[derive(Debug)]
 pub struct CommandRetransmitter {
     rtt: RttEstimator,
+    max_rto: Duration,
     max_attempts: u32,
-    pending: Vec<Pending>,
-    /// Copies due, waiting for [`poll_retransmit`](CommandRetransmitter::poll_retransmit).
+    window: Duration,
+    per_source: usize,
+    on_air: Vec<Pending>,
+    waiting: Vec<Pending>,
+    finished: Vec<Finished>,
+    /// Slots whose late acks are swallowed until then.
+    draining: Vec<((u8, u32), Instant)>,
+    /// The last generation given to each identity and when it was last sent: kept while the
+    /// bridge may remember it ([`ACK_HOLD`] after its first arrival), so a re-issued command
+    /// never reuses a generation the bridge still holds.
+    generations: HashMap<CommandId, (u8, Instant)>,
+    /// A waiting command may start.
+    wake: Option<Instant>,
+    /// Frames due, waiting for [`poll_retransmit`](CommandRetransmitter::poll_retransmit).
     due: VecDeque<OwnedFrame>,
     stats: RetransmitStats,
 }
 
 impl CommandRetransmitter {
-    /// Timeout starts at `initial` and stays within `min..=max`; each command goes at most
-    /// `max_attempts` times.
+    /// Timeout starts at `initial` and stays within `min..=max` (`max` at most [`MAX_RTO`]);
+    /// each command goes at most `max_attempts` ([`MAX_ATTEMPTS`] at most) times, within
+    /// `max_attempts` × `max` of its first send.
     pub fn new(initial: Duration, min: Duration, max: Duration, max_attempts: u32) -> Self {
+        let max = max.min(MAX_RTO);
+        let max_attempts = max_attempts.clamp(1, MAX_ATTEMPTS);
         Self {
-            rtt: RttEstimator::new(initial, min, max),
-            max_attempts: max_attempts.max(1),
-            pending: Vec::new(),
+            rtt: RttEstimator::new(initial.min(max), min.min(max), max),
+            max_rto: max,
+            max_attempts,
+            window: (max * max_attempts).min(RETRANSMIT_WINDOW),
+            per_source: usize::MAX,
+            on_air: Vec::new(),
+            waiting: Vec::new(),
+            finished: Vec::new(),
+            draining: Vec::new(),
+            generations: HashMap::new(),
+            wake: None,
             due: VecDeque::new(),
             stats: RetransmitStats::default(),
         }
+    }
+
+    /// At most `n` commands from one source in flight (waiting or on the radio) at once.
+    pub fn with_source_limit(mut self, n: usize) -> Self {
+        self.per_source = n.max(1);
+        self
+    }
+
+    /// Commands from `source` in flight.
+    pub fn in_flight_from(&self, source: IpAddr) -> usize {
+        self.on_air
+            .iter()
+            .chain(&self.waiting)
+            .filter(|p| p.source == source)
+            .count()
     }
 
     /// Counters so far.
@@ -65,78 +161,338 @@ impl CommandRetransmitter {
         &self.rtt
     }
 
-    /// A frame from the ground station; `false` if it is a retry of a command in flight and
-    /// must not go on the radio again.
-    pub fn from_ground(&mut self, frame: &OwnedFrame, msg: &MavMessage, now: Instant) -> bool {
-        let Some(key) = command_key(msg) else {
+    fn slot_busy(&self, slot: (u8, u32)) -> bool {
+        self.on_air.iter().any(|p| p.id.slot() == slot) || self.draining.iter().any(|d| d.0 == slot)
+    }
+
+    fn expire(&mut self, now: Instant) {
+        // A finished command stays known for the whole RETRANSMIT_WINDOW, not just for the
+        // router's own attempts (`window`): with few attempts (1: the ground's copies are
+        // the only ones) the ground's retry 1.5 s later must still go as that command,
+        // and the bridge holds it for ACK_HOLD, longer than RETRANSMIT_WINDOW.
+        self.finished
+            .retain(|f| now.saturating_duration_since(f.pending.first_sent) < RETRANSMIT_WINDOW);
+        self.draining.retain(|d| d.1 > now);
+        self.generations
+            .retain(|_, g| now.saturating_duration_since(g.1) < ACK_HOLD + MAX_RTO);
+    }
+
+    /// Notes that a copy of `p` goes on the radio at `now`.
+    fn note_sent(&mut self, id: CommandId, generation: u8, now: Instant) {
+        self.generations.insert(id, (generation, now));
+    }
+
+    /// A frame from the ground station at `source` (`frame` decodes to `msg`).
+    pub fn from_ground(
+        &mut self,
+        now: Instant,
+        source: IpAddr,
+        frame: &OwnedFrame,
+        msg: &MavMessage,
+    ) -> Admission {
+        let Some(id) = CommandId::of(msg) else {
+            return Admission::Forward(frame.clone());
+        };
+        self.expire(now);
+        // COMMAND_INT has no confirmation: an identical one is a copy.
+        let copy = confirmation(msg).is_none_or(|c| c > 0);
+        if copy {
+            if let Some(p) = self
+                .on_air
+                .iter_mut()
+                .chain(&mut self.waiting)
+                .find(|p| p.id == id)
+            {
+                p.last_ground = now;
+                self.stats.ground_duplicates += 1;
+                return Admission::Retry;
+            }
+            if let Some(i) = self.finished.iter().rposition(|f| f.pending.id == id) {
+                // The ground did not get the ack (or we gave up): send that command again,
+                // as itself, unless a newer one is on the radio. A newer one that waits
+                // keeps waiting: while the ground retries the older one it expects the
+                // older one's ack first.
+                if self.on_air.iter().any(|p| p.id.slot() == id.slot())
+                    || (self.finished[i].acked
+                        && self.waiting.iter().any(|p| p.id.slot() == id.slot()))
+                    || self.in_flight_from(source) >= self.per_source
+                {
+                    self.stats.ground_duplicates += 1;
+                    return Admission::Retry;
+                }
+                let mut p = self.finished.remove(i).pending;
+                if p.attempts == 0 {
+                    p.first_sent = now;
+                }
+                if self
+                    .finished
+                    .iter()
+                    .all(|f| f.pending.id.slot() != id.slot())
+                {
+                    self.draining.retain(|d| d.0 != id.slot());
+                }
+                p.attempts += 1;
+                p.sent = now;
+                p.source = source;
+                p.last_ground = now;
+                p.in_progress = false;
+                self.stats.retransmissions += 1;
+                self.note_sent(p.id, p.generation, now);
+                let out = p.copy();
+                self.on_air.push(p);
+                return Admission::Forward(out);
+            }
+            if self.generations.contains_key(&id) && confirmation(msg).is_some() {
+                // A retry of a command whose window is over: the bridge may still hold it,
+                // so it must not go as a new one; the ground has to send a new command.
+                self.stats.ground_duplicates += 1;
+                return Admission::Retry;
+            }
+        }
+        if self.in_flight_from(source) >= self.per_source {
+            return Admission::OverBudget;
+        }
+        let generation = self
+            .generations
+            .get(&id)
+            .map_or(0, |g| g.0.wrapping_add(1) & 0x1f);
+        self.note_sent(id, generation, now);
+        self.stats.commands += 1;
+        let mut p = Pending {
+            source,
+            id,
+            generation,
+            frame: frame.clone(),
+            msg: msg.clone(),
+            first_sent: now,
+            sent: now,
+            attempts: 0,
+            in_progress: false,
+            last_ground: now,
+        };
+        if self.slot_busy(id.slot()) || self.waiting.iter().any(|w| w.id.slot() == id.slot()) {
+            self.stats.queued += 1;
+            self.waiting.push(p);
+            return Admission::Hold;
+        }
+        p.attempts = 1;
+        let out = p.copy();
+        self.on_air.push(p);
+        Admission::Forward(out)
+    }
+
+    /// A `COMMAND_ACK` from the radio, sent by (`system`, `component`): ends the retries of
+    /// the command it answers (`IN_PROGRESS`: the vehicle has it; the slot stays taken
+    /// until the final ack). Returns whether the ack goes on to the ground station (`false`
+    /// for a late copy's ack).
+    pub fn from_radio(
+        &mut self,
+        now: Instant,
+        system: u8,
+        component: u8,
+        msg: &MavMessage,
+    ) -> bool {
+        let MavMessage::COMMAND_ACK(ack) = msg else {
             return true;
         };
-        if self.pending.iter().any(|p| p.key == key) {
-            self.stats.ground_duplicates += 1;
+        self.expire(now);
+        let command = ack.command as u32;
+        let Some(i) = self
+            .on_air
+            .iter()
+            .position(|p| p.id.answered_by(system, component, command))
+        else {
+            // The first ack of a command the router gave up on (it sent every attempt it
+            // had; with one attempt, the ground's copies are the resends) answers it: the
+            // ground still waits for it unless a newer command with the same id waits.
+            let slot = (system, command);
+            let newer_waits = self.waiting.iter().any(|w| w.id.slot() == slot);
+            if !newer_waits
+                && let Some(f) = self.finished.iter_mut().rev().find(|f| {
+                    !f.acked
+                        && f.pending.attempts > 0
+                        && f.pending.id.answered_by(system, component, command)
+                })
+            {
+                f.acked = true;
+                self.stats.acked += 1;
+                return true;
+            }
+            if self.draining.iter().any(|d| d.0 == slot) {
+                self.stats.late_acks += 1;
+                return false;
+            }
+            return true;
+        };
+        let stale = now >= self.on_air[i].last_ground + GROUND_PATIENCE
+            && self
+                .waiting
+                .iter()
+                .any(|w| w.id.slot() == self.on_air[i].id.slot());
+        if stale {
+            // The ground gave up on it and waits for a newer one with the same id: this
+            // ack would be taken for the newer one's.
+            let p = self.on_air.swap_remove(i);
+            self.stats.abandoned += 1;
+            self.stats.late_acks += 1;
+            self.draining.push((p.id.slot(), p.sent + self.max_rto));
+            self.finish(p, false, now);
             return false;
         }
-        self.stats.commands += 1;
-        self.pending.push(Pending {
-            key,
-            frame: frame.clone(),
-            sent: now,
-            attempts: 1,
-        });
+        if ack.result == MavResult::MAV_RESULT_IN_PROGRESS {
+            let p = &mut self.on_air[i];
+            if !p.in_progress {
+                p.in_progress = true;
+                return true;
+            }
+            return true;
+        }
+        let p = self.on_air.swap_remove(i);
+        self.stats.acked += 1;
+        // Karn: only an unambiguous round trip is a sample.
+        if p.attempts == 1 && !p.in_progress {
+            self.rtt.sample(now.saturating_duration_since(p.sent));
+        }
+        if p.attempts > 1 {
+            // Copies still on their way get acks (the bridge replays it): not the next one's.
+            self.draining.push((p.id.slot(), p.sent + self.max_rto));
+        }
+        self.finish(p, true, now);
         true
     }
 
-    /// A frame from the radio: a `COMMAND_ACK` from `system` ends that command's retries
-    /// (`IN_PROGRESS` too: the vehicle has it).
-    pub fn from_radio(&mut self, system: u8, msg: &MavMessage, now: Instant) {
-        let MavMessage::COMMAND_ACK(ack) = msg else {
-            return;
-        };
-        let key = (system, ack.command as u32);
-        let Some(i) = self.pending.iter().position(|p| p.key == key) else {
-            return;
-        };
-        let p = self.pending.swap_remove(i);
-        self.stats.acked += 1;
-        // Karn: only an unambiguous round trip is a sample.
-        if p.attempts == 1 && ack.result != MavResult::MAV_RESULT_IN_PROGRESS {
-            self.rtt.sample(now.saturating_duration_since(p.sent));
+    fn finish(&mut self, p: Pending, acked: bool, now: Instant) {
+        if self.waiting.iter().any(|w| w.id.slot() == p.id.slot()) {
+            self.wake = Some(now);
         }
+        self.finished.push(Finished { pending: p, acked });
     }
 
-    /// Queues a copy of every command whose timeout ran out by `now` (oldest position
-    /// first), and gives up those out of attempts.
+    /// Does what is due at `now`: abandons what the ground stopped asking for, gives up
+    /// what is out of attempts or window, and queues every frame to send (a waiting command
+    /// whose turn came, a copy of one whose timeout ran out) for
+    /// [`poll_retransmit`](Self::poll_retransmit).
     pub fn handle_timeout(&mut self, now: Instant) {
-        let rto = self.rtt.rto();
-        while let Some(i) = self
-            .pending
-            .iter()
-            .position(|p| now.saturating_duration_since(p.sent) >= rto)
-        {
-            if self.pending[i].attempts >= self.max_attempts {
-                self.pending.swap_remove(i);
-                self.stats.given_up += 1;
-                continue;
-            }
-            // No exponential backoff (RFC 6298 5.5): on a radio a lost command is loss, not
-            // congestion (the scheduler's byte budget already paces the link), and doubling the
-            // timeout after a lost copy is what pushes the 99th percentile past 3 s.
-            let p = &mut self.pending[i];
-            p.attempts += 1;
-            p.sent = now;
-            self.stats.retransmissions += 1;
-            self.due.push_back(p.frame.clone());
+        while let Some(frame) = self.next_due(now) {
+            self.due.push_back(frame);
         }
     }
 
-    /// The next copy to send again, queued by [`handle_timeout`](Self::handle_timeout).
+    /// The next frame to send, queued by [`handle_timeout`](Self::handle_timeout).
     pub fn poll_retransmit(&mut self) -> Option<OwnedFrame> {
         self.due.pop_front()
     }
 
-    /// When the next retransmission is due.
+    /// A command to send at `now`: a waiting one whose turn came, or one whose timeout ran
+    /// out (at most one per call).
+    fn next_due(&mut self, now: Instant) -> Option<OwnedFrame> {
+        self.expire(now);
+        self.wake = None;
+        // A waiting command the ground stopped asking for (no retry for two of its
+        // timeouts) is not sent: its ack would come when the ground waits for another. It
+        // stays known, so a late retry of it is not taken for an older identical command.
+        let mut i = 0;
+        while i < self.waiting.len() {
+            if now >= self.waiting[i].last_ground + self.max_rto * 2 {
+                let p = self.waiting.remove(i);
+                self.stats.abandoned += 1;
+                self.finished.push(Finished {
+                    pending: p,
+                    acked: false,
+                });
+            } else {
+                i += 1;
+            }
+        }
+        // A newer command waits and the ground stopped asking for the one on the radio:
+        // the older is abandoned (its late acks swallowed), the newer goes.
+        if let Some(i) = self.on_air.iter().position(|p| {
+            now >= p.last_ground + GROUND_PATIENCE
+                && self.waiting.iter().any(|w| w.id.slot() == p.id.slot())
+        }) {
+            let p = self.on_air.swap_remove(i);
+            self.stats.abandoned += 1;
+            self.draining.push((p.id.slot(), p.sent + self.max_rto));
+            self.finish(p, false, now);
+        }
+        if let Some(i) = (0..self.waiting.len()).find(|&i| {
+            let slot = self.waiting[i].id.slot();
+            !self.slot_busy(slot) && !self.waiting[..i].iter().any(|w| w.id.slot() == slot)
+        }) {
+            let mut p = self.waiting.remove(i);
+            p.attempts = 1;
+            p.first_sent = now;
+            p.sent = now;
+            self.note_sent(p.id, p.generation, now);
+            let out = p.copy();
+            self.on_air.push(p);
+            return Some(out);
+        }
+        let rto = self.rtt.rto();
+        let window = self.window;
+        let i = self.on_air.iter().position(|p| {
+            if p.in_progress {
+                now.saturating_duration_since(p.first_sent) >= window
+            } else {
+                now.saturating_duration_since(p.sent) >= rto
+            }
+        })?;
+        let p = &self.on_air[i];
+        if p.in_progress
+            || p.attempts >= self.max_attempts
+            || now.saturating_duration_since(p.first_sent) + rto > window
+        {
+            let p = self.on_air.swap_remove(i);
+            self.stats.given_up += 1;
+            // The ground may still retry it (every 1.5 s by the protocol): a newer command
+            // with the same id waits two maximum timeouts after the last copy, so that
+            // retry comes first and takes the slot back.
+            self.draining.push((p.id.slot(), p.sent + self.max_rto * 2));
+            self.finish(p, false, now);
+            return self.next_due(now);
+        }
+        // No exponential backoff (RFC 6298 5.5): on a radio a lost command is loss, not
+        // congestion (the scheduler's byte budget already paces the link), and doubling the
+        // timeout after a lost copy is what pushes the 99th percentile past 3 s.
+        let p = &mut self.on_air[i];
+        p.attempts += 1;
+        p.sent = now;
+        let (id, generation, out) = (p.id, p.generation, p.copy());
+        self.stats.retransmissions += 1;
+        self.note_sent(id, generation, now);
+        Some(out)
+    }
+
+    /// When the relay next needs [`handle_timeout`](Self::handle_timeout).
     pub fn poll_timeout(&self) -> Option<Instant> {
         let rto = self.rtt.rto();
-        self.pending.iter().map(|p| p.sent + rto).min()
+        let window = self.window;
+        let waiting = (!self.waiting.is_empty())
+            .then(|| self.draining.iter().map(|d| d.1).min())
+            .flatten();
+        let patience = self
+            .waiting
+            .iter()
+            .map(|w| w.last_ground + self.max_rto * 2)
+            .chain(
+                self.on_air
+                    .iter()
+                    .filter(|p| self.waiting.iter().any(|w| w.id.slot() == p.id.slot()))
+                    .map(|p| p.last_ground + GROUND_PATIENCE),
+            );
+        self.on_air
+            .iter()
+            .map(|p| {
+                if p.in_progress {
+                    p.first_sent + window
+                } else {
+                    p.sent + rto
+                }
+            })
+            .chain(waiting)
+            .chain(patience)
+            .chain(self.wake)
+            .min()
     }
 }
 
@@ -145,19 +501,32 @@ mod tests {
     use mavlink::MavlinkVersion;
 
     use super::*;
+    use crate::command::split_confirmation;
     use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd};
     use crate::wire::Sender;
 
     const MS: fn(u64) -> Duration = Duration::from_millis;
+    const GCS: IpAddr = IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
 
-    fn command(s: &mut Sender, cmd: MavCmd) -> (OwnedFrame, MavMessage) {
+    fn command_with(
+        s: &mut Sender,
+        cmd: MavCmd,
+        param1: f32,
+        conf: u8,
+    ) -> (OwnedFrame, MavMessage) {
         let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
             target_system: 1,
             target_component: 1,
             command: cmd,
+            param1,
+            confirmation: conf,
             ..Default::default()
         });
         (s.frame(&msg), msg)
+    }
+
+    fn command(s: &mut Sender, cmd: MavCmd) -> (OwnedFrame, MavMessage) {
+        command_with(s, cmd, 0.0, 0)
     }
 
     fn ack(cmd: MavCmd) -> MavMessage {
@@ -167,14 +536,30 @@ mod tests {
         })
     }
 
-    /// The copy due at `now`, if any: the timer, then the queue.
-    fn due(r: &mut CommandRetransmitter, now: Instant) -> Option<OwnedFrame> {
+    /// (param1, generation, attempt) of a radio copy.
+    fn sent(f: &OwnedFrame) -> (f32, u8, u8) {
+        let MavMessage::COMMAND_LONG(c) = f.decode::<MavMessage>().unwrap() else {
+            panic!("not a command");
+        };
+        let (g, a) = split_confirmation(c.confirmation);
+        (c.param1, g, a)
+    }
+
+    fn forwarded(a: Admission) -> OwnedFrame {
+        match a {
+            Admission::Forward(f) => f,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// The frame due at `now`, if any: the timer, then the queue.
+    fn resend(r: &mut CommandRetransmitter, now: Instant) -> Option<OwnedFrame> {
         r.handle_timeout(now);
         r.poll_retransmit()
     }
 
     fn retransmitter() -> CommandRetransmitter {
-        CommandRetransmitter::new(MS(1000), MS(200), MS(3000), 4)
+        CommandRetransmitter::new(MS(1000), MS(200), MS(1500), 4)
     }
 
     #[test]
@@ -183,20 +568,34 @@ mod tests {
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
         let t0 = Instant::from_millis(0);
-        assert!(r.from_ground(&frame, &msg, t0));
+        assert_eq!(
+            sent(&forwarded(r.from_ground(t0, GCS, &frame, &msg))),
+            (0.0, 0, 0)
+        );
         assert_eq!(r.poll_timeout(), Some(t0 + MS(1000)));
-        assert!(due(&mut r, t0 + MS(999)).is_none());
-        let again = due(&mut r, t0 + MS(1000)).expect("due");
-        assert_eq!(again.as_bytes(), frame.as_bytes());
+        assert!(resend(&mut r, t0 + MS(999)).is_none());
+        let again = resend(&mut r, t0 + MS(1000)).expect("due");
+        assert_eq!(sent(&again), (0.0, 0, 1), "a retransmission says so");
         // the ground station's own retry while we are at it goes nowhere
-        assert!(!r.from_ground(&frame, &msg, t0 + MS(1500)));
-        r.from_radio(1, &ack(MavCmd::MAV_CMD_DO_SET_MODE), t0 + MS(1600));
-        assert!(r.poll_timeout().is_none());
-        assert!(due(&mut r, t0 + MS(10_000)).is_none());
+        let (retry, retry_msg) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 0.0, 1);
+        assert_eq!(
+            r.from_ground(t0 + MS(1500), GCS, &retry, &retry_msg),
+            Admission::Retry
+        );
+        assert!(r.from_radio(t0 + MS(1600), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+        // a second copy's ack, replayed by the bridge, is not the next command's
+        assert!(!r.from_radio(t0 + MS(1700), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+        assert!(resend(&mut r, t0 + MS(10_000)).is_none());
         let s = r.stats();
         assert_eq!(
-            (s.commands, s.retransmissions, s.ground_duplicates, s.acked),
-            (1, 1, 1, 1)
+            (
+                s.commands,
+                s.retransmissions,
+                s.ground_duplicates,
+                s.acked,
+                s.late_acks
+            ),
+            (1, 1, 1, 1, 1)
         );
         // the retransmitted command's round trip is ambiguous: no sample (Karn)
         assert_eq!(r.rtt().samples(), 0);
@@ -207,26 +606,27 @@ mod tests {
         let mut r = retransmitter();
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let mut now = Instant::from_millis(0);
-        for _ in 0..20 {
-            let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
-            assert!(r.from_ground(&frame, &msg, now));
+        for k in 0..20 {
+            let (frame, msg) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, k as f32, 0);
+            forwarded(r.from_ground(now, GCS, &frame, &msg));
             now += MS(150);
-            r.from_radio(1, &ack(MavCmd::MAV_CMD_DO_SET_MODE), now);
+            r.from_radio(now, 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE));
             now += MS(1000);
         }
         assert!(r.rtt().rto() <= MS(300), "{:?}", r.rtt().rto());
     }
 
     #[test]
-    fn an_ack_from_another_vehicle_or_command_does_not_count() {
+    fn an_ack_from_another_vehicle_component_or_command_does_not_count() {
         let mut r = retransmitter();
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
         let t0 = Instant::from_millis(0);
-        r.from_ground(&frame, &msg, t0);
-        r.from_radio(2, &ack(MavCmd::MAV_CMD_DO_SET_MODE), t0 + MS(100));
-        r.from_radio(1, &ack(MavCmd::MAV_CMD_NAV_LAND), t0 + MS(100));
-        assert!(due(&mut r, t0 + MS(1000)).is_some());
+        r.from_ground(t0, GCS, &frame, &msg);
+        r.from_radio(t0 + MS(100), 2, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE));
+        r.from_radio(t0 + MS(100), 1, 100, &ack(MavCmd::MAV_CMD_DO_SET_MODE));
+        r.from_radio(t0 + MS(100), 1, 1, &ack(MavCmd::MAV_CMD_NAV_LAND));
+        assert!(resend(&mut r, t0 + MS(1000)).is_some());
     }
 
     #[test]
@@ -234,18 +634,65 @@ mod tests {
         let mut r = retransmitter();
         let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
         let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
-        r.from_ground(&frame, &msg, Instant::from_millis(0));
-        let mut sent = 0;
+        r.from_ground(Instant::from_millis(0), GCS, &frame, &msg);
+        let mut resent = 0;
         let mut now = Instant::from_millis(0);
         while let Some(t) = r.poll_timeout() {
             now = now.max(t);
-            if due(&mut r, now).is_some() {
-                sent += 1;
+            if resend(&mut r, now).is_some() {
+                resent += 1;
             }
         }
-        assert_eq!(sent, 3, "4 attempts in all");
+        assert_eq!(resent, 3, "4 attempts in all");
         assert_eq!(r.stats().given_up, 1);
-        // a later retry by the ground station is a new command
-        assert!(r.from_ground(&frame, &msg, now + MS(1)));
+        // a later retry by the ground station within the window is that command again
+        let (retry, retry_msg) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 0.0, 2);
+        let f = forwarded(r.from_ground(now + MS(1600), GCS, &retry, &retry_msg));
+        assert_eq!(sent(&f), (0.0, 0, 4));
+    }
+
+    #[test]
+    fn a_second_command_with_the_same_id_waits_for_the_first() {
+        // DO_SET_MODE mode 4, then mode 5 200 ms later: both go, in order, one at a time
+        let mut r = retransmitter();
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let t0 = Instant::from_millis(0);
+        let (f4, m4) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 4.0, 0);
+        let (f5, m5) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 5.0, 0);
+        assert_eq!(
+            sent(&forwarded(r.from_ground(t0, GCS, &f4, &m4))),
+            (4.0, 0, 0)
+        );
+        assert_eq!(r.from_ground(t0 + MS(200), GCS, &f5, &m5), Admission::Hold);
+        // mode 4's copies continue alone
+        assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (4.0, 0, 1));
+        assert!(r.from_radio(t0 + MS(1300), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+        // mode 4 went twice: mode 5 waits until the second copy's ack can no longer come
+        assert!(resend(&mut r, t0 + MS(1300)).is_none());
+        assert!(!r.from_radio(t0 + MS(1400), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+        let due = r.poll_timeout().unwrap();
+        assert_eq!(due, t0 + MS(2500));
+        assert_eq!(sent(&resend(&mut r, due).unwrap()), (5.0, 0, 0));
+        assert!(r.from_radio(due + MS(300), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+        assert_eq!(r.stats().acked, 2);
+    }
+
+    #[test]
+    fn an_identical_new_command_is_a_new_generation() {
+        let mut r = retransmitter();
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let t0 = Instant::from_millis(0);
+        let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_DIGICAM_CONTROL, 1.0, 0);
+        assert_eq!(
+            sent(&forwarded(r.from_ground(t0, GCS, &f, &m))),
+            (1.0, 0, 0)
+        );
+        r.from_radio(t0 + MS(300), 1, 1, &ack(MavCmd::MAV_CMD_DO_DIGICAM_CONTROL));
+        // the same trigger again, confirmation 0: a new command the bridge must run again
+        let (f2, m2) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_DIGICAM_CONTROL, 1.0, 0);
+        assert_eq!(
+            sent(&forwarded(r.from_ground(t0 + MS(2500), GCS, &f2, &m2))),
+            (1.0, 1, 0)
+        );
     }
 }

@@ -108,9 +108,10 @@ pub enum ProfileError {
         /// The name as written.
         name: String,
     },
-    /// A `radio` value other than "pass", "drop" or a positive rate.
+    /// A `radio` value other than "pass", "drop" or a rate within [`MIN_RATE_HZ`] ..=
+    /// [`MAX_RATE_HZ`].
     #[error(
-        "{origin}:{line}: `{key}`: radio = {value} (expected \"pass\", \"drop\" or a rate in Hz > 0)"
+        "{origin}:{line}: `{key}`: radio = {value} (expected \"pass\", \"drop\" or a rate in Hz, 0.001..=1000000)"
     )]
     InvalidRadio {
         /// The file.
@@ -146,8 +147,10 @@ pub enum ProfileError {
         /// The value as written.
         value: i64,
     },
-    /// A `stream_hz` that is negative or not finite.
-    #[error("{origin}:{line}: `{key}`: stream_hz = {value} (expected a rate in Hz >= 0)")]
+    /// A `stream_hz` other than 0 or a rate within [`MIN_RATE_HZ`] ..= [`MAX_RATE_HZ`].
+    #[error(
+        "{origin}:{line}: `{key}`: stream_hz = {value} (expected 0 to stop it or a rate in Hz, 0.001..=1000000)"
+    )]
     InvalidStreamRate {
         /// The file.
         origin: String,
@@ -234,7 +237,9 @@ impl Profile {
             };
             let stream_hz = match rule.stream_hz {
                 None => None,
-                Some(hz) if hz.get_ref().is_finite() && *hz.get_ref() >= 0.0 => Some(*hz.get_ref()),
+                Some(hz) if *hz.get_ref() == 0.0 || rate_in_range(*hz.get_ref()) => {
+                    Some(*hz.get_ref())
+                }
                 Some(hz) => {
                     return Err(ProfileError::InvalidStreamRate {
                         origin: origin.to_owned(),
@@ -297,6 +302,16 @@ impl Profile {
     }
 }
 
+/// The lowest rate a profile may give (one frame per 1000 s): below it the limiter's
+/// interval and `SET_MESSAGE_INTERVAL`'s 32-bit microseconds overflow.
+pub const MIN_RATE_HZ: f64 = 1e-3;
+/// The highest rate a profile may give (an interval of 1 µs).
+pub const MAX_RATE_HZ: f64 = 1e6;
+
+fn rate_in_range(hz: f64) -> bool {
+    (MIN_RATE_HZ..=MAX_RATE_HZ).contains(&hz)
+}
+
 fn radio_rule(
     value: &Spanned<RadioValue>,
     key: &str,
@@ -311,7 +326,7 @@ fn radio_rule(
         RadioValue::Int(hz) => Some(*hz as f64),
     };
     match rate {
-        Some(hz) if hz.is_finite() && hz > 0.0 => Ok(RadioRule::MaxRate(hz)),
+        Some(hz) if rate_in_range(hz) => Ok(RadioRule::MaxRate(hz)),
         _ => Err(ProfileError::InvalidRadio {
             origin: origin.to_owned(),
             line,
@@ -416,7 +431,15 @@ radio = 0.5
 
     #[test]
     fn bad_radio_values_are_rejected_with_line() {
-        for (value, line) in [("\"sometimes\"", 3), ("0", 3), ("-2.5", 3)] {
+        for (value, line) in [
+            ("\"sometimes\"", 3),
+            ("0", 3),
+            ("-2.5", 3),
+            ("1e-30", 3),
+            ("inf", 3),
+            ("nan", 3),
+            ("1e9", 3),
+        ] {
             let text = format!("[messages.ATTITUDE]\n\nradio = {value}\n");
             let err = Profile::parse(&text, "p.toml").unwrap_err();
             assert!(

@@ -13,7 +13,7 @@ mod udp;
 
 pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
 pub use framing::{DatagramFramer, FramingCounters};
-pub use options::{RadioOptions, main};
+pub use options::{RadioOptions, Seconds, SecondsError, UsageError, main};
 pub use queue::{Lane, PopError, Queue, QueueStats};
 pub use serial::{SerialCounters, SerialEvent, SerialLink, frame_gap};
 pub use tcp::{DEFAULT_MAX_CLIENTS, TcpCounters, TcpEndpoint};
@@ -88,15 +88,20 @@ pub fn on_signal(inbox: Inbox) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A binary's `main`: logging set up, then `run`; an error is logged and exits with status 1
-/// (clap has already exited with 2 on bad usage).
+/// A binary's `main`: logging set up, then `run`; an error is logged and exits with status 2
+/// if it is a usage error (a [`UsageError`]: an option or config-file value; a
+/// [`ProfileError`](crate::filter::ProfileError): the profile), else 1 (clap has already
+/// exited with 2 on bad flags).
 pub fn run_main(run: impl FnOnce() -> anyhow::Result<()>) -> std::process::ExitCode {
     hostio::logging::init("info");
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e:#}");
-            std::process::ExitCode::from(1)
+            let usage = e
+                .chain()
+                .any(|c| c.is::<UsageError>() || c.is::<crate::filter::ProfileError>());
+            std::process::ExitCode::from(if usage { 2 } else { 1 })
         }
     }
 }

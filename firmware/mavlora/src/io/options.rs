@@ -36,12 +36,12 @@ pub struct RadioOptions {
     /// Radio burst in bytes [default: 600].
     #[arg(long)]
     pub burst: Option<u32>,
-    /// Seconds between LINK_QUALITY reports [default: 5].
+    /// Seconds between LINK_QUALITY reports, 0.1..=86400 [default: 5].
     #[arg(long)]
-    pub link_quality_period: Option<f64>,
-    /// Seconds between status lines [default: 5].
+    pub link_quality_period: Option<Seconds>,
+    /// Seconds between status lines, 0.1..=86400 [default: 5].
     #[arg(long)]
-    pub status_interval: Option<f64>,
+    pub status_interval: Option<Seconds>,
     /// MAVLink 2 signing key file (64 hex characters or 32 bytes) for the radio link: our
     /// radio frames are signed, unsigned or replayed ones from the radio are dropped.
     #[arg(long)]
@@ -71,19 +71,34 @@ impl RadioOptions {
         self.burst.unwrap_or(600)
     }
 
-    /// The radio budget scheduler's settings.
-    pub fn scheduler(&self) -> SchedulerConfig {
-        SchedulerConfig::for_radio(self.rate(), self.burst())
+    /// The radio budget scheduler's settings: a rate of at least 1 byte/s and a burst that
+    /// holds one largest frame.
+    pub fn scheduler(&self) -> Result<SchedulerConfig, UsageError> {
+        if self.rate() == 0 {
+            return Err(UsageError::option("rate", "0 bytes/s: must be at least 1"));
+        }
+        if (self.burst() as usize) < crate::wire::MAX_FRAME_LEN {
+            return Err(UsageError::option(
+                "burst",
+                format!(
+                    "{} bytes: must hold one largest MAVLink frame ({} bytes)",
+                    self.burst(),
+                    crate::wire::MAX_FRAME_LEN
+                ),
+            ));
+        }
+        Ok(SchedulerConfig::for_radio(self.rate(), self.burst()))
     }
 
     /// Time between `LINK_QUALITY` reports, when given (the engine has its default).
     pub fn link_quality_period(&self) -> Option<Duration> {
-        self.link_quality_period.map(Duration::from_secs_f64)
+        self.link_quality_period.map(Duration::from)
     }
 
     /// Time between status lines.
     pub fn status_every(&self) -> Duration {
-        Duration::from_secs_f64(self.status_interval.unwrap_or(5.0))
+        self.status_interval
+            .map_or(Duration::from_secs(5), Duration::from)
     }
 
     /// Radio link signing with the key file, when given, as link `link_id`.
@@ -92,6 +107,90 @@ impl RadioOptions {
             .as_deref()
             .map(|path| signing_from_key_file(path, link_id))
             .transpose()
+    }
+}
+
+/// A period option in seconds: a finite number within [`Seconds::MIN`] ..= [`Seconds::MAX`],
+/// checked where it is read (a flag: clap reports it; a config-file key: the file's line),
+/// so that no out-of-range value reaches `Duration::from_secs_f64` (which panics on
+/// negative, infinite or huge values) or a busy loop.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(try_from = "f64")]
+pub struct Seconds(Duration);
+
+impl Seconds {
+    /// The shortest period an option takes.
+    pub const MIN: f64 = 0.1;
+    /// The longest period an option takes (one day).
+    pub const MAX: f64 = 86_400.0;
+}
+
+/// A period out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0} is not a number of seconds in 0.1..=86400")]
+pub struct SecondsError(String);
+
+impl TryFrom<f64> for Seconds {
+    type Error = SecondsError;
+
+    fn try_from(s: f64) -> Result<Self, Self::Error> {
+        if (Self::MIN..=Self::MAX).contains(&s) {
+            Ok(Self(Duration::from_secs_f64(s)))
+        } else {
+            Err(SecondsError(s.to_string()))
+        }
+    }
+}
+
+impl std::str::FromStr for Seconds {
+    type Err = SecondsError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let value: f64 = s.trim().parse().map_err(|_| SecondsError(s.to_owned()))?;
+        Self::try_from(value)
+    }
+}
+
+impl From<Seconds> for Duration {
+    fn from(s: Seconds) -> Self {
+        s.0
+    }
+}
+
+/// A bad value the types let through, or a bad config file: exit status 2, like clap's
+/// usage errors. The message names the option (`--flag` / `key`) or `file:line`.
+#[derive(Debug, thiserror::Error)]
+pub enum UsageError {
+    /// An option's value out of its range.
+    #[error("--{flag} / `{key}`: {reason}")]
+    Option {
+        /// The flag's name (without `--`).
+        flag: String,
+        /// The config-file key.
+        key: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A config file that does not read or parse, or holds a bad value.
+    #[error("{path}{}: {message}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+    Config {
+        /// The file.
+        path: String,
+        /// 1-based line of the fault, when known.
+        line: Option<usize>,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl UsageError {
+    /// An option `id` (clap's id, the config-file key) out of range.
+    pub fn option(id: &str, reason: impl Into<String>) -> Self {
+        Self::Option {
+            flag: id.replace('_', "-"),
+            key: id.to_owned(),
+            reason: reason.into(),
+        }
     }
 }
 
@@ -136,9 +235,25 @@ where
     T: clap::CommandFactory + serde::de::DeserializeOwned,
 {
     use serde::Deserializer as _;
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading config {}", path.display()))?;
-    let in_file = |e: toml::de::Error| anyhow::anyhow!("{}: {e}", path.display());
+    let text = std::fs::read_to_string(path).map_err(|e| UsageError::Config {
+        path: path.display().to_string(),
+        line: None,
+        message: format!("cannot read: {e}"),
+    })?;
+    let in_file = |e: toml::de::Error| {
+        let start = e.span().map(|span| span.start.min(text.len()));
+        // The key on the line at fault, when the fault is in a `key = value` line.
+        let key = start
+            .and_then(|at| text[..at].rsplit('\n').next())
+            .and_then(|before| before.split_once('='))
+            .map(|(key, _)| format!("`{}`: ", key.trim()))
+            .unwrap_or_default();
+        UsageError::Config {
+            path: path.display().to_string(),
+            line: start.map(|at| text[..at].matches('\n').count() + 1),
+            message: format!("{key}{}", e.message().trim()),
+        }
+    };
     let keys: Vec<String> = T::command()
         .get_arguments()
         .map(|a| a.get_id().to_string())

@@ -1,6 +1,8 @@
 //! The ground-station endpoint: a UDP socket that sends to a configured address until a
-//! ground station talks to it, then to whoever talked last (MAVProxy's `udpin` behaviour
-//! seen from the other side).
+//! ground station talks to it, then to the last sender the router's ground policy accepted
+//! (MAVProxy's `udpin` behaviour seen from the other side, minus strangers: the caller calls
+//! [`UdpEndpoint::learn`] only when [`GroundInput::learn_peer`](crate::router::GroundInput)
+//! says so).
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::Arc;
@@ -72,7 +74,7 @@ impl UdpEndpoint {
         self.socket.local_addr()
     }
 
-    /// A datagram came from `from`: replies go there from now on.
+    /// An accepted ground station sent from `from`: replies go there from now on.
     pub fn learn(&mut self, from: SocketAddr) {
         if from != self.peer {
             info!(%from, "ground station address learned");

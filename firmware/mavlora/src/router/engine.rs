@@ -2,19 +2,21 @@
 
 use crate::time::Duration;
 use std::collections::{HashMap, VecDeque};
+use std::net::{IpAddr, Ipv4Addr};
 
 use mavlink::{MavHeader, MavlinkVersion};
 
-use crate::command::{CommandRetransmitter, RetransmitStats};
+use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
+use crate::command::{Admission, CommandRetransmitter, RetransmitStats};
 use crate::compact::Expander;
 use crate::dialect::MavMessage;
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::DuplicateSuppressor;
 use crate::quality::{LinkQuality, LinkQualityConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
-use crate::signing::{RadioLeg, SigningConfig, SigningStats};
+use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, encode, ids, known};
+use crate::wire::{FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, encode, ids, known};
 
 /// Router settings.
 #[derive(Debug, Clone)]
@@ -42,6 +44,12 @@ pub struct RouterConfig {
     pub command_attempts: u32,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
+    /// Who on the ground may reach the vehicle (addresses, system ids, command budget).
+    pub ground: GroundPolicy,
+    /// MAVLink 2 signing towards the ground stations with their own key (not the radio
+    /// link's): frames from the ground must be signed with it (and fresh), frames to the
+    /// ground are signed with it. `None`: the ground side is unsigned.
+    pub ground_signing: Option<SigningConfig>,
 }
 
 impl RouterConfig {
@@ -58,6 +66,8 @@ impl RouterConfig {
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,
             signing: None,
+            ground: GroundPolicy::default(),
+            ground_signing: None,
         }
     }
 }
@@ -89,6 +99,10 @@ pub struct RouterStats {
     pub link_quality_sent: u64,
     /// Radio link signing (all zero when signing is off).
     pub signing: SigningStats,
+    /// What the ground-side gate rejected.
+    pub ground: TrustStats,
+    /// Ground-side signing (all zero when it is off).
+    pub ground_signing: SigningStats,
 }
 
 /// Sans-IO router engine.
@@ -110,8 +124,15 @@ pub struct Router {
     /// Renumbers what leaves on the radio (thinned heartbeats must not read as loss).
     /// Renumbers and signs what leaves on the radio, verifies what arrives.
     radio_leg: RadioLeg,
+    /// Verifies what the ground sends and signs what it gets, with the ground key.
+    ground_signer: Option<LinkSigner>,
+    /// When each (source, reason) rejection was last reported.
+    reported: HashMap<(IpAddr, GroundRejection), Instant>,
     stats: RouterStats,
 }
+
+/// The source [`Router::handle_gcs_bytes`] stands for: an in-process ground station.
+const IN_PROCESS: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
 
 impl Router {
     /// A router started at `now`.
@@ -138,11 +159,14 @@ impl Router {
                 Duration::from_millis(200),
                 Duration::from_millis(1500),
                 config.command_attempts,
-            ),
+            )
+            .with_source_limit(config.ground.commands_in_flight),
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
             radio_leg: RadioLeg::new(config.signing.as_ref()),
+            reported: HashMap::new(),
+            ground_signer: config.ground_signing.as_ref().map(SigningConfig::signer),
             stats: RouterStats::default(),
             config,
         })
@@ -158,6 +182,11 @@ impl Router {
             mission_duplicates: self.dedup.suppressed(),
             commands: self.commands.stats(),
             signing: self.radio_leg.stats(),
+            ground_signing: self
+                .ground_signer
+                .as_ref()
+                .map(LinkSigner::stats)
+                .unwrap_or_default(),
             ..self.stats.clone()
         }
     }
@@ -181,12 +210,71 @@ impl Router {
         }
     }
 
-    /// Bytes from a ground station (one UDP datagram, or a stream chunk).
-    pub fn handle_gcs_bytes(&mut self, now: Instant, bytes: &[u8]) {
+    /// Whole frames from an in-process ground station (tests, the simulated world): as
+    /// from `127.0.0.1`, see [`handle_gcs_input`](Self::handle_gcs_input).
+    pub fn handle_gcs_bytes(&mut self, now: Instant, bytes: &[u8]) -> GroundInput {
+        self.handle_gcs_input(now, IN_PROCESS, bytes)
+    }
+
+    /// Whole frames (one, in the binary: the UDP thread frames each datagram and drops its
+    /// partial tail, the TCP thread frames each client's stream) from the ground station at
+    /// `from`. Frames go to the radio only if the ground policy allows the address and the
+    /// frame's system id and the source's command budget has room; the answer says whether
+    /// `from` may become the UDP peer and what to report.
+    pub fn handle_gcs_input(&mut self, now: Instant, from: IpAddr, bytes: &[u8]) -> GroundInput {
+        let mut input = GroundInput::default();
+        if !self.config.ground.allows_address(from) {
+            input.rejected = 1;
+            self.reject(now, from, GroundRejection::Address, &mut input);
+            return input;
+        }
         self.gcs_reader.push(bytes);
         while let Some(rx) = self.gcs_reader.next_frame() {
-            let frame = rx.frame;
+            let mut frame = rx.frame;
+            if let Some(signer) = &mut self.ground_signer {
+                match signer.verify(&frame, now) {
+                    Ok(plain) => frame = plain,
+                    Err(_) => {
+                        input.rejected += 1;
+                        self.reject(now, from, GroundRejection::Signature, &mut input);
+                        continue;
+                    }
+                }
+            }
+            if !self.config.ground.allows_system(frame.system_id()) {
+                input.rejected += 1;
+                self.reject(
+                    now,
+                    from,
+                    GroundRejection::SystemId(frame.system_id()),
+                    &mut input,
+                );
+                continue;
+            }
             let id = frame.message_id();
+            if matches!(id, ids::COMMAND_INT | ids::COMMAND_LONG)
+                && let Ok(msg) = frame.decode::<MavMessage>()
+            {
+                match self.commands.from_ground(now, from, &frame, &msg) {
+                    Admission::Forward(f) => {
+                        input.accepted += usize::from(rx.integrity == Integrity::Checked);
+                        self.scheduler.push(f, Class::Priority, now);
+                        continue;
+                    }
+                    Admission::Hold | Admission::Retry => {
+                        input.accepted += 1;
+                        continue;
+                    }
+                    Admission::OverBudget => {
+                        input.rejected += 1;
+                        self.reject(now, from, GroundRejection::CommandBudget, &mut input);
+                        continue;
+                    }
+                }
+            }
+            if rx.integrity == Integrity::Checked {
+                input.accepted += 1;
+            }
             if id == ids::HEARTBEAT {
                 if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
                     continue;
@@ -196,13 +284,34 @@ impl Router {
                 && !self.dedup.from_ground(&msg, now)
             {
                 continue;
-            } else if matches!(id, ids::COMMAND_INT | ids::COMMAND_LONG)
-                && let Ok(msg) = frame.decode::<MavMessage>()
-                && !self.commands.from_ground(&frame, &msg, now)
-            {
-                continue;
             }
             self.scheduler.push(frame, Class::of(id), now);
+        }
+        input
+    }
+
+    /// Counts a rejection; sets `input.report` when none was reported for this source and
+    /// reason within the policy's `log_every`.
+    fn reject(
+        &mut self,
+        now: Instant,
+        from: IpAddr,
+        why: GroundRejection,
+        input: &mut GroundInput,
+    ) {
+        self.stats.ground.count(why);
+        let every = self.config.ground.log_every;
+        if self.reported.len() > 1024 {
+            self.reported
+                .retain(|_, at| now.saturating_duration_since(*at) < every);
+        }
+        let due = self
+            .reported
+            .get(&(from, why))
+            .is_none_or(|at| now.saturating_duration_since(*at) >= every);
+        if due {
+            self.reported.insert((from, why), now);
+            input.report.get_or_insert(why);
         }
     }
 
@@ -217,27 +326,34 @@ impl Router {
             match frame.message_id() {
                 ids::MAVLORA_POSITION_BATCH | ids::MAVLORA_STATUS => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
-                        self.expand(frame.system_id(), &msg);
+                        self.expand(now, frame.system_id(), &msg);
                     }
                 }
                 ids::MISSION_REQUEST | ids::MISSION_REQUEST_INT => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.dedup.from_radio(&msg, now);
                     }
-                    self.push_gcs(frame);
+                    self.push_gcs(now, frame);
                 }
                 ids::COMMAND_ACK => {
-                    if let Ok(msg) = frame.decode::<MavMessage>() {
-                        self.commands.from_radio(frame.system_id(), &msg, now);
+                    if let Ok(msg) = frame.decode::<MavMessage>()
+                        && !self.commands.from_radio(
+                            now,
+                            frame.system_id(),
+                            frame.component_id(),
+                            &msg,
+                        )
+                    {
+                        continue;
                     }
-                    self.push_gcs(frame);
+                    self.push_gcs(now, frame);
                 }
-                _ => self.push_gcs(frame),
+                _ => self.push_gcs(now, frame),
             }
         }
     }
 
-    fn expand(&mut self, system: u8, msg: &MavMessage) {
+    fn expand(&mut self, now: Instant, system: u8, msg: &MavMessage) {
         self.stats.expanded_frames += 1;
         let component = self.config.autopilot_component;
         for out in self.expander.expand(msg) {
@@ -248,7 +364,7 @@ impl Router {
                 sequence: seq,
             };
             self.stats.expanded_messages += 1;
-            self.enqueue_gcs(encode(MavlinkVersion::V2, header, &out));
+            self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, &out));
         }
     }
 
@@ -260,7 +376,7 @@ impl Router {
     }
 
     /// Forwards a radio frame, renumbering it if its stream is one we also synthesise into.
-    fn push_gcs(&mut self, mut frame: OwnedFrame) {
+    fn push_gcs(&mut self, now: Instant, mut frame: OwnedFrame) {
         let stream = (frame.system_id(), frame.component_id());
         if self.resequenced.contains_key(&stream)
             && !frame.is_signed()
@@ -270,10 +386,20 @@ impl Router {
             frame.set_sequence(seq);
             frame.fill_checksum(extra);
         }
-        self.enqueue_gcs(frame);
+        self.enqueue_gcs(now, frame);
     }
 
-    fn enqueue_gcs(&mut self, frame: OwnedFrame) {
+    /// Queues a frame for the ground stations, signed at `now` with the ground key when
+    /// ground signing is on (frames that cannot be signed, MAVLink 1 or unknown ids, are
+    /// dropped: a station that signs would reject them).
+    fn enqueue_gcs(&mut self, now: Instant, frame: OwnedFrame) {
+        let frame = match &mut self.ground_signer {
+            None => frame,
+            Some(signer) => match signer.sign(&frame, now) {
+                Some(signed) => signed,
+                None => return,
+            },
+        };
         self.stats.to_gcs_frames += 1;
         self.stats.to_gcs_bytes += frame.as_bytes().len() as u64;
         self.to_gcs.push_back(frame);
@@ -290,12 +416,13 @@ impl Router {
         if let Some(report) = self.quality.poll_report() {
             let frame = self.sender.frame(&MavMessage::LINK_QUALITY(report));
             self.stats.link_quality_sent += 1;
-            self.enqueue_gcs(frame.clone());
+            self.enqueue_gcs(now, frame.clone());
             self.scheduler.push(frame, Class::Periodic, now);
         }
     }
 
-    /// The next frame for the ground station.
+    /// The next frame for the ground station (already signed with the ground key when
+    /// ground signing is on).
     pub fn poll_gcs_transmit(&mut self) -> Option<OwnedFrame> {
         self.to_gcs.pop_front()
     }

@@ -4,11 +4,15 @@
 //! deadline out. Towards the ground station it expands compact telemetry into standard
 //! messages (re-numbering the vehicle's stream so sequence-gap loss counters stay right);
 //! towards the radio it thins the ground's heartbeats, drops a ground station's premature
-//! mission retransmissions and budgets bytes with the same scheduler as the bridge.
+//! mission retransmissions and budgets bytes with the same scheduler as the bridge. What it
+//! takes from the ground passes [`trust`]'s gate first: allowed addresses and system ids, a
+//! command budget per source.
 
 mod engine;
+pub mod trust;
 
 pub use engine::{Router, RouterConfig, RouterStats};
+pub use trust::{GroundInput, GroundPolicy, GroundRejection, IpNet, TrustStats};
 
 #[cfg(test)]
 mod tests;

@@ -6,6 +6,7 @@ use crate::dialect::{
     COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavAutopilot,
     MavMessage, MavType,
 };
+use crate::router::{GroundPolicy, GroundRejection};
 use crate::schedule::SchedulerConfig;
 use crate::time::Instant;
 use crate::wire::{FrameReader, OwnedFrame, Sender, ids, known};
@@ -174,8 +175,15 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
     // lost on the radio: resent after the initial 1 s timeout, not at the ground's 1.5 s
     assert_eq!(commands(&radio_out(&mut r, ms(999))), 0);
     assert_eq!(commands(&radio_out(&mut r, ms(1000))), 1);
-    // the ground station's own retry is not sent again
-    r.handle_gcs_bytes(ms(1500), gcs.frame(&cmd).as_bytes());
+    // the ground station's own retry (confirmation 1) is not sent again
+    let MavMessage::COMMAND_LONG(mut retry) = cmd.clone() else {
+        unreachable!()
+    };
+    retry.confirmation = 1;
+    r.handle_gcs_bytes(
+        ms(1500),
+        gcs.frame(&MavMessage::COMMAND_LONG(retry)).as_bytes(),
+    );
     assert_eq!(commands(&radio_out(&mut r, ms(1500))), 0);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
     let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
@@ -194,4 +202,140 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
         (s.commands, s.retransmissions, s.ground_duplicates, s.acked),
         (1, 1, 1, 1)
     );
+}
+
+#[test]
+fn ground_frames_from_other_addresses_or_system_ids_never_reach_the_radio() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
+    let mut r = router();
+    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    });
+    let intruder: std::net::IpAddr = "192.168.1.66".parse().unwrap();
+    let mut spoof = Sender::new(255, 190, MavlinkVersion::V2);
+    let input = r.handle_gcs_input(ms(0), intruder, spoof.frame(&arm).as_bytes());
+    assert!(!input.learn_peer());
+    assert_eq!(input.report, Some(GroundRejection::Address));
+    // the vehicle's own id from loopback: not a ground station
+    let mut fake_vehicle = Sender::new(1, 1, MavlinkVersion::V2);
+    let input = r.handle_gcs_bytes(ms(10), fake_vehicle.frame(&arm).as_bytes());
+    assert!(!input.learn_peer());
+    assert_eq!(input.report, Some(GroundRejection::SystemId(1)));
+    // a corrupted frame from the allowed station teaches nothing either
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut bad = gcs.frame(&arm).as_bytes().to_vec();
+    let last = bad.len() - 1;
+    bad[last] ^= 0xff;
+    assert!(!r.handle_gcs_bytes(ms(20), &bad).learn_peer());
+    assert_eq!(commands(&radio_out(&mut r, ms(30))), 0);
+    // reports are rate-limited per source and reason, counts are not
+    let again = r.handle_gcs_input(ms(40), intruder, spoof.frame(&arm).as_bytes());
+    assert_eq!(again.report, None);
+    let s = r.stats().ground;
+    assert_eq!((s.rejected_address, s.rejected_sysid, s.total()), (2, 1, 3));
+    // the pilot's own command goes
+    assert!(
+        r.handle_gcs_bytes(ms(50), gcs.frame(&arm).as_bytes())
+            .learn_peer()
+    );
+    assert_eq!(commands(&radio_out(&mut r, ms(50))), 1);
+}
+
+#[test]
+fn one_source_cannot_fill_the_command_relay() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
+    let mut r = router();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let other: std::net::IpAddr = "::1".parse().unwrap();
+    // distinct commands (to ten vehicles) from one source: only the budget goes out
+    let budget = GroundPolicy::default().commands_in_flight;
+    for k in 0..10u8 {
+        let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            target_system: k + 1,
+            target_component: 1,
+            command: MavCmd::MAV_CMD_DO_SET_SERVO,
+            ..Default::default()
+        });
+        r.handle_gcs_bytes(ms(0), gcs.frame(&msg).as_bytes());
+    }
+    assert_eq!(commands(&radio_out(&mut r, ms(0))), budget);
+    // another station's command still goes
+    let mut other_gcs = Sender::new(255, 191, MavlinkVersion::V2);
+    let input = r.handle_gcs_input(
+        ms(10),
+        other,
+        other_gcs
+            .frame(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+                target_system: 1,
+                command: MavCmd::MAV_CMD_NAV_LAND,
+                ..Default::default()
+            }))
+            .as_bytes(),
+    );
+    assert!(input.learn_peer());
+    assert_eq!(commands(&radio_out(&mut r, ms(10))), 1);
+    assert_eq!(r.stats().ground.rejected_budget, 10 - budget as u64);
+}
+
+#[test]
+fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_gets_signed_ones() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
+    use crate::signing::{LinkSigner, SigningConfig, SigningKey};
+    let key = SigningKey([7; 32]);
+    let mut config = RouterConfig::new(SchedulerConfig {
+        rate_bytes_per_s: 1000,
+        burst_bytes: 300,
+        max_queued_bytes: 4000,
+    });
+    config.ground_signing = Some(SigningConfig {
+        key: key.clone(),
+        link_id: 2,
+        epoch: 1_000_000,
+    });
+    let mut r = Router::new(config, Instant::ZERO).unwrap();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut station = LinkSigner::new(key, 9, 1_000_000);
+    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    });
+    // unsigned, from an allowed address and system id: not enough
+    let input = r.handle_gcs_bytes(ms(0), gcs.frame(&arm).as_bytes());
+    assert!(!input.learn_peer());
+    assert_eq!(input.report, Some(GroundRejection::Signature));
+    // signed with another key: no
+    let mut stranger = LinkSigner::new(SigningKey([8; 32]), 9, 1_000_000);
+    let forged = stranger.sign(&gcs.frame(&arm), ms(5)).unwrap();
+    assert!(!r.handle_gcs_bytes(ms(5), forged.as_bytes()).learn_peer());
+    assert_eq!(commands(&radio_out(&mut r, ms(10))), 0);
+    // signed with the ground key: goes, without the ground's signature
+    let signed = station.sign(&gcs.frame(&arm), ms(20)).unwrap();
+    assert!(r.handle_gcs_bytes(ms(20), signed.as_bytes()).learn_peer());
+    let out: Vec<OwnedFrame> = std::iter::from_fn(|| r.poll_radio_transmit(ms(20), usize::MAX))
+        .filter(|f| f.message_id() == ids::COMMAND_LONG)
+        .collect();
+    assert_eq!(out.len(), 1);
+    assert!(!out[0].is_signed());
+    // ... and a replay of it does not
+    assert!(!r.handle_gcs_bytes(ms(30), signed.as_bytes()).learn_peer());
+    assert_eq!(r.stats().ground.rejected_signature, 3);
+    // what the ground gets is signed with the ground key
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+    r.handle_radio_bytes(ms(40), fc.frame(&hb).as_bytes());
+    let to_ground = gcs_out(&mut r);
+    assert!(!to_ground.is_empty());
+    for f in &to_ground {
+        assert!(f.is_signed());
+        station
+            .verify(f, ms(41))
+            .expect("signed with the ground key");
+    }
 }
