@@ -40,6 +40,10 @@ from pathlib import Path
 
 CHIP_FLASH = 256 * 1024
 CHIP_RAM = 32 * 1024
+# The image's budget (the certification issue's hardware-free check): far below the chip,
+# so growth is noticed long before the part runs out, and the stack keeps >= 24 KiB.
+FLASH_BUDGET = 32 * 1024
+RAM_BUDGET = 8 * 1024
 RAM_START = 0x2000_0000
 SHF_ALLOC = 0x2
 SHT_NOBITS = 8
@@ -119,6 +123,12 @@ for layout, app_flash in (("bare", CHIP_FLASH), ("uf2", CHIP_FLASH - 8 * 1024)):
         sys.exit(f"{layout}: no flash contents found")
     if flash > app_flash or ram > CHIP_RAM:
         sys.exit(f"{layout}: does not fit ({flash} B flash of {app_flash}, {ram} B RAM)")
+    if flash > FLASH_BUDGET or ram > RAM_BUDGET:
+        sys.exit(
+            f"{layout}: over budget ({flash} B flash, limit {FLASH_BUDGET}; {ram} B RAM, limit {RAM_BUDGET})"
+        )
+    if not any(name == ".vector_table" for name, _ in named):
+        sys.exit(f"{layout}: no .vector_table section: linked without cortex-m-rt's link.x")
     print(
         f"{layout:<6} {flash:>7} B {100 * flash / CHIP_FLASH:5.1f} % of 256K"
         f" {ram:>7} B {100 * ram / CHIP_RAM:5.1f} % of 32K  {', '.join(parts)}"
@@ -128,6 +138,7 @@ for layout, app_flash in (("bare", CHIP_FLASH), ("uf2", CHIP_FLASH - 8 * 1024)):
         if base < 0x2000:
             sys.exit(f"uf2: image starts at {base:#x}, inside the bootloader")
         (out / "multirx-samd21.uf2").write_bytes(image)
+print(f"budget: flash <= {FLASH_BUDGET} B, RAM <= {RAM_BUDGET} B (both layouts within it)")
 print("RAM is static data (.data + .bss + .uninit); the stack takes the rest, from the top of RAM down.")
 print(f"UF2 image for the bootloader drive: {out / 'multirx-samd21.uf2'}")
 PY

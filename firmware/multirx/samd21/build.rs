@@ -12,6 +12,11 @@
 //!    board's UARTs (`multirx_core::board::SAMD21_UARTS`, the number the rig
 //!    checks too), and writes `OUT_DIR/config.rs` with `pub const CONFIG`.
 //!
+//! 3. passes the linker its arguments (`-Tlink.x`, `--nmagic`) itself: as
+//!    `rustflags` in `.cargo/config.toml` they vanish whenever `RUSTFLAGS` is
+//!    set in the environment (cargo takes one or the other), and the image
+//!    would link without cortex-m-rt's script, i.e. without a vector table.
+//!
 //! A bad configuration fails the build with `file:line:column: message`.
 
 use std::env;
@@ -55,6 +60,11 @@ fn memory_layout(manifest_dir: &Path, out_dir: &Path) -> Result<(), String> {
     fs::copy(&from, out_dir.join("memory.x"))
         .map_err(|e| format!("{}: cannot copy the memory layout: {e}", from.display()))?;
     println!("cargo::rustc-link-search={}", out_dir.display());
+    // cortex-m-rt's script (it INCLUDEs the memory.x above). `--nmagic`: no page
+    // alignment, so the ELF headers are not put in a loadable segment at 0x0
+    // (which, with the `uf2` layout, a flasher would write over the bootloader).
+    println!("cargo::rustc-link-arg-bins=-Tlink.x");
+    println!("cargo::rustc-link-arg-bins=--nmagic");
     println!("cargo::rerun-if-changed=memory");
     Ok(())
 }
