@@ -24,6 +24,8 @@ pub struct RunStats {
     pub max_gap: std::time::Duration,
     pub frames_dropped: u64,
     pub status_lines: u64,
+    /// Why the run ended early: the flight-controller port is gone for good.
+    pub fc_gone: Option<String>,
 }
 
 pub struct Device {
@@ -58,10 +60,16 @@ impl Device {
         self.epoch + std::time::Duration::from(t.since_epoch())
     }
 
-    /// Runs until `stop` is set or every input and the stop flag are gone.
+    /// Runs until `stop` is set or the flight-controller port is gone for good
+    /// (nobody can be served: the emulated device ends instead of idling on).
     pub fn run(&mut self, inputs: Receiver<Input>, stop: &AtomicBool) -> RunStats {
         self.flush();
+        let mut fc_gone = None;
         while !stop.load(Ordering::Relaxed) {
+            if let Some(why) = self.fc.gone() {
+                fc_gone = Some(why);
+                break;
+            }
             let due = self.mux.poll_timeout().expect("the output never stops");
             let deadline = self.to_host(due);
             let wait = deadline
@@ -94,6 +102,7 @@ impl Device {
             max_gap: self.max_gap,
             frames_dropped: self.fc.dropped,
             status_lines: self.status.as_ref().map_or(0, |s| s.written),
+            fc_gone,
         }
     }
 
@@ -116,8 +125,9 @@ impl Device {
                 }
             }
             Input::Closed { source, error } => {
-                tracing::warn!(?source, %error, "input closed; treating it as silent");
+                tracing::warn!(?source, %error, "input closed; silent until it reopens");
             }
+            Input::Waiting => {}
         }
     }
 

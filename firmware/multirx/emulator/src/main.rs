@@ -86,15 +86,26 @@ fn run(args: Args) -> Result<()> {
     let (tx, rx) = mpsc::channel();
     for (i, path) in args.receivers.iter().enumerate() {
         let port = open_sbus(path, read_timeout)?;
-        spawn_reader(Source::Receiver(i as u8), port, tx.clone())?;
+        spawn_reader(
+            Source::Receiver(i as u8),
+            path.clone(),
+            port,
+            read_timeout,
+            tx.clone(),
+        )?;
     }
     if let Some(path) = &args.ifs {
-        spawn_reader(Source::Ifs, open_sbus(path, read_timeout)?, tx.clone())?;
+        let port = open_sbus(path, read_timeout)?;
+        spawn_reader(Source::Ifs, path.clone(), port, read_timeout, tx.clone())?;
     }
     drop(tx);
-    let fc = Output::new(&args.fc, open_sbus(&args.fc, write_timeout)?);
+    let fc = Output::new(&args.fc, open_sbus(&args.fc, write_timeout)?, write_timeout);
     let status = match &args.status {
-        Some(path) => Some(Output::new(path, open_sbus(path, write_timeout)?)),
+        Some(path) => Some(Output::new(
+            path,
+            open_sbus(path, write_timeout)?,
+            write_timeout,
+        )),
         None => None,
     };
 
@@ -120,5 +131,8 @@ fn run(args: Args) -> Result<()> {
         status_lines = stats.status_lines,
         "stopped"
     );
+    if let Some(why) = stats.fc_gone {
+        anyhow::bail!("flight-controller port gone for good: {why}");
+    }
     Ok(())
 }

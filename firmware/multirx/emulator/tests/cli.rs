@@ -20,6 +20,14 @@ impl Pty {
     fn new() -> Pty {
         let (mut master, slave) = TTYPort::pair().expect("pty pair");
         master.set_timeout(Duration::from_millis(50)).unwrap();
+        // serialport opens the master without close-on-exec: a spawned device would
+        // hold it open, and closing ours would never hang the line up.
+        for port in [&master, &slave] {
+            use std::os::fd::{AsRawFd, BorrowedFd};
+            // SAFETY: the descriptor belongs to `port`, alive for this call.
+            let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
+            rustix::io::fcntl_setfd(fd, rustix::io::FdFlags::CLOEXEC).unwrap();
+        }
         Pty { master, slave }
     }
     fn path(&self) -> String {
@@ -128,6 +136,140 @@ fn forwards_the_active_receiver_and_reports_power() {
         );
     }
     drop(rx1);
+}
+
+/// Frames the flight controller side read since the last call.
+fn read_frames(fc: &mut Pty, pending: &mut Vec<u8>) -> Vec<SbusRepr> {
+    let mut buf = [0u8; 512];
+    let mut frames = Vec::new();
+    if let Ok(n) = fc.master.read(&mut buf) {
+        pending.extend_from_slice(&buf[..n]);
+    }
+    while pending.len() >= 25 {
+        let frame: Vec<u8> = pending.drain(..25).collect();
+        if let Ok(view) = SbusFrame::new_checked(&frame[..])
+            && let Ok(repr) = SbusRepr::parse(&view)
+        {
+            frames.push(repr);
+        }
+    }
+    frames
+}
+
+fn sticks(value: u16) -> [u8; 25] {
+    SbusRepr {
+        channels: [value; 16],
+        ..SbusRepr::default()
+    }
+    .to_bytes()
+}
+
+/// Feeds `value` on `rx` until the flight controller sees it from pilot 0, or `limit` passes.
+fn until_pilot0_shows(rx: &mut Pty, fc: &mut Pty, value: u16, limit: Duration) -> bool {
+    let config = Config::new(Mode::Parallel, 2);
+    let (start, mut pending) = (Instant::now(), Vec::new());
+    while start.elapsed() < limit {
+        let _ = rx.master.write_all(&sticks(value));
+        if read_frames(fc, &mut pending).iter().any(|f| {
+            f.channels[0] == value
+                && f.channels[usize::from(config.pilot_channel)] == config.pilot_values[0]
+        }) {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(7));
+    }
+    false
+}
+
+/// Regression: a receiver port that went away was never reopened, so its pilot
+/// could not take control again after the adapter came back.
+#[test]
+fn a_receiver_that_goes_away_is_heard_again_when_it_comes_back() {
+    let dir = tempdir();
+    let path = write_config(&dir, "mode = \"parallel\"\nreceivers = 2\n");
+    // A stable name for the receiver, as /dev/serial/by-id gives a USB adapter.
+    let link = dir.join("rx0");
+    let mut first = Pty::new();
+    std::os::unix::fs::symlink(first.path(), &link).unwrap();
+    let (rx1, mut fc) = (Pty::new(), Pty::new());
+    let mut child = Killed(
+        Command::new(EMU)
+            .args(["--config", path.to_str().unwrap()])
+            .args(["--rx", link.to_str().unwrap(), "--rx", &rx1.path()])
+            .args(["--fc", &fc.path()])
+            .stdin(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    assert!(until_pilot0_shows(
+        &mut first,
+        &mut fc,
+        1111,
+        Duration::from_secs(3)
+    ));
+
+    // Unplugged: the port vanishes; another appears under the same name.
+    drop(first);
+    std::fs::remove_file(&link).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let mut second = Pty::new();
+    std::os::unix::fs::symlink(second.path(), &link).unwrap();
+    let back = until_pilot0_shows(&mut second, &mut fc, 1555, Duration::from_secs(6));
+    if !back {
+        let _ = child.0.kill();
+        let mut err = String::new();
+        let _ = child.0.stderr.take().unwrap().read_to_string(&mut err);
+        panic!("pilot 0 never came back after the receiver port returned:\n{err}");
+    }
+    drop(rx1);
+}
+
+/// Regression: with its flight-controller port gone the emulator ran on for
+/// ever; now it reopens the port for a while, then ends with an error.
+#[test]
+fn ends_when_the_flight_controller_port_is_gone_for_good() {
+    let dir = tempdir();
+    let path = write_config(&dir, "mode = \"parallel\"\nreceivers = 1\n");
+    let (rx0, fc) = (Pty::new(), Pty::new());
+    let started = Instant::now();
+    let mut child = Command::new(EMU)
+        .args(["--config", path.to_str().unwrap()])
+        .args(["--rx", &rx0.path(), "--fc", &fc.path()])
+        .stdin(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    drop(fc);
+    // GONE_AFTER (10 s) of failing writes, plus start-up and slack.
+    let limit = Duration::from_secs(20);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if started.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            let mut err = String::new();
+            let _ = child.stderr.take().unwrap().read_to_string(&mut err);
+            panic!("still running {limit:?} after its flight-controller port went away:\n{err}");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("flight-controller port gone for good"),
+        "{err}"
+    );
+    drop(rx0);
 }
 
 fn tempdir() -> std::path::PathBuf {
