@@ -323,6 +323,7 @@ fn partial_frames_never_hold_the_next_frame() {
     let ack = vehicle.frame(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_DO_SET_MODE,
         result: MavResult::MAV_RESULT_ACCEPTED,
+        ..Default::default()
     }));
     radio
         .write_all(&[partial.as_slice(), ack.as_bytes()].concat())

@@ -215,6 +215,7 @@ fn run(plan: &[Planned], loss: f64, burst_at_ms: u64, burst_ms: u64, seed: u64) 
                 let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                     command: c.command,
                     result: RESULTS[*n % RESULTS.len()],
+                    ..Default::default()
                 });
                 *n += 1;
                 bridge.handle_fc_bytes(now, fc.frame(&ack).as_bytes());

@@ -267,6 +267,7 @@ impl GcsMock {
             count,
             target_system: 1,
             target_component: 1,
+            ..Default::default()
         }));
     }
 
@@ -283,6 +284,7 @@ impl GcsMock {
             MISSION_REQUEST_LIST_DATA {
                 target_system: 1,
                 target_component: 1,
+                ..Default::default()
             },
         ));
     }
@@ -293,6 +295,7 @@ impl GcsMock {
         self.send(&MavMessage::MISSION_CLEAR_ALL(MISSION_CLEAR_ALL_DATA {
             target_system: 1,
             target_component: 1,
+            ..Default::default()
         }));
     }
 
@@ -301,6 +304,7 @@ impl GcsMock {
             seq,
             target_system: 1,
             target_component: 1,
+            ..Default::default()
         }));
     }
 
@@ -329,6 +333,7 @@ impl GcsMock {
                 target_system: 1,
                 target_component: 1,
                 mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
+                ..Default::default()
             }));
         } else {
             self.request_item(next);
@@ -425,6 +430,7 @@ impl GcsMock {
                     MISSION_REQUEST_LIST_DATA {
                         target_system: 1,
                         target_component: 1,
+                        ..Default::default()
                     },
                 ));
             } else {
@@ -448,6 +454,7 @@ impl GcsMock {
                 count: up.items.len() as u16,
                 target_system: 1,
                 target_component: 1,
+                ..Default::default()
             }),
             Some(seq) => {
                 self.items_sent += 1;

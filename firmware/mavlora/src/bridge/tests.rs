@@ -76,6 +76,7 @@ fn ack() -> MavMessage {
     MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
         result: MavResult::MAV_RESULT_ACCEPTED,
+        ..Default::default()
     })
 }
 
@@ -332,6 +333,7 @@ fn set_message_interval_refused_as_unsupported_falls_back_to_data_streams() {
     let refused = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
         result: MavResult::MAV_RESULT_UNSUPPORTED,
+        ..Default::default()
     });
     b.handle_fc_bytes(ms(150), fc.frame(&refused).as_bytes());
     assert_eq!(
@@ -377,6 +379,7 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
     let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_DO_SET_MODE,
         result: MavResult::MAV_RESULT_ACCEPTED,
+        ..Default::default()
     });
     b.handle_fc_bytes(ms(120), fc.frame(&ack).as_bytes());
     let acks = |frames: Vec<OwnedFrame>| {

@@ -177,6 +177,7 @@ mod tests {
         let msg = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
             command: MavCmd::MAV_CMD_DO_SET_MODE,
             result: MavResult::MAV_RESULT_ACCEPTED,
+            ..Default::default()
         });
         (fc.frame(&msg), msg)
     }

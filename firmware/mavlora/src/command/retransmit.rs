@@ -533,6 +533,7 @@ mod tests {
         MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
             command: cmd,
             result: MavResult::MAV_RESULT_ACCEPTED,
+            ..Default::default()
         })
     }
 

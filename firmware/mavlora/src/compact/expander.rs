@@ -31,6 +31,7 @@ impl Expander {
                 let mut out = self.status_messages();
                 out.push(MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA {
                     seq: status.mission_seq,
+                    ..Default::default()
                 }));
                 out
             }
@@ -135,6 +136,7 @@ impl Expander {
                 cog: pos.hdg,
                 fix_type: s.fix_type,
                 satellites_visible: s.satellites_visible,
+                ..Default::default()
             }),
         ]
     }

@@ -204,7 +204,7 @@ proptest! {
             fix_type: [GpsFixType::GPS_FIX_TYPE_NO_GPS, GpsFixType::GPS_FIX_TYPE_NO_FIX, GpsFixType::GPS_FIX_TYPE_2D_FIX,
                 GpsFixType::GPS_FIX_TYPE_3D_FIX, GpsFixType::GPS_FIX_TYPE_RTK_FIXED][usize::from(fix) % 5],
             satellites_visible: sats, ..Default::default() });
-        let mc = MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq });
+        let mc = MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() });
         let mut positions = Vec::new();
         let mut t = t0;
         for i in 0..3 {

@@ -251,6 +251,7 @@ impl MissionRelay {
                 count,
                 target_system: 0,
                 target_component: 0,
+                ..Default::default()
             }));
         self.wire = Wire::Sending {
             items,
@@ -383,6 +384,7 @@ impl MissionRelay {
                         count: items.len() as u16,
                         target_system: 0,
                         target_component: 0,
+                        ..Default::default()
                     })),
                 Some(seq) => {
                     if let Some(item) = items.get(usize::from(*seq)) {
@@ -417,6 +419,7 @@ fn request(ground: (u8, u8), seq: u16) -> MavMessage {
         seq,
         target_system: ground.0,
         target_component: ground.1,
+        ..Default::default()
     })
 }
 
@@ -425,6 +428,7 @@ fn ack(ground: (u8, u8), result: MavMissionResult) -> MavMessage {
         target_system: ground.0,
         target_component: ground.1,
         mavtype: result,
+        ..Default::default()
     })
 }
 
@@ -444,6 +448,7 @@ mod tests {
             count: n,
             target_system: 1,
             target_component: 1,
+            ..Default::default()
         })
     }
 
@@ -530,6 +535,7 @@ mod tests {
                 seq,
                 target_system: 1,
                 target_component: 191,
+                ..Default::default()
             });
             assert!(r.handle_fc(ms(300), &req));
         }
@@ -539,6 +545,7 @@ mod tests {
             target_system: 1,
             target_component: 191,
             mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
+            ..Default::default()
         });
         assert!(r.handle_fc(ms(400), &ack));
         let to_ground = radio_out(&mut r);

@@ -105,6 +105,7 @@ fn premature_mission_retransmission_is_dropped() {
         count: 5,
         target_system: 1,
         target_component: 1,
+        ..Default::default()
     });
     r.handle_gcs_bytes(ms(0), gcs.frame(&count).as_bytes());
     r.handle_gcs_bytes(ms(250), gcs.frame(&count).as_bytes());
@@ -132,6 +133,7 @@ fn item_requested_again_by_the_vehicle_is_not_a_duplicate() {
         seq: 3,
         target_system: 255,
         target_component: 190,
+        ..Default::default()
     });
     r.handle_gcs_bytes(ms(0), gcs.frame(&item).as_bytes());
     // the ground's own early retry is dropped...
@@ -189,6 +191,7 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
     let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_DO_SET_MODE,
         result: MavResult::MAV_RESULT_ACCEPTED,
+        ..Default::default()
     });
     r.handle_radio_bytes(ms(1700), fc.frame(&ack).as_bytes());
     assert!(

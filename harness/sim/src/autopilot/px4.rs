@@ -365,6 +365,7 @@ impl Px4Fc {
                 self.send(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                     command: c.command,
                     result: MavResult::MAV_RESULT_ACCEPTED,
+                    ..Default::default()
                 }));
             }
             // Any other command (mode changes, speed changes): accepted at once. PX4 acks
@@ -374,6 +375,7 @@ impl Px4Fc {
                 self.send(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                     command: c.command,
                     result: MavResult::MAV_RESULT_ACCEPTED,
+                    ..Default::default()
                 }));
             }
             MavMessage::MISSION_COUNT(c) if c.target_system == 1 => {
@@ -392,6 +394,7 @@ impl Px4Fc {
                     count: self.mission.len() as u16,
                     target_system: from.0,
                     target_component: from.1,
+                    ..Default::default()
                 }));
             }
             MavMessage::MISSION_REQUEST_INT(r) if r.target_system == 1 => {
@@ -410,6 +413,7 @@ impl Px4Fc {
                     target_system: from.0,
                     target_component: from.1,
                     mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
+                    ..Default::default()
                 }));
             }
             MavMessage::MISSION_ITEM_INT(item) if item.target_system == 1 => {
@@ -440,6 +444,7 @@ impl Px4Fc {
                 target_system: peer.0,
                 target_component: peer.1,
                 mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
+                ..Default::default()
             }));
             return;
         }
@@ -450,6 +455,7 @@ impl Px4Fc {
             seq,
             target_system: peer.0,
             target_component: peer.1,
+            ..Default::default()
         }));
     }
 
@@ -548,6 +554,7 @@ impl Px4Fc {
                 cog: hdg,
                 fix_type: GpsFixType::GPS_FIX_TYPE_3D_FIX,
                 satellites_visible: 14,
+                ..Default::default()
             }),
             30 => MavMessage::ATTITUDE(ATTITUDE_DATA {
                 time_boot_ms: ms,
