@@ -5,6 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::Instant as HostInstant;
 
+use multirx_core::boot::{BootReport, ImageKind, ResetCause, build_id};
 use multirx_core::{Config, Instant, Multiplexer};
 
 use crate::ports::{Input, Output, Source};
@@ -36,12 +37,23 @@ pub struct Device {
     last_frame_at: Option<HostInstant>,
     max_gap: std::time::Duration,
     tap: Option<TxTap>,
+    /// The boot line, written once the first frame is out (as the firmware does).
+    boot: Option<BootReport>,
 }
 
 impl Device {
     pub fn new(config: Config, fc: Output, status: Option<Output>, tap: Option<TxTap>) -> Self {
         let epoch = HostInstant::now();
+        let config_hash = config.identity_hash();
+        let boot = BootReport {
+            at: Instant::ZERO,
+            build_id: build_id(ImageKind::Emulated, config_hash),
+            config_hash,
+            reset: ResetCause::Host,
+            first_frame: Default::default(),
+        };
         Device {
+            boot: Some(boot),
             epoch,
             mux: Multiplexer::new(config, Instant::ZERO),
             fc,
@@ -142,6 +154,14 @@ impl Device {
                 tap.frame_sent();
             }
             self.fc.send(&frame);
+            if let Some(mut boot) = self.boot.take() {
+                boot.at = self.to_core(HostInstant::now());
+                boot.first_frame = boot.at.since_epoch();
+                tracing::info!(%boot, "boot line");
+                if let Some(status) = &mut self.status {
+                    status.send(format!("{boot}\n").as_bytes());
+                }
+            }
         }
         while let Some(event) = self.mux.poll_event() {
             tracing::debug!(%event, "status");
