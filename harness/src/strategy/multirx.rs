@@ -19,6 +19,8 @@ use crate::driver::receiver::{Loss, ReceiverFixture, ReceiverSpec};
 use crate::driver::status::StatusMonitor;
 use crate::px4::{FcFrame, Px4RcInput, RcReport};
 use crate::rigfile::{DeviceSetup, Mode, PortSpec, RigFile};
+use crate::strategy::boot_check;
+use multirx_core::boot::ImageKind;
 
 /// Raw stick value pilot `rx` holds on channels 1–4, distinct per pilot so the
 /// flight controller side can tell whose sticks it is getting.
@@ -262,6 +264,23 @@ impl MultirxSession {
             "MultiRX output",
             |_| true,
         )?;
+        // ...and it is the device the rig file names: its boot line carries
+        // the image's build id and the config's hash.
+        let kind = if emulated {
+            ImageKind::Emulated
+        } else {
+            ImageKind::Samd21
+        };
+        let expected = boot_check::Expected::new(kind, &session.config);
+        let seen = session.status.wait_for_boot(boot_check::BOOT_LINE_TIMEOUT);
+        let boot = boot_check::check(seen, &expected, &loaded.path)?;
+        tracing::info!(
+            build = format!("{:016x}", boot.build_id),
+            config = format!("{:016x}", boot.config_hash),
+            reset = boot.reset.name(),
+            first_frame_ms = boot.first_frame.as_secs_f64() * 1000.0,
+            "MultiRX identified"
+        );
         Ok(session)
     }
 

@@ -16,6 +16,9 @@ use crate::tap::TxTap;
 /// timer wake-ups are late (virtual machines).
 const SPIN: std::time::Duration = std::time::Duration::from_micros(1500);
 
+/// How often the boot line is repeated.
+const BOOT_LINE_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
+
 /// Counters printed at exit.
 #[derive(Debug, Default)]
 pub struct RunStats {
@@ -37,8 +40,11 @@ pub struct Device {
     last_frame_at: Option<HostInstant>,
     max_gap: std::time::Duration,
     tap: Option<TxTap>,
-    /// The boot line, written once the first frame is out (as the firmware does).
-    boot: Option<BootReport>,
+    /// The boot line, written once the first frame is out and then every
+    /// [`BOOT_LINE_EVERY`] (as the firmware does, so a rig that opens the
+    /// status port later still learns what runs here).
+    boot: BootReport,
+    next_boot_line: Option<HostInstant>,
 }
 
 impl Device {
@@ -53,7 +59,8 @@ impl Device {
             first_frame: Default::default(),
         };
         Device {
-            boot: Some(boot),
+            boot,
+            next_boot_line: None,
             epoch,
             mux: Multiplexer::new(config, Instant::ZERO),
             fc,
@@ -143,6 +150,21 @@ impl Device {
         }
     }
 
+    /// Writes the boot line when it is due.
+    fn boot_line(&mut self) {
+        let now = HostInstant::now();
+        let Some(due) = self.next_boot_line.filter(|&due| now >= due) else {
+            return;
+        };
+        self.next_boot_line = Some(due + BOOT_LINE_EVERY);
+        self.boot.at = self.to_core(now);
+        let line = format!("{}\n", self.boot);
+        tracing::debug!(boot = line.trim_end(), "boot line");
+        if let Some(status) = &mut self.status {
+            status.send(line.as_bytes());
+        }
+    }
+
     fn flush(&mut self) {
         while let Some(frame) = self.mux.poll_transmit() {
             let now = HostInstant::now();
@@ -154,15 +176,12 @@ impl Device {
                 tap.frame_sent();
             }
             self.fc.send(&frame);
-            if let Some(mut boot) = self.boot.take() {
-                boot.at = self.to_core(HostInstant::now());
-                boot.first_frame = boot.at.since_epoch();
-                tracing::info!(%boot, "boot line");
-                if let Some(status) = &mut self.status {
-                    status.send(format!("{boot}\n").as_bytes());
-                }
+            if self.next_boot_line.is_none() {
+                self.boot.first_frame = self.to_core(now).since_epoch();
+                self.next_boot_line = Some(now);
             }
         }
+        self.boot_line();
         while let Some(event) = self.mux.poll_event() {
             tracing::debug!(%event, "status");
             if let Some(status) = &mut self.status {
