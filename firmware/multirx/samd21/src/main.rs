@@ -270,10 +270,16 @@ fn main() -> ! {
 
         for (port, input) in inputs.iter_mut().enumerate() {
             let ifs = IFS && port == IFS_PORT;
-            // One byte at a time, each at its own interrupt stamp.
+            // One byte at a time, each at its own interrupt stamp; bytes that
+            // arrived after `now` was read wait for the next pass, so the
+            // engine's time never runs backwards.
             for _ in 0..RX_QUEUE {
-                let Some(entry) = input.dequeue() else { break };
+                let Some(&entry) = input.peek() else { break };
                 let at = clock.at(entry.at);
+                if at > now {
+                    break;
+                }
+                input.dequeue();
                 match (entry.value == UART_ERROR, ifs) {
                     // Drop the frame the damaged byte belongs to.
                     (true, true) => mux.handle_ifs_error(),
