@@ -147,7 +147,12 @@ where
 
 fn on_interrupt<U: SbusRx>(slot: &Slot<U>) {
     critical_section::with(|cs| {
-        if let Some(port) = slot.borrow_ref_mut(cs).as_mut() {
+        // `try_`: the slot is only borrowed here, with interrupts masked, so
+        // it is never busy; but `borrow_ref_mut` would keep a panic path in
+        // the handler, which ci/check-firmware-elf.py refuses.
+        if let Ok(mut slot) = slot.borrow(cs).try_borrow_mut()
+            && let Some(port) = slot.as_mut()
+        {
             port.uart.service(&mut port.queue);
         }
     });
