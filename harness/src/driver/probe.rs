@@ -9,9 +9,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use probe_rs::flashing::{DownloadOptions, ElfLoader, ElfOptions};
-use probe_rs::{MemoryInterface, Permissions};
 use probe_rs::probe::DebugProbeSelector;
 use probe_rs::probe::list::Lister;
+use probe_rs::{MemoryInterface, Permissions};
 
 use crate::rigfile::ProbeSelector;
 
@@ -181,8 +181,16 @@ mod tests {
     #[test]
     fn a_bare_image_over_a_uf2_bootloader_is_refused_naming_the_way_out() {
         let elf = Path::new("multirx-samd21");
-        let err = check_bootprot(elf, 0x0, 0xffff_fffa).unwrap_err().to_string();
-        for part in ["starts at 0x0", "first 8 KiB", "BOOTPROT = 0b010", "--features uf2", "0b111"] {
+        let err = check_bootprot(elf, 0x0, 0xffff_fffa)
+            .unwrap_err()
+            .to_string();
+        for part in [
+            "starts at 0x0",
+            "first 8 KiB",
+            "BOOTPROT = 0b010",
+            "--features uf2",
+            "0b111",
+        ] {
             assert!(err.contains(part), "{part:?} missing: {err}");
         }
         // The uf2 layout (0x2000) fits behind it; no bootloader, anything goes.

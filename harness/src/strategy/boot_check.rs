@@ -119,7 +119,10 @@ mod tests {
     fn a_matching_boot_line_passes() {
         let expected = Expected::new(ImageKind::Samd21, &Config::new(Mode::Scan, 3));
         let seen = boot(&expected);
-        assert_eq!(check(Some(seen), &expected, Path::new("scan.toml")), Ok(seen));
+        assert_eq!(
+            check(Some(seen), &expected, Path::new("scan.toml")),
+            Ok(seen)
+        );
     }
 
     #[test]
@@ -132,13 +135,22 @@ mod tests {
         let err = check(Some(seen), &expected, Path::new("scan.toml"))
             .unwrap_err()
             .to_string();
-        assert!(err.contains("device reports build 1111222233334444"), "{err}");
+        assert!(
+            err.contains("device reports build 1111222233334444"),
+            "{err}"
+        );
         assert!(
             err.contains(&format!("rig expects build {:016x}", expected.build_id)),
             "{err}"
         );
-        assert!(err.contains("build differs") && !err.contains("config differs"), "{err}");
-        assert!(err.contains("scan.toml") && err.contains("reset power-on"), "{err}");
+        assert!(
+            err.contains("build differs") && !err.contains("config differs"),
+            "{err}"
+        );
+        assert!(
+            err.contains("scan.toml") && err.contains("reset power-on"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -152,7 +164,12 @@ mod tests {
     #[test]
     fn silence_is_a_failure_not_a_pass() {
         let expected = Expected::new(ImageKind::Emulated, &Config::new(Mode::Parallel, 2));
-        let err = check(None, &expected, Path::new("p.toml")).unwrap_err().to_string();
-        assert!(err.contains("no boot line") && err.contains("p.toml"), "{err}");
+        let err = check(None, &expected, Path::new("p.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("no boot line") && err.contains("p.toml"),
+            "{err}"
+        );
     }
 }

@@ -30,8 +30,8 @@ pub mod power;
 pub use timebase as time;
 pub mod wire;
 
-pub use config::{Config, Mode};
 pub use boot::BootReport;
+pub use config::{Config, Mode};
 pub use event::{Event, StatusLine, TimedEvent};
 pub use mux::Multiplexer;
 pub use time::{Duration, Instant};

@@ -42,7 +42,7 @@ use multirx_core::Instant;
 use multirx_core::boot::ResetCause;
 use multirx_core::counter::Counter32;
 
-use crate::clocks::{self, CrystalSwitch}; 
+use crate::clocks::{self, CrystalSwitch};
 
 /// SBUS line rate (8 data bits, even parity, 2 stop bits).
 pub const SBUS_BAUD: Hertz = Hertz::from_raw(100_000);

@@ -1,8 +1,12 @@
 //! MultiRX firmware for the SAMD21G18: the host-tested `multirx_core` engine
 //! wired to the board in [`board`]. This file only moves bytes and time:
 //!
+//! - [`Board::new`] starts the watchdog, the brown-out detector and the clocks,
+//!   in that order, without waiting for the crystal ([`clocks`]); the loop
+//!   polls [`clocks::CrystalSwitch`] to move onto the crystal once it runs.
 //! - SBUS bytes from each receiver (and the IFS) arrive by RX interrupt into a
-//!   small lock-free SPSC queue per SERCOM; the main loop drains them into
+//!   small lock-free SPSC queue per SERCOM, each stamped with the timer in the
+//!   interrupt; the main loop drains them, byte by byte at their stamps, into
 //!   [`Multiplexer::handle_receiver_bytes`] / [`Multiplexer::handle_ifs_bytes`].
 //!   A UART error travels the same queue as a marker, so the engine drops the
 //!   frame it belongs to ([`Multiplexer::handle_receiver_error`]).
@@ -10,6 +14,10 @@
 //!   [`Multiplexer::handle_timeout`], then queues the due SBUS frame for the
 //!   flight controller and turns events into power-switch changes and status
 //!   lines, each TX queue drained into its UART as the data register empties.
+//! - Power events go through [`PowerSequencer`] (switch-ons 20 ms apart); the
+//!   status line reports a switch when it changes.
+//! - Once the first frame is queued, and every second after, the boot line
+//!   ([`BootReport`]: build id, config hash, reset cause, boot-to-first-frame).
 //! - The watchdog is fed only after a pass that left the engine with no
 //!   overdue deadline.
 //!
@@ -290,7 +298,9 @@ fn main() -> ! {
                     (true, true) => mux.handle_ifs_error(),
                     (true, false) => mux.handle_receiver_error(port as u8),
                     (false, true) => mux.handle_ifs_bytes(at, &[entry.value as u8]),
-                    (false, false) => mux.handle_receiver_bytes(at, port as u8, &[entry.value as u8]),
+                    (false, false) => {
+                        mux.handle_receiver_bytes(at, port as u8, &[entry.value as u8])
+                    }
                 }
             }
         }
