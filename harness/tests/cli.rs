@@ -383,4 +383,21 @@ fn boot_check_passes_the_device_the_rig_file_names() {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
+    // The boot line's figure is recorded against the 50 ms limit.
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("results.json")).unwrap())
+            .unwrap();
+    let first_frame = record["phases"][0]["measurements"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| {
+            m["name"]
+                .as_str()
+                .is_some_and(|n| n.ends_with("boot_to_first_frame_ms"))
+        })
+        .unwrap_or_else(|| panic!("no boot_to_first_frame_ms in {record:#}"));
+    assert_eq!(first_frame["outcome"], "pass", "{first_frame:#}");
+    let ms = first_frame["value"].as_f64().unwrap();
+    assert!((0.0..=50.0).contains(&ms), "{ms}");
 }

@@ -55,6 +55,8 @@ pub struct MultirxSession {
     pub ifs: Option<ReceiverFixture>,
     pub fc: FcMonitor,
     pub status: StatusMonitor,
+    /// The device's boot line, checked against the rig file at start.
+    pub boot: Option<multirx_core::BootReport>,
     /// When the session was up.
     pub started: Mono,
     /// End of the window the last [`MultirxSession::px4_report`] judged;
@@ -242,13 +244,14 @@ impl MultirxSession {
             DeviceSetup::Board(_) => None,
         };
 
-        let session = MultirxSession {
+        let mut session = MultirxSession {
             mode,
             config,
             receivers,
             ifs,
             fc,
             status,
+            boot: None,
             started: Mono::now(),
             judged_until: std::sync::Mutex::new(None),
             log_dir: log_dir.to_path_buf(),
@@ -281,6 +284,7 @@ impl MultirxSession {
             first_frame_ms = boot.first_frame.as_secs_f64() * 1000.0,
             "MultiRX identified"
         );
+        session.boot = Some(boot);
         Ok(session)
     }
 
