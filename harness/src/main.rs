@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use harness::evidence::{build, certify};
 use harness::record::RunOutcome;
 use harness::report;
 use harness::rigfile::{DeviceSetup, Mode, RigFile};
@@ -69,6 +70,22 @@ enum Command {
     },
     /// Render junit.xml and summary.txt again from a saved results.json.
     Report { results: PathBuf },
+    /// Build the firmware (and the host programs) reproducibly and write build.json:
+    /// per artifact SHA-256 and size, git commit and dirty flag, toolchain versions.
+    Build {
+        /// Rig file whose MultiRX configs are compiled into firmware images (one per mode);
+        /// without one, the firmware crate's default config.
+        rig: Option<PathBuf>,
+        /// Output folder for build.json and the firmware images.
+        #[arg(long, default_value = "rig-build")]
+        out: PathBuf,
+        /// Cargo target folder (kept apart from target/release: other rustflags).
+        #[arg(long, default_value = "target/rig-build")]
+        target_dir: PathBuf,
+        /// Firmware only (no rig, bridge, router, emulator).
+        #[arg(long)]
+        firmware_only: bool,
+    },
 }
 
 /// `--mode`: the core's mode names, listed in `--help` as before.
@@ -197,6 +214,26 @@ fn execute(command: Command) -> Result<ExitCode> {
                     flashed.duration.as_secs_f64()
                 );
             }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Build {
+            rig,
+            out,
+            target_dir,
+            firmware_only,
+        } => {
+            let rig = rig.map(|r| RigFile::load(&r)).transpose()?;
+            let options = certify::build_options(rig.as_ref(), out, target_dir, !firmware_only)?;
+            let record = build::build(&options)?;
+            for a in &record.artifacts {
+                println!("{}  {:>10} B  {}", a.sha256, a.size, a.path.display());
+            }
+            println!(
+                "{}: commit {}{}",
+                options.out_dir.join(build::BUILD_FILE).display(),
+                record.git_commit,
+                if record.git_dirty { " (dirty)" } else { "" }
+            );
             Ok(ExitCode::SUCCESS)
         }
         Command::Report { results } => {
