@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 
 use super::build::{BuildOptions, repo_root};
-use crate::rigfile::RigFile;
+use crate::rigfile::{DeviceSetup, RigFile};
 
 /// Build options for a rig file: one firmware image per mode config it names.
 pub fn build_options(
@@ -16,8 +16,11 @@ pub fn build_options(
 ) -> Result<BuildOptions> {
     let cwd = std::env::current_dir()?;
     let repo = repo_root(&cwd)?;
+    // A board rig's images carry its mode configs; an emulated rig's configs are for the host
+    // program (6 receivers and an IFS do not fit the board's UARTs): the crate's default then.
     let firmware_configs = rig
         .and_then(|r| r.multirx.as_ref())
+        .filter(|m| matches!(m.device.setup, DeviceSetup::Board(_)))
         .map(|m| {
             m.device
                 .configs

@@ -2,3 +2,5 @@
 //! (by `rig certify`) an evidence folder of the run, its report and digests.
 pub mod build;
 pub mod certify;
+pub mod trace;
+pub mod manifest;
