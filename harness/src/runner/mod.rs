@@ -30,6 +30,7 @@ use crate::strategy::firmware::{self, FirmwareImage};
 use crate::strategy::multirx::MultirxSession;
 
 pub mod interrupt;
+pub mod lock;
 mod mavlora;
 
 /// What to run and where to write.
@@ -224,7 +225,12 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
         }
         .into());
     }
-    std::fs::create_dir_all(&out_dir)
+    // Held until the run's record is final: no other run drives this bench meanwhile.
+    let _bench = match &rig.rig.lock {
+        Some(path) => Some(lock::BenchLock::acquire(path)?.0),
+        None => None,
+    };
+        std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("cannot create output folder {}", out_dir.display()))?;
     phases.open()?;
     {
