@@ -409,3 +409,151 @@ s.setAttribute('data-rendered',Math.round(b.width)+'x'+Math.round(b.height)+'/'+
 var v=document.getElementById('verdict');var r=v.getBoundingClientRect();\
 v.setAttribute('data-rendered',Math.round(r.width)+'x'+Math.round(r.height));\
 document.body.setAttribute('data-rendered','done');})();</script>";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::evidence::build::Artifact;
+    use crate::evidence::certify::Verdict;
+    use crate::evidence::trace::{Requirements, matrix};
+    use crate::record::tests::sample_record;
+
+    /// An evidence folder with the sample run, a build record, a trace matrix and an
+    /// attenuation sweep CSV, as `rig certify` saves them.
+    fn folder() -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        let mut run = sample_record();
+        // A Table II measurement and a sweep, so those plots have data.
+        let mut d = crate::measurement::Declarations::new();
+        let h = d.declare(
+            crate::measurement::Spec::new("bytes_per_s", "B/s")
+                .dim(Dimension::Device, "mavlora")
+                .dim(Dimension::Transport, "simulated")
+                .dim(Dimension::Variant, "limit_filter")
+                .at_most(951.0),
+        );
+        d.record(h, 426.0);
+        let mut p = crate::record::PhaseRecord::ran(
+            "mavlora::simulated::table_ii",
+            "2026-01-31T09:12:03.123Z",
+            1.0,
+            d.into_measurements(),
+            None,
+        );
+        std::fs::create_dir(dir.path().join("sweep")).unwrap();
+        let csv = dir.path().join("sweep/attenuation_sweep.csv");
+        std::fs::write(
+            &csv,
+            "preset,attenuation_db,free_space_range_m,sent,received,loss_pct,mean_period_ms,max_period_ms,nominal\n\
+             sik-64k,80,1,10,10,0.00,1,1,true\nsik-64k,90,1,10,2,80.0,1,1,false\n",
+        )
+        .unwrap();
+        p.attachments.push(
+            crate::record::Attachment::from_file(dir.path(), &csv, "sweep", "text/csv").unwrap(),
+        );
+        run.phases.push(p);
+        run.save(dir.path()).unwrap();
+        let build = BuildRecord {
+            schema: "rig-build/1".into(),
+            git_commit: "0123".into(),
+            git_dirty: true,
+            source_date_epoch: 1,
+            rustc: "rustc 1.95.0".into(),
+            cargo: "cargo 1.95.0".into(),
+            rustflags: vec!["--remap-path-prefix=/x=/src".into()],
+            started: "a".into(),
+            finished: "b".into(),
+            artifacts: vec![Artifact {
+                name: "multirx-samd21-default.elf".into(),
+                kind: "firmware".into(),
+                path: "artifacts/multirx-samd21-default.elf".into(),
+                sha256: "ab".repeat(32),
+                size: 1,
+                config: None,
+            }],
+        };
+        build.save(dir.path()).unwrap();
+        let reqs = Requirements::parse(
+            Path::new("r.toml"),
+            "[[requirement]]\nid = \"D\"\ntext = \"Link <security>\"\nsource = \"s\"\ncovered_by = []\n\
+             [[requirement]]\nid = \"B\"\ntext = \"t\"\nsource = \"s\"\ncovered_by = [\"multirx.*.handover_ms\"]\n",
+        )
+        .unwrap();
+        let declared = vec!["multirx.parallel.handover_ms".to_owned()];
+        let trace = matrix(&reqs, &declared, &run);
+        let (verdict, why) = Verdict::judge(&run, &trace, None);
+        let certify = CertifyRecord {
+            verdict,
+            why,
+            rig_file: "rigs/emulated.toml".into(),
+            filter: None,
+            exact: false,
+            requirements_file: "harness/requirements.toml".into(),
+            requirements_sha256: "00".repeat(32),
+            run_exit_code: 1,
+        };
+        std::fs::write(
+            dir.path().join(CERTIFY_FILE),
+            serde_json::to_string(&certify).unwrap(),
+        )
+        .unwrap();
+        std::fs::write(
+            dir.path().join(TRACE_FILE),
+            serde_json::to_string(&trace).unwrap(),
+        )
+        .unwrap();
+        dir
+    }
+
+    #[test]
+    fn the_page_says_the_verdict_first_and_uncovered_plainly() {
+        let dir = folder();
+        let page = render(dir.path()).unwrap();
+        let verdict = page.find("id=\"verdict\"").unwrap();
+        assert!(verdict < page.find("<h2>").unwrap(), "verdict before everything else");
+        assert!(page.contains("Verdict: <b>FAIL</b>"), "the sample run has a failed phase");
+        assert!(page.contains("UNCOVERED") && page.contains("Link &lt;security&gt;"));
+        assert!(page.contains("not recorded"), "message mix is not recorded: said so");
+        assert!(page.contains("dirty"), "a dirty build is called out");
+        assert!(!page.contains("http://") || page.matches("http://").count() == page.matches("xmlns=\"http://www.w3.org/2000/svg\"").count(),
+            "self-contained: nothing fetched");
+    }
+
+    /// Real headless Chromium (Debian package `chromium`, installed by ci/setup.sh) loads the
+    /// page: the verdict has a box and every plot drew its marks. Fails if Chromium is missing.
+    #[test]
+    fn headless_chromium_renders_the_verdict_and_every_plot() {
+        let dir = folder();
+        let page = render(dir.path()).unwrap();
+        let path = dir.path().join(REPORT_FILE);
+        std::fs::write(&path, &page).unwrap();
+        let plots = page.matches("<svg class=\"plot\"").count();
+        assert!(plots >= 3, "table II, attenuation, mission at least: {plots}");
+        let profile = dir.path().join("chromium-profile");
+        let out = std::process::Command::new("chromium")
+            .args(["--headless", "--no-sandbox", "--disable-gpu", "--dump-dom"])
+            .arg(format!("--user-data-dir={}", profile.display()))
+            .arg(format!("file://{}", path.display()))
+            .output()
+            .expect("chromium must be installed (apt-get install chromium; ci/setup.sh does)");
+        let dom = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(dom.contains("data-rendered=\"done\""), "the page's script ran:\n{dom}");
+        let verdict = dom.split("id=\"verdict\"").nth(1).unwrap().split('>').next().unwrap();
+        let size = verdict.split("data-rendered=\"").nth(1).unwrap().split('"').next().unwrap();
+        let (w, h) = size.split_once('x').unwrap();
+        assert!(w.parse::<u32>().unwrap() > 100 && h.parse::<u32>().unwrap() > 10, "{size}");
+        let rendered: Vec<&str> = dom
+            .split("<svg class=\"plot\"")
+            .skip(1)
+            .map(|s| s.split("data-rendered=\"").nth(1).unwrap().split('"').next().unwrap())
+            .collect();
+        assert_eq!(rendered.len(), plots, "every plot was marked by the browser");
+        for r in rendered {
+            let (wh, marks) = r.split_once('/').unwrap();
+            let (w, h) = wh.split_once('x').unwrap();
+            assert!(w.parse::<u32>().unwrap() > 300 && h.parse::<u32>().unwrap() > 100, "{r}");
+            assert!(marks.parse::<u32>().unwrap() >= 2, "background plus marks: {r}");
+        }
+    }
+}
