@@ -310,32 +310,30 @@ fn execute(command: Command) -> Result<ExitCode> {
             );
             Ok(ExitCode::from(record.verdict.exit_code()))
         }
-        Command::Verify { dir, pubkey } => {
-            match manifest::verify(&dir, pubkey.as_deref()) {
-                Ok(v) => match v.signed_by {
-                    Some(key) => {
-                        println!(
-                            "{}: {} files match MANIFEST.sha256; signed by {key}",
-                            dir.display(),
-                            v.files
-                        );
-                        Ok(ExitCode::SUCCESS)
-                    }
-                    None => {
-                        println!(
-                            "{}: {} files match MANIFEST.sha256; NOT signed",
-                            dir.display(),
-                            v.files
-                        );
-                        Ok(ExitCode::from(3))
-                    }
-                },
-                Err(e) => {
-                    eprintln!("rig verify: {}: {e}", dir.display());
-                    Ok(ExitCode::from(e.exit_code()))
+        Command::Verify { dir, pubkey } => match manifest::verify(&dir, pubkey.as_deref()) {
+            Ok(v) => match v.signed_by {
+                Some(key) => {
+                    println!(
+                        "{}: {} files match MANIFEST.sha256; signed by {key}",
+                        dir.display(),
+                        v.files
+                    );
+                    Ok(ExitCode::SUCCESS)
                 }
+                None => {
+                    println!(
+                        "{}: {} files match MANIFEST.sha256; NOT signed",
+                        dir.display(),
+                        v.files
+                    );
+                    Ok(ExitCode::from(3))
+                }
+            },
+            Err(e) => {
+                eprintln!("rig verify: {}: {e}", dir.display());
+                Ok(ExitCode::from(e.exit_code()))
             }
-        }
+        },
         Command::Report { results } => {
             let paths = report::rerender(&results)?;
             println!("{}\n{}", paths.junit.display(), paths.summary.display());

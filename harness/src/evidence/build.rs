@@ -116,15 +116,17 @@ impl BuildRecord {
         let path = dir.join(BUILD_FILE);
         let mut json = serde_json::to_vec_pretty(self)?;
         json.push(b'\n');
-        write_atomically(&path, &json).with_context(|| format!("cannot write {}", path.display()))?;
+        write_atomically(&path, &json)
+            .with_context(|| format!("cannot write {}", path.display()))?;
         Ok(path)
     }
 
     /// Loads a saved `build.json`.
     pub fn load(path: &Path) -> Result<Self> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-        serde_json::from_str(&text).with_context(|| format!("{}: not a build record", path.display()))
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a build record", path.display()))
     }
 
     /// The host program `name` (e.g. `rig`), if it was built.
@@ -191,7 +193,10 @@ pub fn build(options: &BuildOptions) -> Result<BuildRecord> {
         });
     }
     if options.host {
-        eprintln!("rig build: host programs into {}", options.target_dir.display());
+        eprintln!(
+            "rig build: host programs into {}",
+            options.target_dir.display()
+        );
         let mut cmd = cargo_command(repo, &env);
         cmd.args(["build", "--release", "--locked", "--bins"])
             .arg("--target-dir")
@@ -263,7 +268,12 @@ fn cargo_command(dir: &Path, env: &BuildEnv) -> Command {
 }
 
 /// Builds the firmware with `config` compiled in; returns the ELF's path.
-fn build_firmware(repo: &Path, target_dir: &Path, config: &Path, env: &BuildEnv) -> Result<PathBuf> {
+fn build_firmware(
+    repo: &Path,
+    target_dir: &Path,
+    config: &Path,
+    env: &BuildEnv,
+) -> Result<PathBuf> {
     let crate_dir = repo.join(FIRMWARE_CRATE);
     let mut cmd = cargo_command(&crate_dir, env);
     cmd.args(["build", "--release", "--locked"])
@@ -320,5 +330,8 @@ fn tool_version(dir: &Path, tool: &str, flag: &str) -> Result<String> {
 
 /// The repository root containing `start` (`git rev-parse --show-toplevel`).
 pub fn repo_root(start: &Path) -> Result<PathBuf> {
-    Ok(PathBuf::from(git(start, &["rev-parse", "--show-toplevel"])?))
+    Ok(PathBuf::from(git(
+        start,
+        &["rev-parse", "--show-toplevel"],
+    )?))
 }

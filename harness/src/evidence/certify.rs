@@ -95,12 +95,21 @@ impl Verdict {
             .iter()
             .filter(|p| matches!(p.outcome, PhaseOutcome::Fail | PhaseOutcome::Error))
             .count();
-        if bad_phases > 0 || !failed.is_empty() || run.outcome != RunOutcome::Pass && run.outcome != RunOutcome::Interrupted && run.outcome != RunOutcome::Running {
+        if bad_phases > 0
+            || !failed.is_empty()
+            || run.outcome != RunOutcome::Pass
+                && run.outcome != RunOutcome::Interrupted
+                && run.outcome != RunOutcome::Running
+        {
             return (
                 Verdict::Fail,
                 format!(
                     "{bad_phases} phase(s) failed or errored; requirements failed: {}",
-                    if failed.is_empty() { "none".into() } else { failed.join(", ") }
+                    if failed.is_empty() {
+                        "none".into()
+                    } else {
+                        failed.join(", ")
+                    }
                 ),
             );
         }
@@ -123,10 +132,14 @@ impl Verdict {
         if why.is_empty() {
             (
                 Verdict::Pass,
-                "every phase passed and every requirement is covered by passing measurements".into(),
+                "every phase passed and every requirement is covered by passing measurements"
+                    .into(),
             )
         } else {
-            (Verdict::Partial, format!("nothing failed, but {}", why.join("; ")))
+            (
+                Verdict::Partial,
+                format!("nothing failed, but {}", why.join("; ")),
+            )
         }
     }
 }
@@ -217,7 +230,10 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
         .with_context(|| format!("cannot run {}", rig_bin.display()))?;
     let run_exit_code = status.code().unwrap_or(-1);
     if !matches!(run_exit_code, 0 | 1) {
-        bail!("the suite did not run ({} exited with {status}): no evidence", rig_bin.display());
+        bail!(
+            "the suite did not run ({} exited with {status}): no evidence",
+            rig_bin.display()
+        );
     }
     let run = RunRecord::load(&out.join(RESULTS_FILE))?;
 
@@ -226,7 +242,10 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
     let (verdict, why) = Verdict::judge(&run, &trace, options.filter.as_deref());
     let inputs = out.join("inputs");
     std::fs::create_dir_all(&inputs)?;
-    std::fs::copy(&rig.path, inputs.join(rig.path.file_name().context("rig file has no name")?))?;
+    std::fs::copy(
+        &rig.path,
+        inputs.join(rig.path.file_name().context("rig file has no name")?),
+    )?;
     if let Some(m) = &rig.multirx {
         for (mode, loaded) in &m.device.configs {
             std::fs::copy(&loaded.path, inputs.join(format!("multirx-{mode}.toml")))?;
@@ -252,7 +271,10 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
         &build.finished,
     )?;
     write_json(&out.join(sbom::SBOM_FILE), &sbom)?;
-    write_json(&out.join(statement::PROVENANCE_FILE), &statement::provenance(&build))?;
+    write_json(
+        &out.join(statement::PROVENANCE_FILE),
+        &statement::provenance(&build),
+    )?;
     write_json(
         &out.join(statement::TEST_RESULT_FILE),
         &statement::test_result(&build, &run, options.filter.is_some()),

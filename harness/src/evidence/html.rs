@@ -161,7 +161,9 @@ pub fn render(dir: &Path) -> Result<String> {
         esc(&build.rustflags.join(" ")),
         build.source_date_epoch
     );
-    h.push_str("</table><table class=\"meas\"><tr><th>artifact</th><th>sha256</th><th>bytes</th></tr>");
+    h.push_str(
+        "</table><table class=\"meas\"><tr><th>artifact</th><th>sha256</th><th>bytes</th></tr>",
+    );
     for a in &build.artifacts {
         let _ = write!(
             h,
@@ -178,7 +180,11 @@ pub fn render(dir: &Path) -> Result<String> {
 }
 
 fn figure(h: &mut String, caption: &str, body: &str) {
-    let _ = write!(h, "<figure>{body}<figcaption>{}</figcaption></figure>", esc(caption));
+    let _ = write!(
+        h,
+        "<figure>{body}<figcaption>{}</figcaption></figure>",
+        esc(caption)
+    );
 }
 
 /// A plot whose data the run did not record: said plainly, not drawn.
@@ -200,7 +206,12 @@ fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
         .filter_map(|(_, m)| Some((m.dimensions.get(Dimension::Variant)?.to_owned(), m.value?)))
         .collect();
     if measured.is_empty() {
-        missing(h, "plot-table-ii", "Table II bytes/s", "No simulated Table II phase ran.");
+        missing(
+            h,
+            "plot-table-ii",
+            "Table II bytes/s",
+            "No simulated Table II phase ran.",
+        );
     } else {
         let cats: Vec<String> = PAPER_TABLE_II.iter().map(|(v, _)| v.to_string()).collect();
         let rig: Vec<Option<f64>> = cats
@@ -236,11 +247,19 @@ fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
         let Some(a) = p.attachments.iter().find(|a| a.name == "fc-frames") else {
             continue;
         };
-        if !(p.name.contains("b_handover") || p.name.contains("c_loiter") || p.name.contains("d_mission")) {
+        if !(p.name.contains("b_handover")
+            || p.name.contains("c_loiter")
+            || p.name.contains("d_mission"))
+        {
             continue;
         }
         let Ok(csv) = std::fs::read_to_string(dir.join(&a.path)) else {
-            missing(h, &format!("plot-timeline-{}", p.name), &p.name, "The attached fc-frames.csv is not in the folder.");
+            missing(
+                h,
+                &format!("plot-timeline-{}", p.name),
+                &p.name,
+                "The attached fc-frames.csv is not in the folder.",
+            );
             continue;
         };
         let (mut pilot, mut gap) = (Vec::new(), Vec::new());
@@ -266,17 +285,33 @@ fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
                 "time (s)",
                 "ms / raw",
                 &[
-                    Series { name: "gap (ms)".into(), points: gap, step: false },
-                    Series { name: "pilot channel".into(), points: pilot, step: true },
+                    Series {
+                        name: "gap (ms)".into(),
+                        points: gap,
+                        step: false,
+                    },
+                    Series {
+                        name: "pilot channel".into(),
+                        points: pilot,
+                        step: true,
+                    },
                 ],
-                &[HLine { y: 21.0, label: "21 ms gap limit".into() }],
+                &[HLine {
+                    y: 21.0,
+                    label: "21 ms gap limit".into(),
+                }],
                 false,
             ),
         );
         drawn += 1;
     }
     if drawn == 0 {
-        missing(h, "plot-handover", "Handover timelines", "No MultiRX handover phase ran.");
+        missing(
+            h,
+            "plot-handover",
+            "Handover timelines",
+            "No MultiRX handover phase ran.",
+        );
     }
 
     // Attenuation sweeps per radio.
@@ -320,7 +355,12 @@ fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
                 ),
             );
         }
-        None => missing(h, "plot-attenuation", "Attenuation sweeps", "No attenuation sweep ran."),
+        None => missing(
+            h,
+            "plot-attenuation",
+            "Attenuation sweeps",
+            "No attenuation sweep ran.",
+        ),
     }
 
     // Mission upload: totals per radio (relay against a naive relay).
@@ -329,20 +369,33 @@ fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
         .filter_map(|(_, m)| {
             Some((
                 m.dimensions.get(Dimension::Radio)?.to_owned(),
-                m.dimensions.get(Dimension::Variant).unwrap_or("relay").to_owned(),
+                m.dimensions
+                    .get(Dimension::Variant)
+                    .unwrap_or("relay")
+                    .to_owned(),
                 m.value?,
             ))
         })
         .collect();
     if uploads.is_empty() {
-        missing(h, "plot-mission", "Mission upload", "No mission upload phase ran.");
+        missing(
+            h,
+            "plot-mission",
+            "Mission upload",
+            "No mission upload phase ran.",
+        );
     } else {
         let mut radios: Vec<String> = uploads.iter().map(|u| u.0.clone()).collect();
         radios.dedup();
         let col = |variant: &str| -> Vec<Option<f64>> {
             radios
                 .iter()
-                .map(|r| uploads.iter().find(|u| &u.0 == r && u.1 == variant).map(|u| u.2))
+                .map(|r| {
+                    uploads
+                        .iter()
+                        .find(|u| &u.0 == r && u.1 == variant)
+                        .map(|u| u.2)
+                })
                 .collect()
         };
         figure(
@@ -354,8 +407,14 @@ fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
                 "Mission upload",
                 "s",
                 &radios,
-                &[("relay".into(), col("relay")), ("naive".into(), col("naive"))],
-                &[HLine { y: 300.0, label: "limit 300 s".into() }],
+                &[
+                    ("relay".into(), col("relay")),
+                    ("naive".into(), col("naive")),
+                ],
+                &[HLine {
+                    y: 300.0,
+                    label: "limit 300 s".into(),
+                }],
                 false,
             ),
         );
@@ -367,10 +426,20 @@ fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
         .iter()
         .flat_map(|p| &p.measurements)
         .filter(|m| m.name.starts_with("mavlora.c2_latency_p"))
-        .filter_map(|m| Some((m.name.trim_start_matches("mavlora.c2_latency_").to_owned(), m.value?)))
+        .filter_map(|m| {
+            Some((
+                m.name.trim_start_matches("mavlora.c2_latency_").to_owned(),
+                m.value?,
+            ))
+        })
         .collect();
     if lat.is_empty() {
-        missing(h, "plot-latency", "Command latency", "No command latency phase ran.");
+        missing(
+            h,
+            "plot-latency",
+            "Command latency",
+            "No command latency phase ran.",
+        );
     } else {
         let cats: Vec<String> = lat.iter().map(|l| l.0.clone()).collect();
         figure(
@@ -385,8 +454,14 @@ fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
                 &cats,
                 &[("latency".into(), lat.iter().map(|l| Some(l.1)).collect())],
                 &[
-                    HLine { y: 3000.0, label: "3 s (medium TMPR)".into() },
-                    HLine { y: 5000.0, label: "5 s (low TMPR)".into() },
+                    HLine {
+                        y: 3000.0,
+                        label: "3 s (medium TMPR)".into(),
+                    },
+                    HLine {
+                        y: 5000.0,
+                        label: "5 s (low TMPR)".into(),
+                    },
                 ],
                 false,
             ),
@@ -510,13 +585,26 @@ mod tests {
         let dir = folder();
         let page = render(dir.path()).unwrap();
         let verdict = page.find("id=\"verdict\"").unwrap();
-        assert!(verdict < page.find("<h2>").unwrap(), "verdict before everything else");
-        assert!(page.contains("Verdict: <b>FAIL</b>"), "the sample run has a failed phase");
+        assert!(
+            verdict < page.find("<h2>").unwrap(),
+            "verdict before everything else"
+        );
+        assert!(
+            page.contains("Verdict: <b>FAIL</b>"),
+            "the sample run has a failed phase"
+        );
         assert!(page.contains("UNCOVERED") && page.contains("Link &lt;security&gt;"));
-        assert!(page.contains("not recorded"), "message mix is not recorded: said so");
+        assert!(
+            page.contains("not recorded"),
+            "message mix is not recorded: said so"
+        );
         assert!(page.contains("dirty"), "a dirty build is called out");
-        assert!(!page.contains("http://") || page.matches("http://").count() == page.matches("xmlns=\"http://www.w3.org/2000/svg\"").count(),
-            "self-contained: nothing fetched");
+        assert!(
+            !page.contains("http://")
+                || page.matches("http://").count()
+                    == page.matches("xmlns=\"http://www.w3.org/2000/svg\"").count(),
+            "self-contained: nothing fetched"
+        );
     }
 
     /// Real headless Chromium (Debian package `chromium`, installed by ci/setup.sh) loads the
@@ -537,23 +625,62 @@ mod tests {
             .output()
             .expect("chromium must be installed (apt-get install chromium; ci/setup.sh does)");
         let dom = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        assert!(dom.contains("data-rendered=\"done\""), "the page's script ran:\n{dom}");
-        let verdict = dom.split("id=\"verdict\"").nth(1).unwrap().split('>').next().unwrap();
-        let size = verdict.split("data-rendered=\"").nth(1).unwrap().split('"').next().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            dom.contains("data-rendered=\"done\""),
+            "the page's script ran:\n{dom}"
+        );
+        let verdict = dom
+            .split("id=\"verdict\"")
+            .nth(1)
+            .unwrap()
+            .split('>')
+            .next()
+            .unwrap();
+        let size = verdict
+            .split("data-rendered=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap();
         let (w, h) = size.split_once('x').unwrap();
-        assert!(w.parse::<u32>().unwrap() > 100 && h.parse::<u32>().unwrap() > 10, "{size}");
+        assert!(
+            w.parse::<u32>().unwrap() > 100 && h.parse::<u32>().unwrap() > 10,
+            "{size}"
+        );
         let rendered: Vec<&str> = dom
             .split("<svg class=\"plot\"")
             .skip(1)
-            .map(|s| s.split("data-rendered=\"").nth(1).unwrap().split('"').next().unwrap())
+            .map(|s| {
+                s.split("data-rendered=\"")
+                    .nth(1)
+                    .unwrap()
+                    .split('"')
+                    .next()
+                    .unwrap()
+            })
             .collect();
-        assert_eq!(rendered.len(), plots, "every plot was marked by the browser");
+        assert_eq!(
+            rendered.len(),
+            plots,
+            "every plot was marked by the browser"
+        );
         for r in rendered {
             let (wh, marks) = r.split_once('/').unwrap();
             let (w, h) = wh.split_once('x').unwrap();
-            assert!(w.parse::<u32>().unwrap() > 300 && h.parse::<u32>().unwrap() > 100, "{r}");
-            assert!(marks.parse::<u32>().unwrap() >= 2, "background plus marks: {r}");
+            assert!(
+                w.parse::<u32>().unwrap() > 300 && h.parse::<u32>().unwrap() > 100,
+                "{r}"
+            );
+            assert!(
+                marks.parse::<u32>().unwrap() >= 2,
+                "background plus marks: {r}"
+            );
         }
     }
 }

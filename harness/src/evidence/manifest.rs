@@ -67,7 +67,9 @@ pub enum VerifyError {
     #[error("{0}: not listed in MANIFEST.sha256 (added after sealing)")]
     Added(String),
     /// The signature does not verify with the key.
-    #[error("{SEAL_FILE}: the signature over {MANIFEST_FILE} is not valid for the key {key} ({fingerprint})")]
+    #[error(
+        "{SEAL_FILE}: the signature over {MANIFEST_FILE} is not valid for the key {key} ({fingerprint})"
+    )]
     BadSignature { key: String, fingerprint: String },
     /// The key file is not an ed25519 public key.
     #[error("{path}: not an ed25519 public key (SPKI PEM): {message}")]
@@ -349,7 +351,11 @@ mod tests {
 
     fn folder(signed: bool) -> tempfile::TempDir {
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("report.html"), "<html>verdict PASS</html>\n").unwrap();
+        std::fs::write(
+            dir.path().join("report.html"),
+            "<html>verdict PASS</html>\n",
+        )
+        .unwrap();
         std::fs::write(
             dir.path().join("provenance.intoto.json"),
             "{\"_type\":\"https://in-toto.io/Statement/v1\"}\n",
@@ -411,12 +417,21 @@ mod tests {
         let dir = folder(true);
         let published = dir.path().join("../published.pem");
         std::fs::copy(dir.path().join(PUBKEY_FILE), &published).unwrap();
-        std::fs::write(dir.path().join("report.html"), "<html>verdict FAIL</html>\n").unwrap();
+        std::fs::write(
+            dir.path().join("report.html"),
+            "<html>verdict FAIL</html>\n",
+        )
+        .unwrap();
         let other = SigningKey::from_bytes(&[7; 32]);
         seal(dir.path(), Some(&other)).unwrap();
         verify(dir.path(), None).unwrap();
-        let err = verify(dir.path(), Some(&published)).unwrap_err().to_string();
-        assert!(err.starts_with(SEAL_FILE) && err.contains("not valid"), "{err}");
+        let err = verify(dir.path(), Some(&published))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with(SEAL_FILE) && err.contains("not valid"),
+            "{err}"
+        );
         std::fs::remove_file(published).unwrap();
     }
 

@@ -73,11 +73,9 @@ fn workspace(
     let sums = checksums(&dir.join("Cargo.lock"))?;
     let mut refs = BTreeMap::new();
     for p in meta["packages"].as_array().into_iter().flatten() {
-        let (Some(name), Some(version), Some(id)) = (
-            p["name"].as_str(),
-            p["version"].as_str(),
-            p["id"].as_str(),
-        ) else {
+        let (Some(name), Some(version), Some(id)) =
+            (p["name"].as_str(), p["version"].as_str(), p["id"].as_str())
+        else {
             continue;
         };
         let local = p["source"].is_null();
@@ -183,8 +181,16 @@ mod tests {
         let sha2 = find("sha2").expect("sha2 is a dependency of the rig");
         assert_eq!(sha2["hashes"][0]["alg"], "SHA-256");
         assert_eq!(sha2["hashes"][0]["content"].as_str().unwrap().len(), 64);
-        assert!(find("atsamd-hal").is_some(), "the firmware's crates are in too");
-        assert!(find("harness").unwrap()["purl"].as_str().unwrap().starts_with("pkg:cargo/harness@"));
+        assert!(
+            find("atsamd-hal").is_some(),
+            "the firmware's crates are in too"
+        );
+        assert!(
+            find("harness").unwrap()["purl"]
+                .as_str()
+                .unwrap()
+                .starts_with("pkg:cargo/harness@")
+        );
         // Every edge points at a listed component.
         let refs: Vec<&Value> = comps.iter().map(|c| &c["bom-ref"]).collect();
         for d in bom["dependencies"].as_array().unwrap() {

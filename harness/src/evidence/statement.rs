@@ -30,9 +30,9 @@ pub fn provenance(build: &BuildRecord) -> Value {
         .artifacts
         .iter()
         .filter_map(|a| {
-            a.config.as_ref().map(|c| {
-                json!({ "artifact": a.name, "path": c.path, "digest": { "sha256": c.sha256 } })
-            })
+            a.config.as_ref().map(
+                |c| json!({ "artifact": a.name, "path": c.path, "digest": { "sha256": c.sha256 } }),
+            )
         })
         .collect();
     json!({
@@ -153,7 +153,13 @@ mod tests {
     fn a_partial_run_is_never_passed() {
         let mut run = sample_record();
         run.phases.retain(|p| p.outcome == PhaseOutcome::Pass);
-        assert_eq!(test_result(&build(), &run, false)["predicate"]["result"], "PASSED");
-        assert_eq!(test_result(&build(), &run, true)["predicate"]["result"], "WARNED");
+        assert_eq!(
+            test_result(&build(), &run, false)["predicate"]["result"],
+            "PASSED"
+        );
+        assert_eq!(
+            test_result(&build(), &run, true)["predicate"]["result"],
+            "WARNED"
+        );
     }
 }

@@ -189,7 +189,10 @@ pub fn line_chart(
     hlines: &[HLine],
     log_y: bool,
 ) -> String {
-    let x = Axis::new(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)), false);
+    let x = Axis::new(
+        series.iter().flat_map(|s| s.points.iter().map(|p| p.0)),
+        false,
+    );
     let y = Axis::new(
         series
             .iter()
@@ -248,7 +251,10 @@ pub fn line_chart(
             COLOURS[i % COLOURS.len()]
         );
     }
-    legend(&mut svg, &series.iter().map(|s| s.name.as_str()).collect::<Vec<_>>());
+    legend(
+        &mut svg,
+        &series.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(),
+    );
     svg.push_str("</svg>");
     svg
 }
@@ -307,7 +313,10 @@ pub fn bar_chart(
         W - RIGHT,
         y0 = H - BOTTOM
     );
-    legend(&mut svg, &series.iter().map(|s| s.0.as_str()).collect::<Vec<_>>());
+    legend(
+        &mut svg,
+        &series.iter().map(|s| s.0.as_str()).collect::<Vec<_>>(),
+    );
     svg.push_str("</svg>");
     svg
 }
@@ -328,7 +337,10 @@ mod tests {
                 points: vec![(0.0, 1.0), (1.0, 2.0), (2.0, f64::NAN)],
                 step: true,
             }],
-            &[HLine { y: 1.5, label: "limit".into() }],
+            &[HLine {
+                y: 1.5,
+                label: "limit".into(),
+            }],
             false,
         );
         assert!(s.starts_with("<svg") && s.ends_with("</svg>"));
@@ -338,10 +350,17 @@ mod tests {
             "t",
             "B/s",
             &["wired".into()],
-            &[("rig".into(), vec![Some(10.0)]), ("paper".into(), vec![None])],
+            &[
+                ("rig".into(), vec![Some(10.0)]),
+                ("paper".into(), vec![None]),
+            ],
             &[],
             true,
         );
-        assert_eq!(b.matches("<rect x=").count() - 1 - 2, 1, "one bar (plus background, legend)");
+        assert_eq!(
+            b.matches("<rect x=").count() - 1 - 2,
+            1,
+            "one bar (plus background, legend)"
+        );
     }
 }

@@ -146,9 +146,8 @@ impl Requirements {
         for r in &self.requirements {
             for (pattern, &line) in r.covered_by.iter().zip(&r.lines) {
                 let device = pattern.split('.').next().unwrap_or("");
-                let rig_measures_device = declared
-                    .iter()
-                    .any(|n| n.split('.').next() == Some(device));
+                let rig_measures_device =
+                    declared.iter().any(|n| n.split('.').next() == Some(device));
                 if rig_measures_device && !declared.iter().any(|n| glob(pattern, n)) {
                     return Err(TraceError::UnknownMeasurement {
                         path: self.path.clone(),
@@ -293,8 +292,14 @@ mod tests {
     #[test]
     fn glob_matches_segments_and_runs() {
         assert!(glob("multirx.*.handover_ms", "multirx.scan.handover_ms"));
-        assert!(!glob("multirx.*.handover_ms", "multirx.scan.handover_silent_ms"));
-        assert!(glob("multirx.*.b_handover.*", "multirx.scan.b_handover.rc_losses"));
+        assert!(!glob(
+            "multirx.*.handover_ms",
+            "multirx.scan.handover_silent_ms"
+        ));
+        assert!(glob(
+            "multirx.*.b_handover.*",
+            "multirx.scan.b_handover.rc_losses"
+        ));
         assert!(glob("a", "a") && !glob("a", "ab") && !glob("a*", "b"));
     }
 
@@ -302,7 +307,18 @@ mod tests {
     fn the_repository_file_loads_and_matches_the_emulated_rig() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("requirements.toml");
         let reqs = Requirements::load(&path).unwrap();
-        for id in ["R1", "R2", "A", "B", "C", "D", "E", "F", "MultiRX-A", "MultiRX-D"] {
+        for id in [
+            "R1",
+            "R2",
+            "A",
+            "B",
+            "C",
+            "D",
+            "E",
+            "F",
+            "MultiRX-A",
+            "MultiRX-D",
+        ] {
             assert!(reqs.requirements.iter().any(|r| r.id == id), "{id} missing");
         }
         let rig = crate::rigfile::RigFile::load(

@@ -136,6 +136,9 @@ mod tests {
         let err = BenchLock::acquire(Path::new("/nonexistent-dir/bench.lock"))
             .unwrap_err()
             .to_string();
-        assert!(err.starts_with("bench lock /nonexistent-dir/bench.lock"), "{err}");
+        assert!(
+            err.starts_with("bench lock /nonexistent-dir/bench.lock"),
+            "{err}"
+        );
     }
 }

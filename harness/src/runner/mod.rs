@@ -230,7 +230,7 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
         Some(path) => Some(lock::BenchLock::acquire(path)?.0),
         None => None,
     };
-        std::fs::create_dir_all(&out_dir)
+    std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("cannot create output folder {}", out_dir.display()))?;
     phases.open()?;
     {
@@ -274,14 +274,7 @@ fn plan(
             {
                 let flash = declare_flash(mode);
                 known_names.extend(names(&flash.0));
-                trials.push(flash_trial(
-                    rig,
-                    phases,
-                    images,
-                    mode,
-                    board.clone(),
-                    flash,
-                ));
+                trials.push(flash_trial(rig, phases, images, mode, board.clone(), flash));
             }
             for scenario in multirx::scenarios() {
                 let plan = ScenarioPlan::declare(&scenario, &limits);
