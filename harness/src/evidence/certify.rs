@@ -196,13 +196,11 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
     requirements.check(&declared, &options.rig.display().to_string())?;
 
     let out = std::env::current_dir()?.join(&options.out_dir);
-    if out.exists() {
-        if std::fs::read_dir(&out)?.next().is_some() {
-            bail!(
-                "{}: not empty: an evidence folder must hold this run's files only (give a new --out)",
-                out.display()
-            );
-        }
+    if out.exists() && std::fs::read_dir(&out)?.next().is_some() {
+        bail!(
+            "{}: not empty: an evidence folder must hold this run's files only (give a new --out)",
+            out.display()
+        );
     }
     std::fs::create_dir_all(&out)?;
 

@@ -105,9 +105,7 @@ impl Axis {
 }
 
 fn fmt_num(v: f64) -> String {
-    if v.abs() >= 1000.0 {
-        format!("{v:.0}")
-    } else if v.abs() >= 10.0 || v == v.trunc() {
+    if v.abs() >= 10.0 || v == v.trunc() {
         format!("{v:.0}")
     } else {
         format!("{v:.2}")

@@ -322,7 +322,7 @@ mod tests {
             assert!(reqs.requirements.iter().any(|r| r.id == id), "{id} missing");
         }
         let rig = crate::rigfile::RigFile::load(
-            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../rigs/emulated.toml"),
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../rigs/emulated.toml"),
         )
         .unwrap();
         let declared = crate::runner::declared_names(rig).unwrap();
