@@ -12,6 +12,20 @@ use serialport::{SerialPort as _, TTYPort};
 use mavlora::dialect::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavType};
 use mavlora::wire::{Frame, Sender};
 
+/// A pty pair whose descriptors are not inherited: serialport opens them without
+/// close-on-exec, so a router spawned by a test running alongside would hold this pair's
+/// master open and closing it here would never hang the line up.
+fn pty_pair() -> (TTYPort, TTYPort) {
+    let (master, slave) = TTYPort::pair().unwrap();
+    for port in [&master, &slave] {
+        use std::os::fd::{AsRawFd, BorrowedFd};
+        // SAFETY: the descriptor belongs to `port`, alive for this call.
+        let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
+        rustix::io::fcntl_setfd(fd, rustix::io::FdFlags::CLOEXEC).unwrap();
+    }
+    (master, slave)
+}
+
 /// Writes heartbeats into `master` until one arrives on `udp` (or 10 s pass).
 fn heartbeat_arrives(master: &mut TTYPort, udp: &UdpSocket, sender: &mut Sender) -> bool {
     let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
@@ -55,7 +69,7 @@ fn router_reopens_a_radio_that_disappears_and_returns() {
 
     // The device is absent at start: the router retries with backoff.
     std::thread::sleep(Duration::from_millis(400));
-    let (mut master, slave) = TTYPort::pair().unwrap();
+    let (mut master, slave) = pty_pair();
     std::os::unix::fs::symlink(slave.name().unwrap(), &link).unwrap();
     let first = heartbeat_arrives(&mut master, &udp, &mut sender);
 
@@ -66,7 +80,7 @@ fn router_reopens_a_radio_that_disappears_and_returns() {
     // forget datagrams of the first device
     let mut buf = [0u8; 512];
     while udp.recv_from(&mut buf).is_ok() {}
-    let (mut master, slave) = TTYPort::pair().unwrap();
+    let (mut master, slave) = pty_pair();
     std::os::unix::fs::symlink(slave.name().unwrap(), &link).unwrap();
     let second = heartbeat_arrives(&mut master, &udp, &mut sender);
 
@@ -108,4 +122,136 @@ fn config_file_with_an_unknown_key_is_an_error_naming_the_file() {
         .output()
         .unwrap();
     assert_eq!(usage.status.code(), Some(2));
+}
+
+/// Regression: after the radio pty vanished, an unrelated new pty got the same `/dev/pts/N`
+/// and the bridge wrote MAVLink into it. A bare pty node is never reopened once it went away
+/// (its number belongs to whoever allocated it next); the refusal is logged and counted.
+#[test]
+fn router_never_attaches_to_an_unrelated_pty_that_reuses_the_radios_number() {
+    use std::io::Read;
+    let dir = std::env::temp_dir().join(format!("mavlora-reuse-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let udp = UdpSocket::bind("127.0.0.1:0").unwrap();
+    udp.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let (mut master, slave) = pty_pair();
+    let node = slave.name().unwrap();
+    let log = std::fs::File::create(dir.join("router.log")).unwrap();
+    let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .args(["--radio", &node])
+        .args(["--udp", &udp.local_addr().unwrap().to_string()])
+        .args(["--udp-bind", "127.0.0.1:0", "--status-interval", "0.5"])
+        .env("RUST_LOG", "info")
+        .stderr(Stdio::from(log))
+        .spawn()
+        .unwrap();
+    let mut sender = Sender::new(1, 1, MavlinkVersion::V2);
+    let first = heartbeat_arrives(&mut master, &udp, &mut sender);
+
+    // The radio's pty goes away (its number is free once the router has closed it too);
+    // new ptys are made until one gets the same number (the kernel hands out the lowest
+    // free one; other programs on the host may take some first).
+    drop((master, slave));
+    std::thread::sleep(Duration::from_millis(500));
+    let mut held = Vec::new();
+    let stranger = loop {
+        let (m, s) = pty_pair();
+        if s.name().as_deref() == Some(node.as_str()) {
+            break Some((m, s));
+        }
+        held.push((m, s));
+        if held.len() > 64 {
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut buf = [0u8; 512];
+    while udp.recv_from(&mut buf).is_ok() {}
+    // Invariant: for 3 s, nothing the stranger writes reaches the ground and the router
+    // writes nothing into the stranger's pty.
+    let (mut to_ground, mut into_stranger) = (0, 0);
+    let reused = stranger.is_some();
+    if let Some((mut m, _s)) = stranger {
+        m.set_timeout(Duration::from_millis(100)).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(3);
+        while Instant::now() < deadline {
+            let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+            let _ = m.write_all(sender.frame(&hb).as_bytes());
+            if let Ok(n) = m.read(&mut buf) {
+                into_stranger += n;
+            }
+            if udp.recv_from(&mut buf).is_ok() {
+                to_ground += 1;
+            }
+        }
+    }
+    drop(held);
+    let _ = Command::new("kill")
+        .args(["-TERM", &router.id().to_string()])
+        .status();
+    let status = router.wait().unwrap();
+    let log = std::fs::read_to_string(dir.join("router.log")).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(first, "no heartbeat through the radio:\n{log}");
+    assert!(reused, "the kernel never reused {node} in 64 new ptys");
+    assert_eq!(
+        into_stranger, 0,
+        "router wrote into an unrelated pty:\n{log}"
+    );
+    assert_eq!(
+        to_ground, 0,
+        "an unrelated pty's frames reached the ground:\n{log}"
+    );
+    assert!(log.contains("not reopened"), "{log}");
+    // Refused at each retry (backoff up to 5 s), counted every time.
+    let refused = log
+        .rsplit("radio_refused_opens=")
+        .next()
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse::<u64>().ok());
+    assert!(refused.is_some_and(|n| n >= 1), "{refused:?}\n{log}");
+    assert_eq!(log.matches("serial port open").count(), 1, "{log}");
+    assert!(status.success(), "exit status {status:?}");
+}
+
+/// A radio named by a USB serial number that is not plugged in: the router runs, waits for
+/// it and says which serial number it looks for and what is there instead.
+#[test]
+fn router_waits_for_a_radio_named_by_an_absent_usb_serial_number() {
+    let dir = std::env::temp_dir().join(format!("mavlora-usbserial-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = std::fs::File::create(dir.join("router.log")).unwrap();
+    let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .args(["--radio", "usb-serial:NO-SUCH-RADIO-7"])
+        .args(["--udp-bind", "127.0.0.1:0"])
+        .env("RUST_LOG", "info")
+        .stderr(Stdio::from(log))
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(800));
+    let still_running = router.try_wait().unwrap().is_none();
+    let _ = Command::new("kill")
+        .args(["-TERM", &router.id().to_string()])
+        .status();
+    let status = router.wait().unwrap();
+    let log = std::fs::read_to_string(dir.join("router.log")).unwrap();
+    assert!(still_running, "{log}");
+    assert!(
+        log.contains("no USB serial port with serial number `NO-SUCH-RADIO-7`"),
+        "{log}"
+    );
+    assert!(status.success(), "{status:?}");
+    // An empty serial number is bad usage, named by the port it was given for.
+    let out = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .args(["--radio", "usb-serial:", "--udp-bind", "127.0.0.1:0"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("radio port") && stderr.contains("usb-serial:"),
+        "{stderr}"
+    );
 }

@@ -92,17 +92,17 @@ fn run(o: Options) -> Result<()> {
     let stop = Arc::new(AtomicBool::new(false));
     let fc_baud = o.fc_baud.unwrap_or(921_600);
     let fc_gap = frame_gap(fc_baud / 10);
-    let mut fc = SerialLink::spawn("fc", fc_path, fc_baud, fc_gap, inbox.clone(), stop.clone());
+    let mut fc = SerialLink::spawn("fc", &fc_path, fc_baud, fc_gap, inbox.clone(), stop.clone())?;
     let radio_baud = o.shared.radio_baud();
     let radio_gap = frame_gap(rate.min(radio_baud / 10));
     let mut radio = SerialLink::spawn(
         "radio",
-        radio_path,
+        &radio_path,
         radio_baud,
         radio_gap,
         inbox.clone(),
         stop.clone(),
-    );
+    )?;
     let clock = Clock::start();
     let compact = config.compact.is_some();
     let mut bridge = Bridge::new(config, clock.now())?;
@@ -163,6 +163,7 @@ fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink, inbox: &Inbox) {
         fc_write_failures = f.write_failures,
         fc_partials_dropped = s.fc_reader.partials_dropped,
         fc_opens = f.opens,
+        fc_refused_opens = f.refused_opens,
         radio_rx = s.radio_reader.frames(),
         radio_lost = s.radio_reader.lost,
         radio_bad_crc = s.radio_reader.bad_crc,
@@ -175,6 +176,7 @@ fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink, inbox: &Inbox) {
         radio_write_failures = r.write_failures,
         radio_partials_dropped = s.radio_reader.partials_dropped,
         radio_opens = r.opens,
+        radio_refused_opens = r.refused_opens,
         filtered = s.filter.filtered,
         rate_limited = s.filter.rate_limited,
         replaced = s.scheduler.replaced,

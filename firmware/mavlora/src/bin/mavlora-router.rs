@@ -129,12 +129,12 @@ fn run(o: Options) -> Result<()> {
     let gap = frame_gap(rate.min(radio_baud / 10));
     let mut radio = SerialLink::spawn(
         "radio",
-        radio_path,
+        &radio_path,
         radio_baud,
         gap,
         inbox.clone(),
         stop.clone(),
-    );
+    )?;
     let clock = Clock::start();
     let mut router = Router::new(config, clock.now())?;
     info!(rate, burst, "router running");
@@ -243,6 +243,7 @@ fn status(
         radio_write_failures = r.write_failures,
         radio_partials_dropped = s.radio_reader.partials_dropped,
         radio_opens = r.opens,
+        radio_refused_opens = r.refused_opens,
         gcs_rx = s.gcs_reader.frames(),
         gcs_tx = s.to_gcs_frames,
         udp_partials_dropped = udp_partials,

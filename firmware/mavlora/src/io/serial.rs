@@ -4,6 +4,10 @@
 //! timeout dropped the writer for good while the reader kept the port open, so nothing was
 //! sent again).
 //!
+//! A port is reopened only while its name leads to the device first opened, or follows it by
+//! design (`usb-serial:SERIAL`, `/dev/serial/by-id/...`): see [`hostio::device`]. Before, a
+//! new unrelated pty that got a vanished radio pty's number received the bridge's MAVLink.
+//!
 //! Writes go through a bounded [`Queue`] to the writer thread, so the main loop never blocks
 //! on a port. Every byte offered to [`SerialLink::write`] ends up counted once: written, or
 //! dropped (queue full, port closed, the unwritten rest of a frame whose write failed), or
@@ -15,8 +19,9 @@ use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
+use hostio::device::{DeviceError, Identity, PortName, Reopen};
 use serialport::SerialPort;
-use tracing::{info, warn};
+use tracing::{error, info, warn};
 
 use super::queue::{Lane, Queue};
 use super::{Event, Inbox};
@@ -65,6 +70,8 @@ pub struct SerialCounters {
     pub dropped_bytes: u64,
     /// Bytes waiting in the write queue.
     pub queued_bytes: u64,
+    /// Opens refused because the name now leads to another device (see [`Reopen`]).
+    pub refused_opens: u64,
 }
 
 #[derive(Debug, Default)]
@@ -75,7 +82,11 @@ struct Shared {
     broken: AtomicBool,
     /// A write succeeded since the port was last opened (resets the backoff).
     wrote: AtomicBool,
+    /// The last write failure was a timeout (the device is still there, it does not read),
+    /// not an error of a device that went away.
+    stalled: AtomicBool,
     opens: AtomicU64,
+    refused_opens: AtomicU64,
     write_failures: AtomicU64,
     offered: AtomicU64,
     written: AtomicU64,
@@ -93,16 +104,18 @@ pub struct SerialLink {
 }
 
 impl SerialLink {
-    /// Starts the threads for `path` at `baud`; events go to `inbox`. `idle_gap`: after bytes,
-    /// this long without any sends [`SerialEvent::Idle`] (see [`frame_gap`]).
+    /// Starts the threads for the port named `port` (a path or `usb-serial:SERIAL`) at `baud`;
+    /// events go to `inbox`. `idle_gap`: after bytes, this long without any sends
+    /// [`SerialEvent::Idle`] (see [`frame_gap`]). Fails only on a name that names nothing.
     pub fn spawn(
         name: &'static str,
-        path: String,
+        port: &str,
         baud: u32,
         idle_gap: Duration,
         inbox: Inbox,
         stop: Arc<AtomicBool>,
-    ) -> Self {
+    ) -> anyhow::Result<Self> {
+        let path = PortName::parse(port).map_err(|e| anyhow::anyhow!("{name} port: {e}"))?;
         let shared = Arc::new(Shared::default());
         let out = Arc::new(Queue::new(WRITE_QUEUE_BYTES));
         let s = shared.clone();
@@ -115,12 +128,12 @@ impl SerialLink {
             .name(format!("serial-{name}-tx"))
             .spawn(move || writer(name, &q, &s))
             .expect("spawn serial writer");
-        Self {
+        Ok(Self {
             name,
             out,
             shared,
             writer: Some(writer),
-        }
+        })
     }
 
     /// Queues one frame for the port; never blocks. Returns `false` if it was dropped (the
@@ -149,6 +162,7 @@ impl SerialLink {
             written_bytes: s.written.load(Ordering::Relaxed),
             dropped_bytes: s.dropped.load(Ordering::Relaxed) + q.dropped_bytes,
             queued_bytes: self.out.bytes() as u64,
+            refused_opens: s.refused_opens.load(Ordering::Relaxed),
         }
     }
 
@@ -218,13 +232,15 @@ fn fail(
     let n = s.write_failures.fetch_add(1, Ordering::Relaxed) + 1;
     // One line per failure: failures are at least one backoff apart.
     warn!(port = name, error = %e, failures = n, "write failed or stalled, reopening the port");
+    s.stalled
+        .store(e.kind() == ErrorKind::TimedOut, Ordering::Relaxed);
     *port = None;
     s.broken.store(true, Ordering::Relaxed);
 }
 
 fn reader(
     name: &'static str,
-    path: &str,
+    port_name: &PortName,
     baud: u32,
     idle_gap: Duration,
     inbox: &Inbox,
@@ -233,7 +249,30 @@ fn reader(
 ) {
     let mut backoff = BACKOFF_MIN;
     let mut open_failures = 0u64;
+    // Set at the first open: which device a reopen may attach to.
+    let mut rule: Option<Reopen> = None;
+    // The port last closed because its device went away (not a write stall).
+    let mut vanished = false;
     while !stop.load(Ordering::Relaxed) {
+        let checked = port_name.resolve().and_then(|path| {
+            match &rule {
+                Some(rule) => rule.check(&path, vanished),
+                None => Ok(()),
+            }
+            .map(|()| path)
+        });
+        let path = match checked {
+            Ok(path) => path,
+            Err(e) => {
+                refused(name, port_name, &e, s);
+                open_failures += 1;
+                thread::sleep(backoff);
+                backoff = (backoff * 2).min(BACKOFF_MAX_OPEN);
+                continue;
+            }
+        };
+        let path = path.to_string_lossy();
+        let path = path.as_ref();
         let mut port = match serialport::new(path, baud).timeout(idle_gap).open() {
             Ok(port) => port,
             Err(e) => {
@@ -248,6 +287,11 @@ fn reader(
             }
         };
         open_failures = 0;
+        if rule.is_none() {
+            rule = Identity::of(std::path::Path::new(path))
+                .ok()
+                .map(|first| Reopen::after_first_open(port_name, first));
+        }
         let mut writer = match port.try_clone() {
             Ok(clone) => clone,
             Err(e) => {
@@ -261,11 +305,13 @@ fn reader(
         }
         s.broken.store(false, Ordering::Relaxed);
         s.wrote.store(false, Ordering::Relaxed);
+        s.stalled.store(false, Ordering::Relaxed);
         *s.port.lock().unwrap_or_else(|e| e.into_inner()) = Some(writer);
         s.opens.fetch_add(1, Ordering::Relaxed);
         info!(port = name, path, baud, "serial port open");
         inbox.send(Event::Serial(name, SerialEvent::Opened));
         let stalled = read_until_failure(name, &mut port, inbox, stop, s);
+        vanished = !(stalled && s.stalled.load(Ordering::Relaxed));
         *s.port.lock().unwrap_or_else(|e| e.into_inner()) = None;
         drop(port);
         if stop.load(Ordering::Relaxed) {
@@ -280,6 +326,20 @@ fn reader(
             BACKOFF_MIN
         };
         thread::sleep(backoff);
+    }
+}
+
+/// An open refused because the name leads elsewhere (or nowhere, for `usb-serial:`): counted,
+/// logged at the first refusal and every 10th.
+fn refused(name: &'static str, port_name: &PortName, e: &DeviceError, s: &Shared) {
+    let n = s.refused_opens.fetch_add(1, Ordering::Relaxed) + 1;
+    if n == 1 || n.is_multiple_of(10) {
+        match e {
+            DeviceError::Different { .. } | DeviceError::PtyGone { .. } => {
+                error!(port = name, name = %port_name, refused = n, "{e}");
+            }
+            _ => warn!(port = name, name = %port_name, refused = n, "cannot open serial port: {e}"),
+        }
     }
 }
 
