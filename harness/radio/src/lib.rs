@@ -15,8 +15,10 @@
 //!   [`Preset::dmd_dl1`]); [`Modulation`] gives its time on air
 //!   ([`airtime`]).
 //! - [`LinkConfig`]: what differs per direction: [`LinkBudget`] through the
-//!   packet-error curve ([`loss`]), [`GilbertElliott`] bursts, latency and
-//!   jitter, a [`DutyCycle`] rule ([`duty`]), the seed.
+//!   packet-error curve ([`loss`]), [`GilbertElliott`] bursts stepped in time,
+//!   a fixed packet loss, latency and jitter, a [`DutyCycle`] rule ([`duty`]),
+//!   faults ([`faults`]: bit errors, duplicates, reordering, scheduled
+//!   [`Silence`]s), the seed.
 //! - [`Link`]: one direction: `handle_input(now, bytes)`,
 //!   `poll_timeout()`, `handle_timeout(now)`, then drain `poll_output()`, with
 //!   [`LinkStats`] for the evidence.
@@ -31,7 +33,7 @@
 //! seed = 2
 //! latency_ms = 5.0
 //! budget = { path = { distance_m = 400.0 }, rx_noise_db = 12.0 }
-//! burst = { p_good_to_bad = 0.02, p_bad_to_good = 0.25 }
+//! burst = { p_good_to_bad = 0.0005, p_bad_to_good = 0.01 }  # per ms: 100 ms fades, 4.8 % of the time
 //!
 //! [downlink]                     # UAV → GCS
 //! seed = 1
@@ -43,6 +45,7 @@
 pub mod airtime;
 pub mod duty;
 mod error;
+pub mod faults;
 pub mod link;
 pub mod loss;
 mod pair;
@@ -52,6 +55,7 @@ pub mod setup;
 pub use airtime::{FskParams, LoraParams, Modulation};
 pub use duty::{DutyCycle, DutyTracker};
 pub use error::ConfigError;
+pub use faults::{Reorder, Silence};
 pub use link::{AirPacket, Link, LinkConfig, LinkStats, Slot};
 pub use loss::{GilbertElliott, LinkBudget, LossModel, PathLoss};
 pub use pair::{Direction, Radio};

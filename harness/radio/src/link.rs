@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::duty::{DutyCycle, DutyTracker};
 use super::error::{ConfigError, check_range};
+use super::faults::{FaultConfig, Faults, Reorder, Silence};
 use super::loss::{self, GilbertElliott, LinkBudget, LossModel, REFERENCE_PACKET_BYTES};
 use super::preset::{Access, Preset, ms};
 
@@ -28,8 +29,20 @@ use super::preset::{Access, Preset, ms};
 pub struct LinkConfig {
     /// Link budget (path, antennas, receiver noise) → independent loss.
     pub budget: LinkBudget,
-    /// Bursty loss on top, if any.
+    /// Bursty loss on top, if any: a chain stepped per millisecond of time.
     pub burst: Option<GilbertElliott>,
+    /// Share of packets lost independently of their length and of each other
+    /// (a fixed packet-loss rate, e.g. 0.1 for the C2 scenarios).
+    pub packet_loss: f64,
+    /// Probability that each delivered bit is flipped (corruption the radio's
+    /// own CRC missed, or a transparent radio with none).
+    pub bit_error_rate: f64,
+    /// Share of delivered packets handed to the far port twice.
+    pub duplicate: f64,
+    /// Packets held back so later ones overtake them.
+    pub reorder: Option<Reorder>,
+    /// Scheduled silences: packets on air during one are lost.
+    pub silences: Vec<Silence>,
     /// Fixed delay from the end of a packet on air to its bytes at the far
     /// serial port (radio processing, serial out), ms.
     pub latency_ms: f64,
@@ -72,8 +85,20 @@ pub struct LinkStats {
     pub packets_sent: u64,
     /// Air packets lost.
     pub packets_lost: u64,
-    /// Air packets handed to the far serial port.
+    /// Air packets handed to the far serial port (duplicates included).
     pub packets_delivered: u64,
+    /// Lost packets that fell in a scheduled silence (also in `packets_lost`).
+    pub packets_silenced: u64,
+    /// Received packets with at least one bit flipped.
+    pub packets_corrupted: u64,
+    /// Bits flipped in received packets.
+    pub bits_flipped: u64,
+    /// Received packets handed over a second time.
+    pub packets_duplicated: u64,
+    /// Bytes in those second copies (also in `bytes_delivered`).
+    pub bytes_duplicated: u64,
+    /// Received packets held back for later ones to overtake.
+    pub packets_reordered: u64,
     /// Total time on air.
     pub airtime: Duration,
 }
@@ -131,6 +156,7 @@ pub struct Link {
     reference_airtime: Duration,
     rng: ChaCha8Rng,
     loss: LossModel,
+    faults: Faults,
     budget: LinkBudget,
     duty: DutyTracker,
     buffer: VecDeque<u8>,
@@ -138,7 +164,8 @@ pub struct Link {
     now: Instant,
     gap_until: Instant,
     on_air: Option<OnAir>,
-    in_flight: VecDeque<(Instant, Vec<u8>)>,
+    /// Received packets by delivery time, each with whether it is a second copy.
+    in_flight: VecDeque<(Instant, Vec<u8>, bool)>,
     last_delivery: Instant,
     last_start: Option<Instant>,
     stats: LinkStats,
@@ -168,6 +195,9 @@ impl Link {
             600_000.0,
             "0..=600000 ms",
         )?;
+        check_range("packet_loss", config.packet_loss, 0.0, 1.0, "0..=1")?;
+        let faults = config.fault_config();
+        faults.validate()?;
         config
             .duty
             .validate(preset.time_on_air(preset.max_payload), preset.max_payload)?;
@@ -194,7 +224,13 @@ impl Link {
             jitter: ms(config.jitter_ms),
             reference_airtime: preset.time_on_air(REFERENCE_PACKET_BYTES),
             rng: ChaCha8Rng::seed_from_u64(config.seed),
-            loss: LossModel::new(config.budget.reference_per(preset), config.burst),
+            loss: LossModel::new(
+                config.budget.reference_per(preset),
+                config.packet_loss,
+                config.burst,
+                config.seed,
+            ),
+            faults: Faults::new(faults, config.seed),
             budget: config.budget,
             duty: DutyTracker::new(config.duty),
             buffer: VecDeque::with_capacity(preset.buffer_bytes),
@@ -248,6 +284,25 @@ impl Link {
     /// Bytes waiting in the sender's buffer.
     pub fn buffered(&self) -> usize {
         self.buffer.len()
+    }
+
+    /// Bytes the link holds: buffered, on air, and received but not yet handed
+    /// over. With the counters, every offered byte is accounted for:
+    /// `bytes_offered = bytes_dropped + bytes_lost + (bytes_delivered −
+    /// bytes_duplicated) + queued_bytes()`.
+    pub fn queued_bytes(&self) -> usize {
+        let received: usize = self
+            .in_flight
+            .iter()
+            .filter(|(_, _, second_copy)| !second_copy)
+            .map(|(_, d, _)| d.len())
+            .sum();
+        self.buffer.len() + self.on_air.as_ref().map_or(0, |a| a.data.len()) + received
+    }
+
+    /// Whether `t` falls inside a scheduled silence, and until when.
+    pub fn silence_at(&self, t: Instant) -> Option<Instant> {
+        self.faults.silence_end(t)
     }
 
     /// Free share of the sender's buffer, 0..=1 (what SiK reports as `txbuf`).
@@ -325,7 +380,7 @@ impl Link {
     }
 
     pub(crate) fn next_delivery(&self) -> Option<Instant> {
-        self.in_flight.front().map(|(t, _)| *t)
+        self.in_flight.front().map(|(t, _, _)| *t)
     }
 
     /// The next delivery due by the model's time (`now` of the last call that moved it).
@@ -333,7 +388,10 @@ impl Link {
         if self.next_delivery()? > self.now {
             return None;
         }
-        let (_, data) = self.in_flight.pop_front()?;
+        let (_, data, dup) = self.in_flight.pop_front()?;
+        if dup {
+            self.stats.bytes_duplicated += data.len() as u64;
+        }
         self.stats.packets_delivered += 1;
         self.stats.bytes_delivered += data.len() as u64;
         Some(data)
@@ -416,7 +474,10 @@ impl Link {
                 let data: Vec<u8> = self.buffer.drain(..n).collect();
                 let airtime = self.preset.time_on_air(n);
                 let ratio = airtime.as_secs_f64() / self.reference_airtime.as_secs_f64();
-                let lost = self.loss.lose(&mut self.rng, ratio);
+                let silenced = self.faults.silenced(t, t + airtime);
+                // Drawn even when silenced, so a silence does not shift later draws.
+                let lost = self.loss.lose(&mut self.rng, t, airtime, ratio) || silenced;
+                self.stats.packets_silenced += silenced as u64;
                 let delay = self.latency + loss::jitter(&mut self.rng, self.jitter);
                 self.duty.record(t, airtime);
                 self.stats.packets_offered += 1;
@@ -447,14 +508,53 @@ impl Link {
                     self.stats.packets_lost += 1;
                     self.stats.bytes_lost += a.data.len() as u64;
                 } else {
+                    let mut data = a.data;
+                    let fate = self.faults.apply(&mut data);
+                    self.stats.bits_flipped += fate.flipped;
+                    self.stats.packets_corrupted += (fate.flipped > 0) as u64;
                     let at = (a.end + a.delay).max(self.last_delivery);
-                    self.last_delivery = at;
-                    self.in_flight.push_back((at, a.data));
+                    let at = match fate.held {
+                        // Held back: it does not move `last_delivery`, so later packets overtake it.
+                        Some(extra) => {
+                            self.stats.packets_reordered += 1;
+                            at + extra
+                        }
+                        None => {
+                            self.last_delivery = at;
+                            at
+                        }
+                    };
+                    if fate.duplicated {
+                        self.stats.packets_duplicated += 1;
+                        self.schedule(at, data.clone(), false);
+                        self.schedule(at, data, true);
+                    } else {
+                        self.schedule(at, data, false);
+                    }
                 }
                 self.gap_until = a.end + self.gap;
             }
         }
         self.now = self.now.max(t);
+    }
+}
+
+impl Link {
+    /// Queues a received packet for delivery at `at`, after everything due no later.
+    fn schedule(&mut self, at: Instant, data: Vec<u8>, second_copy: bool) {
+        let i = self.in_flight.partition_point(|(t, _, _)| *t <= at);
+        self.in_flight.insert(i, (at, data, second_copy));
+    }
+}
+
+impl LinkConfig {
+    pub(crate) fn fault_config(&self) -> FaultConfig {
+        FaultConfig {
+            bit_error_rate: self.bit_error_rate,
+            duplicate: self.duplicate,
+            reorder: self.reorder,
+            silences: self.silences.clone(),
+        }
     }
 }
 
@@ -587,5 +687,201 @@ mod tests {
         assert_eq!(window(20 * MS), (at(15 * MS), at(25 * MS)));
         assert_eq!(window(25 * MS), (at(45 * MS), at(55 * MS)));
         assert_eq!(window(50 * MS), (at(45 * MS), at(55 * MS)));
+    }
+
+    /// Sends `chunk(k)` every `period` for `n` chunks; returns what arrived, in order.
+    fn send_every(
+        link: &mut Link,
+        period: Duration,
+        n: u32,
+        chunk: impl Fn(u32) -> Vec<u8>,
+    ) -> Vec<(Instant, Vec<u8>)> {
+        let mut out = Vec::new();
+        for k in 0..n {
+            let t = at(period * k);
+            out.extend(drain(link, t));
+            link.handle_input(t, &chunk(k));
+            // Balance holds at every step.
+            let s = link.stats();
+            assert_eq!(
+                s.bytes_offered,
+                s.bytes_dropped + s.bytes_lost + s.bytes_delivered - s.bytes_duplicated
+                    + link.queued_bytes() as u64
+            );
+        }
+        out.extend(drain(link, at(period * n) + Duration::from_secs(10)));
+        out
+    }
+
+    /// Regression: the Gilbert-Elliott chain stepped once per packet, so on an
+    /// uplink with one command a second a 30-packet burst was a 30 s outage.
+    /// Stepped per ms, 30 ms fades hit single commands, never runs of them.
+    #[test]
+    fn a_sparse_uplink_does_not_stretch_a_burst_over_seconds() {
+        let cfg = LinkConfig {
+            // 10 % of the time bad, 30 ms fades (per ms); before: 30-packet bursts.
+            burst: Some(GilbertElliott {
+                p_good_to_bad: 0.1 / 0.9 / 30.0,
+                p_bad_to_good: 1.0 / 30.0,
+                loss_good: 0.0,
+                loss_bad: 1.0,
+            }),
+            seed: 4,
+            ..LinkConfig::default()
+        };
+        let mut link = Link::new(&Preset::sik_64k(), &cfg, Slot::B).unwrap();
+        let out = send_every(&mut link, Duration::from_secs(1), 3000, |k| {
+            k.to_le_bytes().repeat(5)
+        });
+        // A command split over two air packets is lost if either is; each arrives
+        // within a TDM round (< 1 s) of being sent, so its second tells which it is.
+        let mut got = vec![0usize; 3000];
+        for (t, b) in &out {
+            got[(t.as_micros() / 1_000_000) as usize] += b.len();
+        }
+        let (mut runs, mut longest, mut run) = (Vec::new(), 0, 0);
+        for &n in &got {
+            if n < 20 {
+                run += 1;
+                longest = longest.max(run);
+            } else if run > 0 {
+                runs.push(run);
+                run = 0;
+            }
+        }
+        let lost: usize = runs.iter().sum();
+        let mean_run = lost as f64 / runs.len() as f64;
+        // A 1 s gap forgets the state (p ≈ e^-33): runs are geometric in the
+        // ~11 % per-packet loss, mean 1.12, P(run ≥ 5) ≈ 1.5e-4 per run.
+        assert!((200..=450).contains(&lost), "{lost} of 3000 lost");
+        assert!(
+            mean_run < 1.3 && longest <= 4,
+            "mean run {mean_run}, longest {longest}"
+        );
+    }
+
+    #[test]
+    fn nothing_on_air_in_a_silence_arrives_and_the_link_comes_back_after_it() {
+        let cfg = LinkConfig {
+            silences: vec![Silence {
+                at_s: 2.0,
+                for_s: 3.0,
+                every_s: None,
+            }],
+            ..LinkConfig::default()
+        };
+        let mut link = Link::new(&Preset::sik_64k(), &cfg, Slot::A).unwrap();
+        link.set_trace(true);
+        let out = send_every(&mut link, 100 * MS, 100, |k| vec![k as u8; 20]);
+        let (silence, end) = (at(2000 * MS), at(5000 * MS));
+        for p in link.take_trace() {
+            let overlaps = p.start < end && p.start + p.airtime > silence;
+            assert_eq!(p.lost, overlaps, "packet at {:?}", p.start);
+        }
+        assert_eq!(link.silence_at(at(3000 * MS)), Some(end));
+        assert_eq!(link.silence_at(end), None);
+        let s = link.stats();
+        assert!(s.packets_silenced > 0 && s.packets_silenced == s.packets_lost);
+        // Chunks sent from the silence's end on all arrive.
+        let seen: std::collections::BTreeSet<u8> =
+            out.iter().flat_map(|(_, b)| b.clone()).collect();
+        assert!((50..100).all(|k| seen.contains(&k)));
+        assert!(!seen.contains(&30));
+    }
+
+    #[test]
+    fn duplicates_and_reordering_reach_the_far_port_as_counted() {
+        let cfg = LinkConfig {
+            duplicate: 0.2,
+            reorder: Some(Reorder {
+                share: 0.2,
+                delay_ms: 700.0,
+            }),
+            seed: 8,
+            ..LinkConfig::default()
+        };
+        let mut link = Link::new(&Preset::sik_64k(), &cfg, Slot::A).unwrap();
+        // One 2-byte sequence number per air packet (sent every 300 ms, > a TDM round).
+        let out = send_every(&mut link, 300 * MS, 500, |k| {
+            (k as u16).to_le_bytes().to_vec()
+        });
+        let seqs: Vec<u16> = out
+            .iter()
+            .map(|(_, b)| u16::from_le_bytes([b[0], b[1]]))
+            .collect();
+        let s = link.stats().clone();
+        // Nothing lost: every number arrives, the extras are exactly the duplicates.
+        let unique: std::collections::BTreeSet<u16> = seqs.iter().copied().collect();
+        assert_eq!(unique.len(), 500);
+        assert_eq!(seqs.len() as u64, 500 + s.packets_duplicated);
+        assert!((60..=140).contains(&s.packets_duplicated), "{s:?}");
+        assert!((60..=140).contains(&s.packets_reordered), "{s:?}");
+        let overtaken = seqs.windows(2).filter(|w| w[1] < w[0]).count();
+        assert!(overtaken >= 60, "{overtaken} out of order");
+        // Without the knobs, the same traffic arrives once each, in order.
+        let mut plain = Link::new(&Preset::sik_64k(), &LinkConfig::default(), Slot::A).unwrap();
+        let out = send_every(&mut plain, 300 * MS, 500, |k| {
+            (k as u16).to_le_bytes().to_vec()
+        });
+        let seqs: Vec<u16> = out
+            .iter()
+            .map(|(_, b)| u16::from_le_bytes([b[0], b[1]]))
+            .collect();
+        assert_eq!(seqs, (0..500).collect::<Vec<u16>>());
+    }
+
+    #[test]
+    fn bit_errors_are_counted_as_the_far_port_sees_them() {
+        let cfg = LinkConfig {
+            bit_error_rate: 1e-3,
+            seed: 2,
+            ..LinkConfig::default()
+        };
+        let mut link = Link::new(&Preset::sik_64k(), &cfg, Slot::A).unwrap();
+        let sent: Vec<u8> = (0..200u32).flat_map(|k| [k as u8; 50]).collect();
+        let out = send_every(&mut link, 300 * MS, 200, |k| vec![k as u8; 50]);
+        let got: Vec<u8> = out.into_iter().flat_map(|(_, b)| b).collect();
+        assert_eq!(got.len(), sent.len());
+        let flipped: u64 = sent
+            .iter()
+            .zip(&got)
+            .map(|(a, b)| (a ^ b).count_ones() as u64)
+            .sum();
+        let s = link.stats();
+        assert_eq!(flipped, s.bits_flipped);
+        // 80,000 bits at 1e-3: 80 expected.
+        assert!((45..=120).contains(&flipped), "{flipped}");
+        assert!(s.packets_corrupted > 0 && s.packets_corrupted <= flipped);
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+        /// Whatever the faults and the traffic, every offered byte is dropped, lost,
+        /// delivered or still held, at every step (checked inside `send_every`).
+        #[test]
+        fn every_offered_byte_is_accounted_for(
+            seed in 0u64..1000,
+            dup in 0.0f64..1.0,
+            reorder in 0.0f64..1.0,
+            ber in 0.0f64..0.01,
+            silence_at in 0.0f64..5.0,
+            chunk in 1usize..400,
+            lora in proptest::bool::ANY,
+        ) {
+            let cfg = LinkConfig {
+                burst: Some(GilbertElliott::with_mean(0.2, 40.0).unwrap()),
+                packet_loss: 0.05,
+                duplicate: dup,
+                reorder: Some(Reorder { share: reorder, delay_ms: 90.0 }),
+                bit_error_rate: ber,
+                silences: vec![Silence { at_s: silence_at, for_s: 0.7, every_s: Some(2.0) }],
+                seed,
+                ..LinkConfig::default()
+            };
+            let preset = if lora { Preset::lora_sf7() } else { Preset::sik_64k() };
+            let mut link = Link::new(&preset, &cfg, Slot::A).unwrap();
+            send_every(&mut link, 37 * MS, 200, |k| vec![k as u8; chunk]);
+            proptest::prop_assert_eq!(link.queued_bytes(), 0);
+        }
     }
 }

@@ -1,5 +1,5 @@
 //! Loss: a link budget through a packet-error curve, bursty loss
-//! (Gilbert-Elliott), and fixed latency plus jitter.
+//! (Gilbert-Elliott, stepped in time), and fixed latency plus jitter.
 //!
 //! # The packet-error curve and its fit
 //!
@@ -30,9 +30,10 @@
 //! a sharp cliff: 1 % → 50 % in 2.3 dB), DMD 0.75 dB (3.4 dB), SiK 1 dB
 //! (4.6 dB; uncoded GFSK with the drifting centre frequency the paper saw).
 
-use timebase::Duration;
+use timebase::{Duration, Instant};
 
-use rand::{Rng, RngExt};
+use rand::{Rng, RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::error::{ConfigError, check_range};
@@ -144,21 +145,28 @@ impl LinkBudget {
     }
 }
 
-/// Gilbert-Elliott burst loss: a two-state Markov chain stepped once per air
-/// packet, losing with `loss_good` or `loss_bad` depending on the state.
-/// With `loss_good` = 0 and `loss_bad` = 1 (the Gilbert model) the mean loss
-/// is p_gb / (p_gb + p_bg) and a loss burst lasts 1 / p_bg packets on average.
+/// Gilbert-Elliott burst loss: a two-state Markov chain stepped once per
+/// millisecond of model time ([`GilbertElliott::STEP`]), busy or idle, so a burst
+/// lasts as long in time whatever the packet rate (stepped per packet, a quiet
+/// uplink with one command a second stretched one burst over seconds). Each
+/// millisecond a packet is on air it is hit with `loss_good` or `loss_bad`
+/// depending on the state then (a fade kills the packet it overlaps); the
+/// chain jumps over idle time in closed form, one draw, so an hour of silence
+/// costs nothing. With `loss_good` = 0 and `loss_bad` = 1 (the Gilbert model)
+/// the share of time in the bad state is p_gb / (p_gb + p_bg), a burst lasts
+/// 1 / p_bg ms on average, and a packet of airtime T ms is lost with about
+/// that share plus p_gb·T (a burst starting while it is on air).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GilbertElliott {
-    /// Probability of going from good to bad after a packet.
+    /// Probability of going from good to bad in one millisecond.
     pub p_good_to_bad: f64,
-    /// Probability of going from bad to good after a packet.
+    /// Probability of going from bad to good in one millisecond.
     pub p_bad_to_good: f64,
-    /// Loss probability in the good state.
+    /// Loss probability of a packet for each millisecond it is on air in the good state.
     #[serde(default)]
     pub loss_good: f64,
-    /// Loss probability in the bad state.
+    /// Loss probability of a packet for each millisecond it is on air in the bad state.
     #[serde(default = "one")]
     pub loss_bad: f64,
 }
@@ -168,34 +176,50 @@ fn one() -> f64 {
 }
 
 impl GilbertElliott {
-    /// The Gilbert model with a mean loss (0..1) and a mean burst length
-    /// (packets, ≥ 1): p_bg = 1/burst, p_gb = loss·p_bg / (1 − loss).
-    pub fn with_mean(loss: f64, burst: f64) -> Result<GilbertElliott, ConfigError> {
-        check_range("loss", loss, 0.0, 0.999, "0..=0.999")?;
-        check_range("burst", burst, 1.0, 1e9, ">= 1 packet")?;
-        let p_bad_to_good = 1.0 / burst;
+    /// The chain's time step.
+    pub const STEP: Duration = Duration::from_millis(1);
+
+    /// The Gilbert model with a share of time in the bad state (0..1) and a mean
+    /// burst length (ms, ≥ 1): p_bg = 1/burst, p_gb = share·p_bg / (1 − share).
+    pub fn with_mean(bad_share: f64, burst_ms: f64) -> Result<GilbertElliott, ConfigError> {
+        check_range("bad_share", bad_share, 0.0, 0.999, "0..=0.999")?;
+        check_range("burst_ms", burst_ms, 1.0, 1e9, ">= 1 ms")?;
+        let p_bad_to_good = 1.0 / burst_ms;
         Ok(GilbertElliott {
-            p_good_to_bad: (loss * p_bad_to_good / (1.0 - loss)).min(1.0),
+            p_good_to_bad: (bad_share * p_bad_to_good / (1.0 - bad_share)).min(1.0),
             p_bad_to_good,
             loss_good: 0.0,
             loss_bad: 1.0,
         })
     }
 
-    /// Share of packets spent in the bad state.
+    /// Share of time spent in the bad state.
     pub fn bad_share(&self) -> f64 {
         self.p_good_to_bad / (self.p_good_to_bad + self.p_bad_to_good)
     }
 
-    /// Long-run loss probability.
+    /// Long-run loss probability of a packet on air for one step.
     pub fn mean_loss(&self) -> f64 {
         let b = self.bad_share();
         b * self.loss_bad + (1.0 - b) * self.loss_good
     }
 
-    /// Mean stay in the bad state, packets.
-    pub fn mean_bad_run(&self) -> f64 {
+    /// Mean stay in the bad state, ms.
+    pub fn mean_burst_ms(&self) -> f64 {
         1.0 / self.p_bad_to_good
+    }
+
+    /// Probability of being bad `steps` steps after being bad (`from_bad`) or good.
+    pub fn p_bad_after(&self, from_bad: bool, steps: u64) -> f64 {
+        let (a, b) = (self.p_good_to_bad, self.p_bad_to_good);
+        let pi = self.bad_share();
+        // (1 − a − b)^n: how much of the start state is left after n steps.
+        let memory = (1.0 - a - b).powi(steps.min(i32::MAX as u64) as i32);
+        if from_bad {
+            pi + (1.0 - pi) * memory
+        } else {
+            pi * (1.0 - memory)
+        }
     }
 
     pub(crate) fn validate(&self) -> Result<(), ConfigError> {
@@ -206,48 +230,114 @@ impl GilbertElliott {
     }
 }
 
+/// The burst chain's state in time.
+#[derive(Debug, Clone)]
+struct Chain {
+    params: GilbertElliott,
+    bad: bool,
+    /// Index of the step the state is for (model time / STEP).
+    step: u64,
+    /// The chain's own draws: how many it makes depends on airtime, and must not
+    /// shift the independent-loss and jitter draws.
+    rng: ChaCha8Rng,
+}
+
+impl Chain {
+    fn jump_to(&mut self, step: u64) {
+        if step <= self.step {
+            return;
+        }
+        let p_bad = self.params.p_bad_after(self.bad, step - self.step);
+        self.bad = self.rng.random::<f64>() < p_bad;
+        self.step = step;
+    }
+
+    /// Whether a packet on air over `[start, start + airtime)` is hit; leaves the
+    /// chain at the step after the packet.
+    fn hit(&mut self, start: Instant, airtime: Duration) -> bool {
+        let step_us = GilbertElliott::STEP.as_micros();
+        let first = start.as_micros() / step_us;
+        let last = (start.as_micros() + airtime.as_micros())
+            .div_ceil(step_us)
+            .max(first + 1);
+        self.jump_to(first);
+        // A packet that starts inside the step where the previous one ended (the
+        // chain is already past `first`) is judged from the current step on.
+        let from = self.step;
+        let mut hit = false;
+        for _ in from..last.max(from + 1) {
+            let (p_loss, p_move) = if self.bad {
+                (self.params.loss_bad, self.params.p_bad_to_good)
+            } else {
+                (self.params.loss_good, self.params.p_good_to_bad)
+            };
+            hit |= self.rng.random::<f64>() < p_loss;
+            if self.rng.random::<f64>() < p_move {
+                self.bad = !self.bad;
+            }
+            self.step += 1;
+        }
+        hit
+    }
+}
+
 /// Decides, packet by packet, whether a packet is lost: the budget's
-/// independent loss, or'ed with the burst model. The caller owns the random
-/// source so one seeded generator drives a whole link in a fixed order.
+/// independent loss and a fixed per-packet loss, or'ed with the burst chain
+/// stepped in time.
 #[derive(Debug, Clone)]
 pub struct LossModel {
     reference_per: f64,
-    burst: Option<GilbertElliott>,
-    bad: bool,
+    packet_loss: f64,
+    chain: Option<Chain>,
 }
 
 impl LossModel {
     /// A model losing reference-length packets independently with
-    /// `reference_per`, plus the optional burst model (starting good).
-    pub fn new(reference_per: f64, burst: Option<GilbertElliott>) -> LossModel {
+    /// `reference_per`, every packet with `packet_loss` whatever its length, plus
+    /// the optional burst chain (starting good at time zero, drawing from its own
+    /// generator seeded with `seed`).
+    pub fn new(
+        reference_per: f64,
+        packet_loss: f64,
+        burst: Option<GilbertElliott>,
+        seed: u64,
+    ) -> LossModel {
         LossModel {
             reference_per: reference_per.clamp(0.0, 1.0),
-            burst,
-            bad: false,
+            packet_loss: packet_loss.clamp(0.0, 1.0),
+            chain: burst.map(|params| {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                rng.set_stream(BURST_STREAM);
+                Chain {
+                    params,
+                    bad: false,
+                    step: 0,
+                    rng,
+                }
+            }),
         }
     }
 
-    /// Whether the next packet is lost; `length_ratio` is its airtime over the
-    /// reference packet's. Draws exactly three numbers per call, whatever the
-    /// settings, so changing one knob does not reshuffle the other's draws.
-    pub fn lose<R: Rng + ?Sized>(&mut self, rng: &mut R, length_ratio: f64) -> bool {
+    /// Whether the packet on air from `start` for `airtime` is lost;
+    /// `length_ratio` is its airtime over the reference packet's. Draws exactly
+    /// three numbers from `rng` per call, whatever the settings (the budget's,
+    /// the fixed packet loss's, one spare: the order the per-packet chain used,
+    /// so independent-loss runs replay as before), and the burst knobs draw
+    /// from the chain's own generator.
+    pub fn lose<R: Rng + ?Sized>(
+        &mut self,
+        rng: &mut R,
+        start: Instant,
+        airtime: Duration,
+        length_ratio: f64,
+    ) -> bool {
         let u_independent: f64 = rng.random();
-        let u_loss: f64 = rng.random();
-        let u_move: f64 = rng.random();
+        let u_packet: f64 = rng.random();
+        let _spare: f64 = rng.random();
         let per = 1.0 - (1.0 - self.reference_per).powf(length_ratio.max(0.0));
-        let mut lost = u_independent < per;
-        if let Some(ge) = &self.burst {
-            let (p_loss, p_move) = if self.bad {
-                (ge.loss_bad, ge.p_bad_to_good)
-            } else {
-                (ge.loss_good, ge.p_good_to_bad)
-            };
-            lost |= u_loss < p_loss;
-            if u_move < p_move {
-                self.bad = !self.bad;
-            }
-        }
-        lost
+        let lost = u_independent < per || u_packet < self.packet_loss;
+        let hit = self.chain.as_mut().is_some_and(|c| c.hit(start, airtime));
+        lost | hit
     }
 
     /// Changes the independent loss (a sweep step), keeping the burst state.
@@ -255,11 +345,14 @@ impl LossModel {
         self.reference_per = reference_per.clamp(0.0, 1.0);
     }
 
-    /// Whether the burst model is in its bad state.
+    /// Whether the burst chain is in its bad state (as of the last packet).
     pub fn in_bad_state(&self) -> bool {
-        self.bad
+        self.chain.as_ref().is_some_and(|c| c.bad)
     }
 }
+
+/// ChaCha stream of the burst chain (stream 0: independent loss and jitter).
+const BURST_STREAM: u64 = 1;
 
 /// A delay drawn uniformly in [0, `max`].
 pub(crate) fn jitter<R: Rng + ?Sized>(rng: &mut R, max: Duration) -> Duration {
@@ -321,8 +414,98 @@ mod tests {
     fn gilbert_with_mean_round_trips() {
         let ge = GilbertElliott::with_mean(0.1, 5.0).unwrap();
         assert!((ge.mean_loss() - 0.1).abs() < 1e-12);
-        assert!((ge.mean_bad_run() - 5.0).abs() < 1e-12);
+        assert!((ge.mean_burst_ms() - 5.0).abs() < 1e-12);
         assert!(GilbertElliott::with_mean(1.0, 5.0).is_err());
         assert!(GilbertElliott::with_mean(0.1, 0.5).is_err());
+    }
+}
+
+#[cfg(test)]
+mod burst_tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    const MS: Duration = Duration::from_millis(1);
+
+    /// Share of lost packets whose next packet, `gap` later, is lost too: one
+    /// 1-ms packet every `gap` for `n` packets, Gilbert chain only.
+    fn lost_after_lost(ge: GilbertElliott, gap: Duration, n: u64) -> (f64, f64) {
+        let mut model = LossModel::new(0.0, 0.0, Some(ge), 5);
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let (mut lost, mut pairs, mut both) = (0u64, 0u64, 0u64);
+        let mut prev = false;
+        for k in 0..n {
+            let l = model.lose(&mut rng, Instant::ZERO + gap * k as u32, MS, 1.0);
+            lost += l as u64;
+            if prev {
+                pairs += 1;
+                both += l as u64;
+            }
+            prev = l;
+        }
+        (lost as f64 / n as f64, both as f64 / pairs as f64)
+    }
+
+    /// Regression: the chain stepped once per packet, so on a quiet uplink (one
+    /// command a second) a burst of "3 packets" lasted 3 s. Stepped per ms, a loss
+    /// 1 s after a loss is as likely as any loss, and 2 ms after one it is likely.
+    #[test]
+    fn a_bursts_duration_is_independent_of_the_packet_rate() {
+        // 50 ms fades, 10 % of the time.
+        let ge = GilbertElliott::with_mean(0.1, 50.0).unwrap();
+        for (gap_ms, n) in [(2u64, 400_000), (20, 200_000), (1000, 100_000)] {
+            let gap = MS * gap_ms as u32;
+            let (loss, again) = lost_after_lost(ge, gap, n);
+            // A 1-ms packet is hit if it starts bad or the chain turns bad during it.
+            let expected_loss = ge.bad_share() + (1.0 - ge.bad_share()) * ge.p_good_to_bad;
+            assert!(
+                (loss - expected_loss).abs() < 0.01,
+                "{gap_ms} ms: loss {loss}"
+            );
+            // Bad at the next packet, from bad one step after this one started.
+            let p_bad = ge.p_bad_after(true, gap_ms - 1);
+            let expected = p_bad + (1.0 - p_bad) * ge.p_good_to_bad;
+            assert!(
+                (again - expected).abs() < 0.03,
+                "{gap_ms} ms apart: {again:.3} of losses followed by a loss, expected {expected:.3}"
+            );
+        }
+        // What that means in time: the mean fade is 50 ms whatever the rate.
+        let (_, dense) = lost_after_lost(ge, MS * 2, 400_000);
+        let (_, sparse) = lost_after_lost(ge, MS * 1000, 100_000);
+        assert!(
+            dense > 0.9 && sparse < 0.15,
+            "dense {dense}, sparse {sparse}"
+        );
+    }
+
+    #[test]
+    fn the_chain_jumps_idle_time_in_closed_form() {
+        let ge = GilbertElliott::with_mean(0.2, 10.0).unwrap();
+        assert!((ge.p_bad_after(true, 0) - 1.0).abs() < 1e-12);
+        assert!(ge.p_bad_after(false, 0).abs() < 1e-12);
+        for from_bad in [false, true] {
+            assert!((ge.p_bad_after(from_bad, 1_000_000) - 0.2).abs() < 1e-9);
+        }
+        // One step is the transition probability itself.
+        assert!((ge.p_bad_after(false, 1) - ge.p_good_to_bad).abs() < 1e-12);
+        assert!((ge.p_bad_after(true, 1) - (1.0 - ge.p_bad_to_good)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn packet_loss_is_per_packet_whatever_its_length() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for airtime_ms in [1u64, 300] {
+            let mut model = LossModel::new(0.0, 0.1, None, 1);
+            let n = 50_000;
+            let lost = (0..n)
+                .filter(|&k| {
+                    let t = Instant::ZERO + MS * (k * 1000) as u32;
+                    model.lose(&mut rng, t, MS * airtime_ms as u32, airtime_ms as f64)
+                })
+                .count();
+            let share = lost as f64 / n as f64;
+            assert!((share - 0.1).abs() < 0.01, "{airtime_ms} ms: {share}");
+        }
     }
 }

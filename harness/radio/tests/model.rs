@@ -3,10 +3,10 @@
 //! throughput bounds, duty-cycle enforcement and determinism.
 //!
 //! Statistical bounds are ±4σ: for independent loss σ = √(n·p·(1−p))
-//! (binomial); for Gilbert-Elliott the count's variance is inflated by
-//! (1+λ)/(1−λ), λ = 1 − p_gb − p_bg (a two-state Markov chain's lag
-//! correlation, loss_good = 0, loss_bad = 1), and a burst's mean length has
-//! σ = √(1−p_bg)/p_bg/√bursts (geometric). With fixed seeds the tests are
+//! (binomial); for Gilbert-Elliott probed once per step (1 ms) the count's
+//! variance is inflated by (1+λ)/(1−λ), λ = 1 − p_gb − p_bg (a two-state
+//! Markov chain's lag correlation, loss_good = 0, loss_bad = 1), and a burst's
+//! mean length has σ = √(1−p_bg)/p_bg/√bursts (geometric). With fixed seeds the tests are
 //! deterministic; the bounds say how far a correct model could stray.
 
 use timebase::{Duration, Instant};
@@ -202,18 +202,19 @@ fn budget_loss_rate_over_20000_packets() {
     within(s.packets_lost as f64, n as f64 * p, sigma, "lost packets");
 }
 
-/// Gilbert-Elliott alone, 200 000 draws: mean loss 10 % and mean burst 5
-/// packets (p_gb = 0.0222, p_bg = 0.2, λ = 0.778, inflation 8: σ_count = 379,
-/// 4σ = 7.6 % of the mean; 4 000 bursts: σ_burst = 0.071).
+/// Gilbert-Elliott alone, one 1-ms packet every ms for 200 s: the chain seen at
+/// every step. Time in fades 10 %, mean fade 5 ms (p_gb = 0.0222, p_bg = 0.2,
+/// λ = 0.778, inflation 8: σ_count = 379, 4σ = 7.6 % of the mean; 4 000
+/// bursts: σ_burst = 0.071).
 #[test]
 fn gilbert_elliott_mean_loss_and_burst_length() {
     let ge = GilbertElliott::with_mean(0.10, 5.0).unwrap();
-    let mut model = LossModel::new(0.0, Some(ge));
+    let mut model = LossModel::new(0.0, 0.0, Some(ge), 42);
     let mut rng = ChaCha8Rng::seed_from_u64(42);
     let n = 200_000;
     let (mut lost, mut bursts, mut run) = (0u64, Vec::new(), 0u64);
-    for _ in 0..n {
-        if model.lose(&mut rng, 1.0) {
+    for k in 0..n {
+        if model.lose(&mut rng, at(MS * k), MS, 1.0) {
             lost += 1;
             run += 1;
         } else if run > 0 {
@@ -228,13 +229,16 @@ fn gilbert_elliott_mean_loss_and_burst_length() {
     let mean_burst = bursts.iter().sum::<u64>() as f64 / bursts.len() as f64;
     let pb = ge.p_bad_to_good;
     let sigma_burst = (1.0 - pb).sqrt() / pb / (bursts.len() as f64).sqrt();
-    within(mean_burst, ge.mean_bad_run(), sigma_burst, "GE mean burst");
+    within(mean_burst, ge.mean_burst_ms(), sigma_burst, "GE mean burst");
     // Bursty, not independent: independent 10 % loss would give bursts of 1.11.
     assert!(mean_burst > 3.0);
 }
 
 /// Through a link, bursts and budget loss combine as independent events:
-/// P(lost) = 1 − (1 − p_budget)(1 − p_ge). 20 000 packets, σ inflated as above.
+/// P(lost) = 1 − (1 − p_budget)(1 − p_ge). 20 000 packets 50 ms apart, fades of
+/// 3 ms: the chain forgets between packets (λ^47 ≈ 1e-5), so packets are
+/// independent; a packet spanning m steps escapes only if good at all of them:
+/// p_ge = 1 − (1 − π)(1 − p_gb)^(m−1).
 #[test]
 fn burst_and_budget_loss_combine_through_a_link() {
     let n = 20_000;
@@ -250,14 +254,21 @@ fn burst_and_budget_loss_combine_through_a_link() {
     let pb = link.reference_per();
     assert!((0.03..0.045).contains(&pb), "{pb}");
     // Packets of 21 data bytes on DMD: the reference length.
+    link.set_trace(true);
     run_link(&mut link, &periodic(n, 50 * MS), Instant::from_secs(3600));
-    let p = 1.0 - (1.0 - pb) * (1.0 - ge.mean_loss());
-    let lambda = 1.0 - ge.p_good_to_bad - ge.p_bad_to_good;
-    let sigma = (n as f64 * p * (1.0 - p) * (1.0 + lambda) / (1.0 - lambda)).sqrt();
+    let (mut mean, mut var) = (0.0, 0.0);
+    for packet in link.take_trace() {
+        let first = packet.start.as_micros() / 1000;
+        let steps = (packet.start + packet.airtime).as_micros().div_ceil(1000) - first;
+        let p_ge = 1.0 - (1.0 - ge.bad_share()) * (1.0 - ge.p_good_to_bad).powi(steps as i32 - 1);
+        let p = 1.0 - (1.0 - pb) * (1.0 - p_ge);
+        mean += p;
+        var += p * (1.0 - p);
+    }
     within(
         link.stats().packets_lost as f64,
-        n as f64 * p,
-        sigma,
+        mean,
+        var.sqrt(),
         "combined loss",
     );
 }

@@ -1,4 +1,4 @@
-use harness_radio::{Access, Direction, GilbertElliott, LinkConfig, RadioSetup};
+use harness_radio::{Access, Direction, LinkConfig, RadioSetup};
 use mavlora::{Duration, Instant};
 
 use super::*;
@@ -11,20 +11,10 @@ fn dmd(uplink_loss: f64) -> RadioSetup {
         link.latency_ms = 100.0;
     }
     setup.uplink = LinkConfig {
-        burst: Some(independent(uplink_loss)),
+        packet_loss: uplink_loss,
         ..setup.uplink
     };
     setup
-}
-
-/// Every packet lost with `p`, independently (both states of the model lose alike).
-fn independent(p: f64) -> GilbertElliott {
-    GilbertElliott {
-        p_good_to_bad: 0.0,
-        p_bad_to_good: 1.0,
-        loss_good: p,
-        loss_bad: p,
-    }
 }
 
 fn plain_radio_world(setup: &RadioSetup) -> World {

@@ -2,7 +2,7 @@
 //! simulated ground station): mission relay under loss, the naive relay's duplicates, and
 //! the radio bytes per second of each bandwidth mechanism.
 
-use harness_radio::{Direction, GilbertElliott, LinkConfig, Preset, RadioSetup};
+use harness_radio::{Direction, LinkConfig, Preset, RadioSetup};
 use harness_sim::{GcsMock, PX4_NORMAL, Px4Fc, StreamSpec, World, scheduler_for};
 use mavlora::bridge::BridgeConfig;
 use mavlora::compact::CompactConfig;
@@ -26,12 +26,7 @@ fn profile(name: &str) -> Profile {
 fn radio(loss: f64, seed: u64) -> RadioSetup {
     let link = |seed| LinkConfig {
         latency_ms: 150.0,
-        burst: Some(GilbertElliott {
-            p_good_to_bad: 0.0,
-            p_bad_to_good: 1.0,
-            loss_good: loss,
-            loss_bad: loss,
-        }),
+        packet_loss: loss,
         seed,
         ..LinkConfig::default()
     };

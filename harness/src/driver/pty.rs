@@ -3,6 +3,10 @@
 //! A pty does not pace bytes or emulate parity and baud rate; timing comes
 //! from whoever writes. Reading a master whose slave nobody holds gives EIO,
 //! so each pair keeps its own slave open for its whole life.
+//!
+//! Both ends are close-on-exec: serialport opens them without it, and then every
+//! child the rig spawns would hold every master, so closing one (a replugged
+//! adapter) would never hang the line up for the device on the other end.
 
 use std::io::{self, Read, Write};
 use std::sync::Arc;
@@ -24,6 +28,9 @@ impl PtyPair {
     pub fn new() -> Result<PtyPair> {
         let (master, slave) = TTYPort::pair().context("cannot create a pty pair")?;
         let path = slave.name().context("pty slave has no path")?;
+        for port in [&master, &slave] {
+            set_cloexec(port).with_context(|| format!("cannot set close-on-exec on {path}"))?;
+        }
         Ok(PtyPair {
             master: Some(master),
             slave,
@@ -47,6 +54,17 @@ impl PtyPair {
     pub fn slave(&self) -> &TTYPort {
         &self.slave
     }
+}
+
+/// Marks `port`'s descriptor close-on-exec. A child spawned between `TTYPort::pair`
+/// and this call still inherits it; the rig creates its ptys before spawning.
+fn set_cloexec(port: &TTYPort) -> io::Result<()> {
+    use std::os::fd::{AsRawFd, BorrowedFd};
+    // SAFETY: the descriptor belongs to `port`, which outlives this borrow.
+    #[allow(unsafe_code)]
+    let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
+    rustix::io::fcntl_setfd(fd, rustix::io::FdFlags::CLOEXEC)?;
+    Ok(())
 }
 
 /// A one-way serial cable between two programs that both open a path:
@@ -147,5 +165,24 @@ mod tests {
         let mut got = [0u8; 6];
         reader.read_exact(&mut got).unwrap();
         assert_eq!(&got, b"\x0fhello");
+    }
+
+    /// Regression: the masters were inherited by every child, so closing one never hung
+    /// the line up for the device (the replug phases need the hang-up).
+    #[test]
+    fn a_spawned_child_holds_no_end_of_the_rigs_ptys() {
+        let pair = PtyPair::new().unwrap();
+        let mut child = std::process::Command::new("sleep")
+            .arg("5")
+            .spawn()
+            .unwrap();
+        let fds = std::fs::read_dir(format!("/proc/{}/fd", child.id())).unwrap();
+        let held: Vec<_> = fds
+            .filter_map(|e| std::fs::read_link(e.ok()?.path()).ok())
+            .filter(|l| l.to_string_lossy().contains("ptmx") || l.to_str() == Some(pair.path()))
+            .collect();
+        child.kill().unwrap();
+        child.wait().unwrap();
+        assert!(held.is_empty(), "the child holds {held:?}");
     }
 }

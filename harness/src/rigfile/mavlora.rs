@@ -4,8 +4,11 @@
 //! ```toml
 //! [radios.sik-bursty]                 # a name scenarios refer to
 //! preset = "sik-64k"                  # built in: sik-64k, sik-64k-ecc, lora-sf7, dmd-dl1
-//! uplink = { seed = 2, burst = { p_good_to_bad = 0.037, p_bad_to_good = 0.333 } }
-//! downlink = { seed = 1, burst = { p_good_to_bad = 0.037, p_bad_to_good = 0.333 } }
+//! # burst: Gilbert-Elliott stepped per ms: 10 % of the time in 250 ms fades
+//! uplink = { seed = 2, burst = { p_good_to_bad = 0.000444, p_bad_to_good = 0.004 } }
+//! downlink = { seed = 1, burst = { p_good_to_bad = 0.000444, p_bad_to_good = 0.004 }, duplicate = 0.01 }
+//! # also per direction: packet_loss, bit_error_rate, reorder = { share, delay_ms },
+//! # silences = [{ at_s, for_s, every_s }] (harness_radio::faults)
 //!
 //! [mavlora]
 //! suites = ["simulated", "realtime"]  # virtual-clock full-length runs; real binaries over ptys
@@ -284,7 +287,7 @@ name = "t"
 [radios.sik-bursty]
 preset = "sik-64k"
 uplink = { seed = 2, burst = { p_good_to_bad = 0.037, p_bad_to_good = 0.333 } }
-downlink = { seed = 1, burst = { p_good_to_bad = 0.037, p_bad_to_good = 0.333 } }
+downlink = { seed = 1, burst = { p_good_to_bad = 0.037, p_bad_to_good = 0.333 }, silences = [{ at_s = 5.0, for_s = 1.0 }] }
 
 [mavlora]
 seed = 7
@@ -338,6 +341,34 @@ c2 = "sik-bursty"
         let text = GOOD.replace("preset = \"sik-64k\"", "preset = \"sik-128k\"");
         let err = load(&text).unwrap_err().to_string();
         assert!(err.contains("unknown radio preset \"sik-128k\""), "{err}");
+    }
+
+    #[test]
+    fn faults_the_model_refuses_fail_at_load_naming_the_radio() {
+        let good = load(GOOD).unwrap();
+        let m = good.mavlora.unwrap();
+        assert_eq!(m.radios.c2.setup.downlink.silences[0].for_s, 1.0);
+        for (from, to) in [
+            ("for_s = 1.0 }", "for_s = 0.0 }"),
+            ("for_s = 1.0 }", "for_s = 1.0, every_s = 0.5 }"),
+            ("silences = [", "duplicate = 1.5, silences = ["),
+            ("silences = [", "bit_error_rate = -1.0, silences = ["),
+            (
+                "silences = [",
+                "reorder = { share = 0.1, delay_ms = -5.0 }, silences = [",
+            ),
+        ] {
+            let err = load(&GOOD.replace(from, to)).unwrap_err().to_string();
+            assert!(err.contains("radios.sik-bursty"), "{to}: {err}");
+            assert!(err.contains("out of range"), "{to}: {err}");
+        }
+        let err = load(&GOOD.replace("for_s = 1.0 }", "for_s = 1.0, every = 3.0 }"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("/r/rigs/t.toml:7:") && err.contains("every"),
+            "{err}"
+        );
     }
 
     #[test]

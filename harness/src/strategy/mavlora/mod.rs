@@ -134,7 +134,7 @@ mod tests {
 
     #[test]
     fn lossy_sik_has_the_asked_mean_loss_both_ways() {
-        let s = sik_with_loss(0.1, 2.0).unwrap();
+        let s = sik_with_loss(0.1, 250.0).unwrap();
         for ge in [&s.uplink.burst, &s.downlink.burst] {
             let ge = ge.as_ref().unwrap();
             let mean = ge.p_good_to_bad / (ge.p_good_to_bad + ge.p_bad_to_good);

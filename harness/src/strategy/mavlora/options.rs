@@ -121,8 +121,7 @@ pub struct SessionDefaults {
     pub lossy_radio: RadioSetup,
     /// SiK without loss, for bandwidth.
     pub clean_radio: RadioSetup,
-    /// SiK with independent loss, for commands: a burst model stepped per packet would
-    /// stretch one burst over the seconds between two commands on a quiet uplink.
+    /// SiK with 10 % independent loss per packet, for commands.
     pub c2_radio: RadioSetup,
 }
 
@@ -130,7 +129,7 @@ impl SessionDefaults {
     /// Defaults for a checkout at `repo`: `python3`, `fixtures/`,
     /// `firmware/mavlora/profiles/`, the MavLora programs next to the running
     /// executable (or one folder up, for test binaries in `deps/`), SiK 64k
-    /// loss-free and with 10 % bursty loss each way.
+    /// loss-free and with 10 % bursty loss each way (10 % of the time in 250 ms fades).
     pub fn for_repo(repo: &Path) -> Result<SessionDefaults> {
         Ok(SessionDefaults {
             python: PathBuf::from("python3"),
@@ -138,7 +137,7 @@ impl SessionDefaults {
             bridge_program: MAVLORA_BRIDGE.find()?,
             router_program: MAVLORA_ROUTER.find()?,
             profile_dir: repo.join("firmware/mavlora/profiles"),
-            lossy_radio: sik_with_loss(0.10, 2.0)?,
+            lossy_radio: sik_with_loss(0.10, 250.0)?,
             clean_radio: RadioSetup::builtin("sik-64k")?,
             c2_radio: sik_with_independent_loss(0.10)?,
         })
@@ -165,11 +164,11 @@ impl SessionDefaults {
     }
 }
 
-/// SiK 64k with Gilbert-Elliott loss of `loss` (0..1) and mean burst
-/// `burst` packets in both directions (seeds 1 down, 2 up).
-pub fn sik_with_loss(loss: f64, burst: f64) -> Result<RadioSetup> {
+/// SiK 64k with Gilbert-Elliott fades `bad_share` (0..1) of the time, `burst_ms` long on
+/// average, in both directions (seeds 1 down, 2 up).
+pub fn sik_with_loss(bad_share: f64, burst_ms: f64) -> Result<RadioSetup> {
     let mut setup = RadioSetup::builtin("sik-64k")?;
-    let ge = GilbertElliott::with_mean(loss, burst)?;
+    let ge = GilbertElliott::with_mean(bad_share, burst_ms)?;
     setup.downlink = LinkConfig {
         burst: Some(ge),
         seed: 1,
@@ -187,12 +186,7 @@ pub fn sik_with_loss(loss: f64, burst: f64) -> Result<RadioSetup> {
 pub fn sik_with_independent_loss(loss: f64) -> Result<RadioSetup> {
     let mut setup = RadioSetup::builtin("sik-64k")?;
     let independent = |seed| LinkConfig {
-        burst: Some(GilbertElliott {
-            p_good_to_bad: 0.0,
-            p_bad_to_good: 1.0,
-            loss_good: loss,
-            loss_bad: loss,
-        }),
+        packet_loss: loss,
         seed,
         ..LinkConfig::default()
     };

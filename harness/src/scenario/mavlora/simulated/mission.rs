@@ -234,8 +234,8 @@ fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result
             ));
         }
         let loss_note = format!(
-            "radio loss measured over the {RUN_S} s run (configured mean 10 %, bursts of 3 \
-             packets): UAV→GCS {:.1} %, GCS→UAV {:.1} %",
+            "radio loss measured over the {RUN_S} s run (configured: 10 % of the time in \
+             1 s fades, a packet lost if one overlaps it): UAV→GCS {:.1} %, GCS→UAV {:.1} %",
             100.0 * relay.loss.0,
             100.0 * relay.loss.1
         );
