@@ -10,7 +10,9 @@
 #
 # Usage: ci/build-firmware.sh [OUT_DIR]   (default: firmware/multirx/samd21/target/dist)
 # Environment: MULTIRX_CONFIG (see firmware/multirx/samd21/README.md) is passed through.
-# Exit codes: 0 built and measured; non-zero if a build or a measurement failed.
+# Then ci/check-firmware-elf.py: no panic reachable from the UART interrupts,
+# and a stack-use bound within the RAM the stack has.
+# Exit codes: 0 built, measured and checked; non-zero if a build, a measurement or a check failed.
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -142,3 +144,11 @@ print(f"budget: flash <= {FLASH_BUDGET} B, RAM <= {RAM_BUDGET} B (both layouts w
 print("RAM is static data (.data + .bss + .uninit); the stack takes the rest, from the top of RAM down.")
 print(f"UF2 image for the bootloader drive: {out / 'multirx-samd21.uf2'}")
 PY
+
+# No panic path from the UART interrupts, and a stack bound that fits the RAM
+# left after the static-data budget (8 KiB, enforced above).
+for layout in bare uf2; do
+    echo "== checking $layout layout (panic paths, stack bound)" >&2
+    python3 "$repo/ci/check-firmware-elf.py" "$out/multirx-samd21-$layout.elf" \
+        --ram-bytes $((32 * 1024)) --ram-static $((8 * 1024))
+done

@@ -261,3 +261,143 @@ fn sigterm_mid_phase_records_interrupted_and_leaves_no_process_behind() {
         "still running after the rig exited (it started {running:?}): {left:?}"
     );
 }
+
+/// `rigs/emulated.toml` copied into `dir` with its paths made absolute and
+/// the emulated device replaced by `program`.
+fn emulated_rig_with_program(dir: &Path, program: &Path) -> PathBuf {
+    let repo = repo();
+    let text = std::fs::read_to_string(repo.join("rigs/emulated.toml"))
+        .unwrap()
+        .replace(
+            "# program = \"../target/debug/multirx-emu\"",
+            &format!("program = \"{}\"", program.display()),
+        )
+        .replace("\"../", &format!("\"{}/", repo.display()))
+        .replace("\"multirx/", &format!("\"{}/rigs/multirx/", repo.display()));
+    assert!(text.contains(&format!("program = \"{}\"", program.display())));
+    let path = dir.join("rig.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// A hostile device: the real `multirx-emu`, but started with another
+/// configuration than the one the rig hands it (what a board flashed by hand
+/// with another config looks like).
+fn impostor(dir: &Path, config: &Path) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt;
+    let emulator = Path::new(RIG).with_file_name("multirx-emu");
+    let script = dir.join("impostor.sh");
+    std::fs::write(
+        &script,
+        format!(
+            "#!/bin/sh\n# Swap the --config the rig passes for another one.\nargs=\"\"\nfor a in \"$@\"; do\n  if [ \"$prev\" = --config ]; then a='{}'; fi\n  args=\"$args '$a'\"\n  prev=\"$a\"\ndone\neval exec '{}' $args\n",
+            config.display(),
+            emulator.display()
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+    script
+}
+
+/// Before any phase drives MultiRX the rig reads its boot line; a device
+/// running another config (so another build id too) fails the phase loudly,
+/// naming what it reports and what the rig file expects.
+#[test]
+fn boot_check_fails_a_device_running_another_config_naming_both() {
+    let _turn = realtime_turn();
+    let dir = tempfile::tempdir().unwrap();
+    let other = dir.path().join("other.toml");
+    std::fs::write(
+        &other,
+        std::fs::read_to_string(repo().join("rigs/multirx/parallel.toml"))
+            .unwrap()
+            .replace("acquire_frames = 3", "acquire_frames = 4"),
+    )
+    .unwrap();
+    let rig_file = emulated_rig_with_program(dir.path(), &impostor(dir.path(), &other));
+    let out_dir = dir.path().join("out");
+    let out = rig(&[
+        "run",
+        rig_file.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--filter",
+        "multirx::parallel::b_handover",
+        "--exact",
+    ]);
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(!out.status.success(), "{text}");
+    let results = std::fs::read_to_string(out_dir.join("results.json")).unwrap();
+    let hash = |path: &Path| {
+        let text = std::fs::read_to_string(path).unwrap();
+        multirx_core::Config::from_toml(&text)
+            .unwrap()
+            .identity_hash()
+    };
+    let (theirs, ours) = (
+        hash(&other),
+        hash(&repo().join("rigs/multirx/parallel.toml")),
+    );
+    assert_ne!(theirs, ours);
+    for expected in [
+        "MultiRX runs another image than the rig file names".to_string(),
+        "device reports build".to_string(),
+        format!("config {theirs:016x}"),
+        "rig expects build".to_string(),
+        format!("config {ours:016x}"),
+        "config differs".to_string(),
+        "parallel.toml".to_string(),
+    ] {
+        assert!(
+            results.contains(&expected),
+            "{expected:?} missing from results.json:\n{results}\n{text}"
+        );
+    }
+}
+
+/// The same rig with the real `multirx-emu` as `program`: the boot check passes.
+#[test]
+fn boot_check_passes_the_device_the_rig_file_names() {
+    let _turn = realtime_turn();
+    let dir = tempfile::tempdir().unwrap();
+    let emulator = Path::new(RIG).with_file_name("multirx-emu");
+    let rig_file = emulated_rig_with_program(dir.path(), &emulator);
+    let out_dir = dir.path().join("out");
+    let out = rig(&[
+        "run",
+        rig_file.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--filter",
+        "multirx::parallel::a_idle_takeover",
+        "--exact",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The boot line's figure is recorded against the 50 ms limit.
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("results.json")).unwrap())
+            .unwrap();
+    let first_frame = record["phases"][0]["measurements"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| {
+            m["name"]
+                .as_str()
+                .is_some_and(|n| n.ends_with("boot_to_first_frame_ms"))
+        })
+        .unwrap_or_else(|| panic!("no boot_to_first_frame_ms in {record:#}"));
+    assert_eq!(first_frame["outcome"], "pass", "{first_frame:#}");
+    let ms = first_frame["value"].as_f64().unwrap();
+    assert!((0.0..=50.0).contains(&ms), "{ms}");
+}

@@ -19,6 +19,8 @@ use crate::driver::receiver::{Loss, ReceiverFixture, ReceiverSpec};
 use crate::driver::status::StatusMonitor;
 use crate::px4::{FcFrame, Px4RcInput, RcReport};
 use crate::rigfile::{DeviceSetup, Mode, PortSpec, RigFile};
+use crate::strategy::boot_check;
+use multirx_core::boot::ImageKind;
 
 /// Raw stick value pilot `rx` holds on channels 1–4, distinct per pilot so the
 /// flight controller side can tell whose sticks it is getting.
@@ -53,6 +55,8 @@ pub struct MultirxSession {
     pub ifs: Option<ReceiverFixture>,
     pub fc: FcMonitor,
     pub status: StatusMonitor,
+    /// The device's boot line, checked against the rig file at start.
+    pub boot: Option<multirx_core::BootReport>,
     /// When the session was up.
     pub started: Mono,
     /// End of the window the last [`MultirxSession::px4_report`] judged;
@@ -240,13 +244,14 @@ impl MultirxSession {
             DeviceSetup::Board(_) => None,
         };
 
-        let session = MultirxSession {
+        let mut session = MultirxSession {
             mode,
             config,
             receivers,
             ifs,
             fc,
             status,
+            boot: None,
             started: Mono::now(),
             judged_until: std::sync::Mutex::new(None),
             log_dir: log_dir.to_path_buf(),
@@ -262,6 +267,24 @@ impl MultirxSession {
             "MultiRX output",
             |_| true,
         )?;
+        // ...and it is the device the rig file names: its boot line carries
+        // the image's build id and the config's hash.
+        let kind = if emulated {
+            ImageKind::Emulated
+        } else {
+            ImageKind::Samd21
+        };
+        let expected = boot_check::Expected::new(kind, &session.config);
+        let seen = session.status.wait_for_boot(boot_check::BOOT_LINE_TIMEOUT);
+        let boot = boot_check::check(seen, &expected, &loaded.path)?;
+        tracing::info!(
+            build = format!("{:016x}", boot.build_id),
+            config = format!("{:016x}", boot.config_hash),
+            reset = boot.reset.name(),
+            first_frame_ms = boot.first_frame.as_secs_f64() * 1000.0,
+            "MultiRX identified"
+        );
+        session.boot = Some(boot);
         Ok(session)
     }
 

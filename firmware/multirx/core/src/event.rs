@@ -9,10 +9,15 @@
 //! <micros> link <rx> off|silent|failsafe|acquiring|up
 //! <micros> active <rx>|none
 //! <micros> ifs on|off
+//! <micros> boot build <hex> config <hex> reset <cause> first-frame-us <n>
 //! ```
+//!
+//! The boot line ([`crate::boot::BootReport`]) is not an engine event: the
+//! device writes it once its first frame is out. [`StatusLine`] reads either.
 
 use core::fmt;
 
+use crate::boot::BootReport;
 use crate::mux::LinkState;
 use crate::time::Instant;
 
@@ -101,9 +106,61 @@ impl TimedEvent {
     }
 }
 
+/// Any line on the status output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum StatusLine {
+    Event(TimedEvent),
+    Boot(BootReport),
+}
+
+impl StatusLine {
+    /// Parses one status line: an event or the boot line.
+    pub fn parse(line: &str) -> Result<StatusLine, StatusLineError> {
+        if line.split_ascii_whitespace().nth(1) == Some("boot") {
+            return BootReport::parse_line(line)
+                .map(StatusLine::Boot)
+                .map_err(|_| StatusLineError);
+        }
+        TimedEvent::parse_line(line).map(StatusLine::Event)
+    }
+}
+
+impl fmt::Display for StatusLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StatusLine::Event(e) => e.fmt(f),
+            StatusLine::Boot(b) => b.fmt(f),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::boot::ResetCause;
+    use crate::time::Duration;
+
+    #[test]
+    fn status_lines_round_trip_events_and_the_boot_line() {
+        let lines = [
+            StatusLine::Event(TimedEvent {
+                at: Instant::from_micros(7),
+                event: Event::Active { rx: Some(1) },
+            }),
+            StatusLine::Boot(BootReport {
+                at: Instant::from_micros(41_000),
+                build_id: 1,
+                config_hash: u64::MAX,
+                reset: ResetCause::Watchdog,
+                first_frame: Duration::from_micros(40_123),
+            }),
+        ];
+        for line in lines {
+            let text = line.to_string();
+            assert_eq!(StatusLine::parse(&text), Ok(line), "{text}");
+        }
+        assert_eq!(StatusLine::parse("5 boot build x"), Err(StatusLineError));
+    }
 
     #[test]
     fn lines_round_trip() {

@@ -6,6 +6,9 @@
 //! - [`config::Config`]: receivers, channels, timeouts, mode; read from TOML with feature `toml`;
 //! - [`mux::Multiplexer`]: the engine deciding who is in control and what the flight controller gets;
 //! - [`event::TimedEvent`]: power, link and control changes, and their status-line form;
+//! - [`boot::BootReport`]: the boot line (build id, config hash, reset cause, boot-to-first-frame);
+//! - [`power::PowerSequencer`]: receiver switch-ons staggered against inrush;
+//! - [`counter::Counter32`]: a wrapping 32-bit µs counter extended to an [`Instant`];
 //! - [`board`]: how many UART inputs the board has ([`board::SAMD21_UARTS`]) and whether a config fits.
 //!
 //! The contract: no IO, no clock, no allocation, deterministic. Callers pass
@@ -16,15 +19,19 @@
 #![warn(missing_debug_implementations)]
 
 pub mod board;
+pub mod boot;
 pub mod config;
+pub mod counter;
 pub mod decoder;
 pub mod event;
 pub mod mux;
+pub mod power;
 /// Time as plain numbers: the house's one [`Instant`] and [`Duration`] (crate `timebase`).
 pub use timebase as time;
 pub mod wire;
 
+pub use boot::BootReport;
 pub use config::{Config, Mode};
-pub use event::{Event, TimedEvent};
+pub use event::{Event, StatusLine, TimedEvent};
 pub use mux::Multiplexer;
 pub use time::{Duration, Instant};

@@ -5,6 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::Instant as HostInstant;
 
+use multirx_core::boot::{BootReport, ImageKind, ResetCause, build_id};
 use multirx_core::{Config, Instant, Multiplexer};
 
 use crate::ports::{Input, Output, Source};
@@ -14,6 +15,9 @@ use crate::tap::TxTap;
 /// to SPIN of CPU per output period; buys a steady cadence on hosts whose
 /// timer wake-ups are late (virtual machines).
 const SPIN: std::time::Duration = std::time::Duration::from_micros(1500);
+
+/// How often the boot line is repeated.
+const BOOT_LINE_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Counters printed at exit.
 #[derive(Debug, Default)]
@@ -36,12 +40,27 @@ pub struct Device {
     last_frame_at: Option<HostInstant>,
     max_gap: std::time::Duration,
     tap: Option<TxTap>,
+    /// The boot line, written once the first frame is out and then every
+    /// [`BOOT_LINE_EVERY`] (as the firmware does, so a rig that opens the
+    /// status port later still learns what runs here).
+    boot: BootReport,
+    next_boot_line: Option<HostInstant>,
 }
 
 impl Device {
     pub fn new(config: Config, fc: Output, status: Option<Output>, tap: Option<TxTap>) -> Self {
         let epoch = HostInstant::now();
+        let config_hash = config.identity_hash();
+        let boot = BootReport {
+            at: Instant::ZERO,
+            build_id: build_id(ImageKind::Emulated, config_hash),
+            config_hash,
+            reset: ResetCause::Host,
+            first_frame: Default::default(),
+        };
         Device {
+            boot,
+            next_boot_line: None,
             epoch,
             mux: Multiplexer::new(config, Instant::ZERO),
             fc,
@@ -131,6 +150,21 @@ impl Device {
         }
     }
 
+    /// Writes the boot line when it is due.
+    fn boot_line(&mut self) {
+        let now = HostInstant::now();
+        let Some(due) = self.next_boot_line.filter(|&due| now >= due) else {
+            return;
+        };
+        self.next_boot_line = Some(due + BOOT_LINE_EVERY);
+        self.boot.at = self.to_core(now);
+        let line = format!("{}\n", self.boot);
+        tracing::debug!(boot = line.trim_end(), "boot line");
+        if let Some(status) = &mut self.status {
+            status.send(line.as_bytes());
+        }
+    }
+
     fn flush(&mut self) {
         while let Some(frame) = self.mux.poll_transmit() {
             let now = HostInstant::now();
@@ -142,7 +176,12 @@ impl Device {
                 tap.frame_sent();
             }
             self.fc.send(&frame);
+            if self.next_boot_line.is_none() {
+                self.boot.first_frame = self.to_core(now).since_epoch();
+                self.next_boot_line = Some(now);
+            }
         }
+        self.boot_line();
         while let Some(event) = self.mux.poll_event() {
             tracing::debug!(%event, "status");
             if let Some(status) = &mut self.status {

@@ -135,6 +135,19 @@ fn forwards_the_active_receiver_and_reports_power() {
             "{expected} missing from status:\n{text}"
         );
     }
+    // The boot line: this config's hash, the emulated image's build id, and
+    // the first frame within the 50 ms the firmware must meet too.
+    let boot = text
+        .lines()
+        .find_map(|l| multirx_core::BootReport::parse_line(l).ok())
+        .unwrap_or_else(|| panic!("no boot line in status:\n{text}"));
+    let hash = config.identity_hash();
+    assert_eq!(boot.config_hash, hash, "{text}");
+    assert_eq!(
+        boot.build_id,
+        multirx_core::boot::build_id(multirx_core::boot::ImageKind::Emulated, hash)
+    );
+    assert!(boot.first_frame.as_millis() < 50, "{boot}");
     drop(rx1);
 }
 

@@ -27,7 +27,6 @@
 //! 3.3 V TTL serial. The pad choices compile only because the HAL's
 //! `uart::Pads` checks each pin/SERCOM/pad/mux combination at the type level.
 
-use atsamd_hal::clock::{ClockGenId, ClockSource, GenericClockController, Tc4Tc5Clock};
 use atsamd_hal::ehal::digital::{OutputPin, PinState};
 use atsamd_hal::gpio::{
     PA02, PA03, PA04, PA05, PA06, PA07, PA09, PA10, PA11, PA18, PA19, PA23, PB09, PB23, Pin, Pins,
@@ -40,6 +39,10 @@ use atsamd_hal::sercom::uart::{
 use atsamd_hal::sercom::{Sercom0, Sercom1, Sercom2, Sercom3, Sercom4, Sercom5};
 use atsamd_hal::time::Hertz;
 use multirx_core::Instant;
+use multirx_core::boot::ResetCause;
+use multirx_core::counter::Counter32;
+
+use crate::clocks::{self, CrystalSwitch};
 
 /// SBUS line rate (8 data bits, even parity, 2 stop bits).
 pub const SBUS_BAUD: Hertz = Hertz::from_raw(100_000);
@@ -78,8 +81,8 @@ pub type FcOut = uart::Uart<uart::Config<Sercom0Pads>, TxDuplex>;
 /// Status lines (`multirx_core::TimedEvent`'s `Display`, one a line).
 pub type StatusOut = uart::Uart<uart::Config<Sercom1Pads>, TxDuplex>;
 
-/// Everything `main` drives, configured and enabled (the watchdog is clocked
-/// but not started).
+/// Everything `main` drives, configured and enabled; the watchdog already
+/// running (started before the clocks, see [`clocks`]).
 pub struct Board {
     pub receivers: Receivers,
     pub fc_out: FcOut,
@@ -87,6 +90,10 @@ pub struct Board {
     pub power: PowerSwitches,
     pub clock: MicrosClock,
     pub watchdog: Watchdog,
+    /// Moves the 48 MHz clock onto the crystal once it is ready; poll it.
+    pub crystal: CrystalSwitch,
+    /// Why the chip last reset (`PM.RCAUSE`).
+    pub reset_cause: ResetCause,
 }
 
 /// The six SBUS inputs, receiver i on SERCOMi's RX pad.
@@ -100,50 +107,37 @@ pub struct Receivers {
 }
 
 impl Board {
-    /// Clocks the chip at 48 MHz (DFLL48M locked to the 32.768 kHz crystal,
-    /// as `GenericClockController` does) and builds every peripheral.
+    /// Watchdog first, brown-out detector, then 48 MHz on the internal
+    /// reference (the crystal takes over later, [`CrystalSwitch::poll`]), then
+    /// every peripheral. Takes well under a millisecond: nothing waits for the
+    /// crystal.
     pub fn new(mut dp: pac::Peripherals) -> Self {
-        // The crystal, not the internal OSC32K: SBUS at 100 kbaud 8E2 wants
-        // the baud rate within about ±2 %, which the DFLL's open-loop
-        // calibration does not promise over temperature. A crystal-less board
-        // would use `with_internal_32kosc` here.
-        let mut clocks = GenericClockController::with_external_32kosc(
-            dp.gclk,
-            &mut dp.pm,
-            &mut dp.sysctrl,
-            &mut dp.nvmctrl,
-        );
+        clocks::start_watchdog(&dp.gclk, &dp.wdt);
+        let reset_cause = ResetCause::from_samd21_rcause(clocks::reset_cause_bits(&dp.pm));
+        clocks::brown_out(&dp.sysctrl);
+        let crystal = clocks::start(dp.gclk, dp.sysctrl, &dp.nvmctrl, &dp.pm);
         let pins = Pins::new(dp.port);
-        let gclk0 = clocks.gclk0();
         let pm = &dp.pm;
+        let freq = Hertz::from_raw(clocks::CPU_HZ);
 
-        let sercom0 = clocks.sercom0_core(&gclk0).expect("SERCOM0 clock set once");
         let pads = uart::Pads::default().rx(pins.pa11).tx(pins.pa10);
-        let (rx0, fc_out) = sbus(uart::Config::new(pm, dp.sercom0, pads, sercom0.freq()))
+        let (rx0, fc_out) = sbus(uart::Config::new(pm, dp.sercom0, pads, freq))
             .enable()
             .split();
 
-        let sercom1 = clocks.sercom1_core(&gclk0).expect("SERCOM1 clock set once");
         let pads = uart::Pads::default().rx(pins.pa19).tx(pins.pa18);
-        let (rx1, status_out) = sbus(uart::Config::new(pm, dp.sercom1, pads, sercom1.freq()))
+        let (rx1, status_out) = sbus(uart::Config::new(pm, dp.sercom1, pads, freq))
             .enable()
             .split();
 
-        let sercom2 = clocks.sercom2_core(&gclk0).expect("SERCOM2 clock set once");
         let pads = uart::Pads::default().rx(pins.pa09);
-        let rx2 = sbus(uart::Config::new(pm, dp.sercom2, pads, sercom2.freq())).enable();
-
-        let sercom3 = clocks.sercom3_core(&gclk0).expect("SERCOM3 clock set once");
+        let rx2 = sbus(uart::Config::new(pm, dp.sercom2, pads, freq)).enable();
         let pads = uart::Pads::default().rx(pins.pa23);
-        let rx3 = sbus(uart::Config::new(pm, dp.sercom3, pads, sercom3.freq())).enable();
-
-        let sercom4 = clocks.sercom4_core(&gclk0).expect("SERCOM4 clock set once");
+        let rx3 = sbus(uart::Config::new(pm, dp.sercom3, pads, freq)).enable();
         let pads = uart::Pads::default().rx(pins.pb09);
-        let rx4 = sbus(uart::Config::new(pm, dp.sercom4, pads, sercom4.freq())).enable();
-
-        let sercom5 = clocks.sercom5_core(&gclk0).expect("SERCOM5 clock set once");
+        let rx4 = sbus(uart::Config::new(pm, dp.sercom4, pads, freq)).enable();
         let pads = uart::Pads::default().rx(pins.pb23);
-        let rx5 = sbus(uart::Config::new(pm, dp.sercom5, pads, sercom5.freq())).enable();
+        let rx5 = sbus(uart::Config::new(pm, dp.sercom5, pads, freq)).enable();
 
         let power = PowerSwitches {
             rx0: pins.pa02.into_push_pull_output(),
@@ -155,18 +149,7 @@ impl Board {
         }
         .all_off();
 
-        // 8 MHz (DFLL48M / 6) for TC4+TC5; their prescaler makes 1 MHz.
-        let gclk_timer = clocks
-            .configure_gclk_divider_and_source(ClockGenId::Gclk3, 6, ClockSource::Dfll48m, false)
-            .expect("GCLK3 free");
-        let timer_clock = clocks.tc4_tc5(&gclk_timer).expect("TC4/TC5 clock set once");
-        let clock = MicrosClock::new(dp.tc4, dp.tc5, &mut dp.pm, &timer_clock);
-
-        // 1024 Hz (OSCULP32K / 32) for the watchdog.
-        let gclk_wdt = clocks
-            .configure_gclk_divider_and_source(ClockGenId::Gclk4, 32, ClockSource::Osculp32k, false)
-            .expect("GCLK4 free");
-        clocks.wdt(&gclk_wdt).expect("WDT clock set once");
+        let clock = MicrosClock::new(dp.tc4, dp.tc5, &mut dp.pm);
         let watchdog = Watchdog { wdt: dp.wdt };
 
         Board {
@@ -183,6 +166,8 @@ impl Board {
             power,
             clock,
             watchdog,
+            crystal,
+            reset_cause,
         }
     }
 }
@@ -230,23 +215,23 @@ impl PowerSwitches {
     }
 }
 
-/// Microseconds since start: TC4+TC5 as one 32-bit counter at 1 MHz, extended
-/// to 64 bits in software. The counter wraps every 2^32 µs (71.6 min);
-/// [`now`](Self::now) adds the wrapping difference since its last call, which
-/// is right as long as calls are less than 71 minutes apart: the main loop
-/// calls it every pass, and the watchdog resets the chip if a pass takes
-/// longer than 250 ms. No interrupt involved.
+/// Microseconds since start: TC4+TC5 as one 32-bit counter at 1 MHz, read
+/// continuously synchronised (`READREQ.RCONT`) so that RX interrupts can
+/// stamp bytes with [`timer_raw`] at any time, extended to 64 bits by the
+/// core's [`Counter32`] (the counter wraps every 71.6 minutes; the main loop
+/// reads it every pass, and the watchdog resets the chip if a pass takes
+/// longer than 250 ms). No interrupt involved.
 pub struct MicrosClock {
-    tc4: pac::Tc4,
-    /// Slave half of the 32-bit counter; owned so nothing else uses it.
+    /// Owned so nothing else reconfigures it ([`timer_raw`] only reads).
+    _tc4: pac::Tc4,
+    /// Slave half of the 32-bit counter.
     _tc5: pac::Tc5,
-    last: u32,
-    micros: u64,
+    counter: Counter32,
 }
 
 impl MicrosClock {
-    fn new(tc4: pac::Tc4, tc5: pac::Tc5, pm: &mut pac::Pm, clock: &Tc4Tc5Clock) -> Self {
-        debug_assert_eq!(clock.freq().to_Hz(), 8_000_000);
+    fn new(tc4: pac::Tc4, tc5: pac::Tc5, pm: &mut pac::Pm) -> Self {
+        const _: () = assert!(clocks::TIMER_HZ == 8_000_000, "prescaler div8 makes 1 MHz");
         pm.apbcmask()
             .modify(|_, w| w.tc4_().set_bit().tc5_().set_bit());
         let count = tc4.count32();
@@ -258,34 +243,43 @@ impl MicrosClock {
         while count.status().read().syncbusy().bit_is_set() {}
         count.ctrla().modify(|_, w| w.enable().set_bit());
         while count.status().read().syncbusy().bit_is_set() {}
-        MicrosClock {
-            tc4,
-            _tc5: tc5,
-            last: 0,
-            micros: 0,
-        }
-    }
-
-    /// Now, in microseconds since [`Board::new`].
-    pub fn now(&mut self) -> Instant {
-        // COUNT lives in the 8 MHz timer clock domain: request a synchronised
-        // copy (offset 0x10) and wait the few cycles it takes (< 1 µs).
-        let count = self.tc4.count32();
+        // COUNT lives in the 8 MHz timer clock domain: keep a synchronised
+        // copy (offset 0x10) refreshed continuously, so a read never waits.
         // SAFETY: 0x10 is COUNT's offset in the COUNT32 register map.
         count
             .readreq()
-            .write(|w| unsafe { w.rreq().set_bit().addr().bits(0x10) });
+            .write(|w| unsafe { w.rcont().set_bit().rreq().set_bit().addr().bits(0x10) });
         while count.status().read().syncbusy().bit_is_set() {}
-        let raw = count.count().read().bits();
-        self.micros += u64::from(raw.wrapping_sub(self.last));
-        self.last = raw;
-        Instant::from_micros(self.micros)
+        MicrosClock {
+            _tc4: tc4,
+            _tc5: tc5,
+            counter: Counter32::starting_at(timer_raw()),
+        }
+    }
+
+    /// Now, in microseconds since [`Board::new`] started the timer.
+    pub fn now(&mut self) -> Instant {
+        self.counter.now(timer_raw())
+    }
+
+    /// When the timer read `raw` (a byte's stamp), near the last [`Self::now`].
+    pub fn at(&self, raw: u32) -> Instant {
+        self.counter.at(raw)
     }
 }
 
-/// The watchdog, clocked at 1024 Hz; reset after 256 cycles (250 ms) without
-/// [`feed`](Self::feed) once [`start`](Self::start)ed. Written here rather
-/// than taken from the HAL because its `feed` writes CLEAR even while the
+/// The 1 MHz timer's raw count; callable from interrupts.
+pub fn timer_raw() -> u32 {
+    // SAFETY: a read of COUNT, kept synchronised by READREQ.RCONT; the
+    // register block is owned by [`MicrosClock`], which never reconfigures
+    // it after start.
+    let tc4 = unsafe { &*pac::Tc4::ptr() };
+    tc4.count32().count().read().bits()
+}
+
+/// The watchdog, clocked at 1024 Hz; resets the chip after 256 cycles
+/// (250 ms) without [`feed`](Self::feed). Started by [`clocks::start_watchdog`]
+/// before anything else. Written here rather than taken from the HAL because its `feed` writes CLEAR even while the
 /// previous clear is still crossing into the 1 kHz clock domain, which stalls
 /// the bus (and every interrupt) for milliseconds.
 pub struct Watchdog {
@@ -293,14 +287,6 @@ pub struct Watchdog {
 }
 
 impl Watchdog {
-    /// Starts it; there is no stopping it short of a reset.
-    pub fn start(&mut self) {
-        self.wdt.config().write(|w| w.per()._256());
-        while self.wdt.status().read().syncbusy().bit_is_set() {}
-        self.wdt.ctrl().write(|w| w.enable().set_bit());
-        while self.wdt.status().read().syncbusy().bit_is_set() {}
-    }
-
     /// Restarts the countdown without waiting: skipped while the previous
     /// restart is still synchronising, which means it was at most ~3 ms ago.
     pub fn feed(&mut self) {

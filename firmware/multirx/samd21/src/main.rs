@@ -1,8 +1,12 @@
 //! MultiRX firmware for the SAMD21G18: the host-tested `multirx_core` engine
 //! wired to the board in [`board`]. This file only moves bytes and time:
 //!
+//! - [`Board::new`] starts the watchdog, the brown-out detector and the clocks,
+//!   in that order, without waiting for the crystal ([`clocks`]); the loop
+//!   polls [`clocks::CrystalSwitch`] to move onto the crystal once it runs.
 //! - SBUS bytes from each receiver (and the IFS) arrive by RX interrupt into a
-//!   small lock-free SPSC queue per SERCOM; the main loop drains them into
+//!   small lock-free SPSC queue per SERCOM, each stamped with the timer in the
+//!   interrupt; the main loop drains them, byte by byte at their stamps, into
 //!   [`Multiplexer::handle_receiver_bytes`] / [`Multiplexer::handle_ifs_bytes`].
 //!   A UART error travels the same queue as a marker, so the engine drops the
 //!   frame it belongs to ([`Multiplexer::handle_receiver_error`]).
@@ -10,6 +14,10 @@
 //!   [`Multiplexer::handle_timeout`], then queues the due SBUS frame for the
 //!   flight controller and turns events into power-switch changes and status
 //!   lines, each TX queue drained into its UART as the data register empties.
+//! - Power events go through [`PowerSequencer`] (switch-ons 20 ms apart); the
+//!   status line reports a switch when it changes.
+//! - Once the first frame is queued, and every second after, the boot line
+//!   ([`BootReport`]: build id, config hash, reset cause, boot-to-first-frame).
 //! - The watchdog is fed only after a pass that left the engine with no
 //!   overdue deadline.
 //!
@@ -25,6 +33,7 @@
 #![no_main]
 
 mod board;
+mod clocks;
 
 /// The configuration compiled in by `build.rs` from `MULTIRX_CONFIG`.
 mod config {
@@ -41,10 +50,12 @@ use cortex_m_rt::entry;
 use critical_section::Mutex;
 use heapless::Deque;
 use heapless::spsc::{Consumer, Producer, Queue};
-use multirx_core::{Event, Multiplexer, TimedEvent};
+use multirx_core::boot::BootReport;
+use multirx_core::power::{POWER_ON_STAGGER, PowerSequencer};
+use multirx_core::{Duration, Event, Instant, Multiplexer, TimedEvent};
 
-use board::{Board, PowerSwitches, RECEIVER_PORTS};
-use config::CONFIG;
+use board::{Board, RECEIVER_PORTS, timer_raw};
+use config::{BUILD_ID, CONFIG, CONFIG_HASH};
 
 // panic-reset rather than panic-halt: a halted MultiRX sends nothing and the
 // flight controller declares RC loss after COM_RC_LOSS_T (0.5 s on PX4);
@@ -71,10 +82,21 @@ const FC_QUEUE: usize = 64;
 /// whole is dropped: status never holds up SBUS or the power switches.
 const STATUS_QUEUE: usize = 512;
 
-/// A queue entry: a received byte, or [`UART_ERROR`].
-type RxEntry = u16;
+/// How often the boot line is repeated, so a rig that opens the status port
+/// after the board started still learns which image and config it runs.
+const BOOT_LINE_EVERY: Duration = Duration::from_secs(1);
+
+/// A queue entry: a received byte, or [`UART_ERROR`], and the timer's raw
+/// count when the interrupt read it. Stamped in the interrupt, not when the
+/// main loop gets round to it, so the core's gap check (a new frame starts
+/// after a quiet line) sees the line's timing rather than the loop's.
+#[derive(Clone, Copy)]
+struct RxEntry {
+    at: u32,
+    value: u16,
+}
 /// Queued in place of a byte received with a parity, framing or overrun error.
-const UART_ERROR: RxEntry = 0x100;
+const UART_ERROR: u16 = 0x100;
 
 /// An SBUS input owned by its interrupt handler.
 struct RxPort<U> {
@@ -121,7 +143,11 @@ where
                 self.clear_status(errors());
             }
             if let Ok(byte) = self.read() {
-                let _ = queue.enqueue(if bad { UART_ERROR } else { byte.into() });
+                let value = if bad { UART_ERROR } else { byte.into() };
+                let _ = queue.enqueue(RxEntry {
+                    at: timer_raw(),
+                    value,
+                });
             }
         }
     }
@@ -129,7 +155,12 @@ where
 
 fn on_interrupt<U: SbusRx>(slot: &Slot<U>) {
     critical_section::with(|cs| {
-        if let Some(port) = slot.borrow_ref_mut(cs).as_mut() {
+        // `try_`: the slot is only borrowed here, with interrupts masked, so
+        // it is never busy; but `borrow_ref_mut` would keep a panic path in
+        // the handler, which ci/check-firmware-elf.py refuses.
+        if let Ok(mut slot) = slot.borrow(cs).try_borrow_mut()
+            && let Some(port) = slot.as_mut()
+        {
             port.uart.service(&mut port.queue);
         }
     });
@@ -202,6 +233,7 @@ const fn port_used(port: usize) -> bool {
 #[entry]
 fn main() -> ! {
     let dp = pac::Peripherals::take().expect("first and only take");
+    // Watchdog, brown-out detector and clocks, in that order (see `clocks`).
     let Board {
         receivers,
         mut fc_out,
@@ -209,6 +241,8 @@ fn main() -> ! {
         mut power,
         mut clock,
         mut watchdog,
+        mut crystal,
+        reset_cause,
     } = Board::new(dp);
 
     let queues = cortex_m::singleton!(
@@ -231,40 +265,44 @@ fn main() -> ! {
     install(&RX5, receivers.rx5, p5, 5);
 
     let mut mux = Multiplexer::new(CONFIG, clock.now());
+    let mut sequencer = PowerSequencer::new(POWER_ON_STAGGER);
     let mut fc_queue: Deque<u8, FC_QUEUE> = Deque::new();
     let mut status_queue: Deque<u8, STATUS_QUEUE> = Deque::new();
-    watchdog.start();
+    let mut boot = BootReport {
+        at: Instant::ZERO,
+        build_id: BUILD_ID,
+        config_hash: CONFIG_HASH,
+        reset: reset_cause,
+        first_frame: Duration::ZERO,
+    };
+    let mut next_boot_line: Option<Instant> = None;
 
     loop {
         let now = clock.now();
+        crystal.poll();
 
         for (port, input) in inputs.iter_mut().enumerate() {
             let ifs = IFS && port == IFS_PORT;
-            let mut chunk = [0u8; RX_QUEUE];
-            let mut len = 0;
-            let feed = |mux: &mut Multiplexer, bytes: &[u8]| match (bytes.is_empty(), ifs) {
-                (true, _) => {}
-                (false, true) => mux.handle_ifs_bytes(now, bytes),
-                (false, false) => mux.handle_receiver_bytes(now, port as u8, bytes),
-            };
-            while len < chunk.len()
-                && let Some(entry) = input.dequeue()
-            {
-                if entry == UART_ERROR {
-                    // Bytes before the error first, then drop the frame.
-                    feed(&mut mux, &chunk[..len]);
-                    len = 0;
-                    if ifs {
-                        mux.handle_ifs_error();
-                    } else {
-                        mux.handle_receiver_error(port as u8);
-                    }
-                    continue;
+            // One byte at a time, each at its own interrupt stamp; bytes that
+            // arrived after `now` was read wait for the next pass, so the
+            // engine's time never runs backwards.
+            for _ in 0..RX_QUEUE {
+                let Some(&entry) = input.peek() else { break };
+                let at = clock.at(entry.at);
+                if at > now {
+                    break;
                 }
-                chunk[len] = entry as u8;
-                len += 1;
+                input.dequeue();
+                match (entry.value == UART_ERROR, ifs) {
+                    // Drop the frame the damaged byte belongs to.
+                    (true, true) => mux.handle_ifs_error(),
+                    (true, false) => mux.handle_receiver_error(port as u8),
+                    (false, true) => mux.handle_ifs_bytes(at, &[entry.value as u8]),
+                    (false, false) => {
+                        mux.handle_receiver_bytes(at, port as u8, &[entry.value as u8])
+                    }
+                }
             }
-            feed(&mut mux, &chunk[..len]);
         }
 
         if mux.poll_timeout().is_some_and(|due| now >= due) {
@@ -272,10 +310,33 @@ fn main() -> ! {
         }
         while let Some(frame) = mux.poll_transmit() {
             push_whole(&mut fc_queue, &frame);
+            if next_boot_line.is_none() {
+                boot.first_frame = now.since_epoch();
+                next_boot_line = Some(now);
+            }
         }
         while let Some(event) = mux.poll_event() {
-            apply(&mut power, &event);
+            match event.event {
+                // Reported when the switch actually changes, below.
+                Event::Power { rx, on } => sequencer.request(rx, on),
+                _ => status_line(&mut status_queue, &event),
+            }
+        }
+        while let Some((rx, on)) = sequencer.poll(now) {
+            power.set(rx, on);
+            let event = TimedEvent {
+                at: now,
+                event: Event::Power { rx, on },
+            };
             status_line(&mut status_queue, &event);
+        }
+        if let Some(due) = next_boot_line.filter(|&due| now >= due) {
+            next_boot_line = Some(due + BOOT_LINE_EVERY);
+            boot.at = now;
+            let mut line = heapless::String::<128>::new();
+            if writeln!(line, "{boot}").is_ok() {
+                push_whole(&mut status_queue, line.as_bytes());
+            }
         }
 
         drain(&mut fc_out, &mut fc_queue);
@@ -284,13 +345,6 @@ fn main() -> ! {
         if mux.poll_timeout().is_some_and(|due| now < due) {
             watchdog.feed();
         }
-    }
-}
-
-/// Power events switch the receivers; the others only become status lines.
-fn apply(power: &mut PowerSwitches, event: &TimedEvent) {
-    if let Event::Power { rx, on } = event.event {
-        power.set(rx, on);
     }
 }
 

@@ -104,16 +104,34 @@ pub struct SessionMeasurements {
     output_gap: Handle,
     fc_gap: Handle,
     rc_losses: Handle,
+    /// Per scenario only: the device's own boot-to-first-frame figure.
+    first_frame: Option<Handle>,
 }
+
+/// Boot to first SBUS frame must stay well inside PX4's 0.5 s RC-loss
+/// timeout (COM_RC_LOSS_T); the certification issue sets 50 ms.
+pub const FIRST_FRAME_MAX_MS: f64 = 50.0;
 
 impl SessionMeasurements {
     /// Declares them for `scenario`, or for the whole run of the mode (`None`).
     pub fn declare(d: &mut Declarations, limits: &ModeLimits, scenario: Option<&str>) -> Self {
         let [output_gap, fc_gap, rc_losses] = session_specs(limits, scenario).map(|s| d.declare(s));
+        let first_frame = scenario.map(|name| {
+            d.declare(
+                limits
+                    .spec("boot_to_first_frame_ms", "ms")
+                    .dim(Dimension::Scenario, name)
+                    .describe(
+                        "from the device's clock start to its first SBUS frame, as its boot line reports it",
+                    )
+                    .at_most(FIRST_FRAME_MAX_MS),
+            )
+        });
         SessionMeasurements {
             output_gap,
             fc_gap,
             rc_losses,
+            first_frame,
         }
     }
 
@@ -188,6 +206,9 @@ pub fn record_session(
         }
     }
     ctx.record(m.rc_losses, report.rc_losses.len() as f64);
+    if let (Some(h), Some(boot)) = (m.first_frame, session.boot) {
+        ctx.record(h, boot.first_frame.as_secs_f64() * 1000.0);
+    }
     Ok(())
 }
 
