@@ -7,6 +7,7 @@ use std::net::{IpAddr, Ipv4Addr};
 use mavlink::{MavHeader, MavlinkVersion};
 
 use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
+use crate::command::ack_tag::untag_ack;
 use crate::command::{Admission, CommandRetransmitter, RetransmitStats};
 use crate::compact::Expander;
 use crate::dialect::MavMessage;
@@ -336,17 +337,24 @@ impl Router {
                     self.push_gcs(now, frame);
                 }
                 ids::COMMAND_ACK => {
-                    if let Ok(msg) = frame.decode::<MavMessage>()
-                        && !self.commands.from_radio(
-                            now,
-                            frame.system_id(),
-                            frame.component_id(),
-                            &msg,
-                        )
-                    {
+                    let Ok(MavMessage::COMMAND_ACK(ack)) = frame.decode::<MavMessage>() else {
+                        self.push_gcs(now, frame);
                         continue;
+                    };
+                    // The bridge's tag names the command answered; the ground gets the ack
+                    // as the autopilot sent it.
+                    let (generation, frame, ack) = match untag_ack(&frame, &ack) {
+                        Some((g, plain, ack)) => (Some(g), plain, ack),
+                        None => (None, frame, ack),
+                    };
+                    let (system, component) = (frame.system_id(), frame.component_id());
+                    let msg = MavMessage::COMMAND_ACK(ack);
+                    if self
+                        .commands
+                        .from_radio_tagged(now, system, component, &msg, generation)
+                    {
+                        self.push_gcs(now, frame);
                     }
-                    self.push_gcs(now, frame);
                 }
                 _ => self.push_gcs(now, frame),
             }
