@@ -216,7 +216,9 @@ mod tests {
         let (f2, m2) = command(&mut gcs, 1, 4.0);
         assert_eq!(c.command(&f2, &m2, t0 + MS(300)), CacheVerdict::Drop);
         let (af, am) = ack(&mut fc);
-        let radio = c.ack(1, 1, &af, &am).expect("answers a command from the radio");
+        let radio = c
+            .ack(1, 1, &af, &am)
+            .expect("answers a command from the radio");
         // the ack was lost on the radio: the next copy gets it again, not a second execution
         match c.command(&f2, &m2, t0 + MS(1200)) {
             CacheVerdict::Replay(a) => assert_eq!(a.as_bytes(), radio.as_bytes()),

@@ -25,6 +25,8 @@ pub struct RetransmitStats {
     pub queued: u64,
     /// Commands whose ack came back.
     pub acked: u64,
+    /// Early second copies (see [`CommandRetransmitter::with_early_copy`]).
+    pub early_copies: u64,
     /// Acks that came back after their command was answered or given up, swallowed.
     pub late_acks: u64,
     /// Commands given up after the last attempt (the ground station still has its own).
@@ -62,6 +64,8 @@ struct Pending {
     attempts: u32,
     /// The vehicle answered `IN_PROGRESS`: no more copies, the final ack will come.
     in_progress: bool,
+    /// Its early second copy went (part of the first round: `sent` stays the first send's).
+    early: bool,
     /// When the ground last sent it (first send or retry): it still waits for the ack until
     /// about [`GROUND_PATIENCE`] later.
     last_ground: Instant,
@@ -96,6 +100,7 @@ pub struct CommandRetransmitter {
     max_attempts: u32,
     window: Duration,
     per_source: usize,
+    early_copy: Option<Duration>,
     on_air: Vec<Pending>,
     waiting: Vec<Pending>,
     finished: Vec<Finished>,
@@ -125,6 +130,7 @@ impl CommandRetransmitter {
             max_attempts,
             window: (max * max_attempts).min(RETRANSMIT_WINDOW),
             per_source: usize::MAX,
+            early_copy: None,
             on_air: Vec::new(),
             waiting: Vec::new(),
             finished: Vec::new(),
@@ -139,6 +145,17 @@ impl CommandRetransmitter {
     /// At most `n` commands from one source in flight (waiting or on the radio) at once.
     pub fn with_source_limit(mut self, n: usize) -> Self {
         self.per_source = n.max(1);
+        self
+    }
+
+    /// Sends a second copy of each command `delay` after its first, without waiting for a
+    /// timeout: at 10 % loss each way one round in five fails (command or ack lost), so
+    /// one command in 28 needs a third round and the 99th percentile is three rounds;
+    /// with the copy (the bridge answers it with the cached ack) a round fails about one
+    /// time in fifty, and the 99th percentile is two rounds. `delay` puts the copy in
+    /// another air packet and after the autopilot's ack. A command costs one more frame.
+    pub fn with_early_copy(mut self, delay: Duration) -> Self {
+        self.early_copy = (self.max_attempts > 1).then_some(delay);
         self
     }
 
@@ -282,6 +299,7 @@ impl CommandRetransmitter {
             sent: now,
             attempts: 0,
             in_progress: false,
+            early: false,
             last_ground: now,
         };
         if self.slot_busy(id.slot()) || self.waiting.iter().any(|w| w.id.slot() == id.slot()) {
@@ -387,7 +405,7 @@ impl CommandRetransmitter {
         let p = self.on_air.swap_remove(i);
         self.stats.acked += 1;
         // Karn: only an unambiguous round trip is a sample.
-        if p.attempts == 1 && !p.in_progress {
+        if (p.attempts == 1 || (p.attempts == 2 && p.early)) && !p.in_progress {
             self.rtt.sample(now.saturating_duration_since(p.sent));
         }
         if p.attempts > 1 && generation.is_none() {
@@ -466,6 +484,19 @@ impl CommandRetransmitter {
             self.on_air.push(p);
             return Some(out);
         }
+        if let Some(delay) = self.early_copy
+            && let Some(p) = self
+                .on_air
+                .iter_mut()
+                .find(|p| Self::early_due(p) && now >= p.sent + delay)
+        {
+            p.attempts = 2;
+            p.early = true;
+            let (id, generation, out) = (p.id, p.generation, p.copy());
+            self.stats.early_copies += 1;
+            self.note_sent(id, generation, now);
+            return Some(out);
+        }
         let rto = self.rtt.rto();
         let window = self.window;
         let i = self.on_air.iter().position(|p| {
@@ -501,8 +532,20 @@ impl CommandRetransmitter {
         Some(out)
     }
 
+    /// Whether `p` is still to get its early copy.
+    fn early_due(p: &Pending) -> bool {
+        p.attempts == 1 && !p.early && !p.in_progress
+    }
+
     /// When the relay next needs [`handle_timeout`](Self::handle_timeout).
     pub fn poll_timeout(&self) -> Option<Instant> {
+        let early = self.early_copy.and_then(|delay| {
+            self.on_air
+                .iter()
+                .filter(|p| Self::early_due(p))
+                .map(|p| p.sent + delay)
+                .min()
+        });
         let rto = self.rtt.rto();
         let window = self.window;
         let waiting = (!self.waiting.is_empty())
@@ -528,6 +571,7 @@ impl CommandRetransmitter {
                 }
             })
             .chain(waiting)
+            .chain(early)
             .chain(patience)
             .chain(self.wake)
             .min()

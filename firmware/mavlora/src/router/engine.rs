@@ -43,6 +43,9 @@ pub struct RouterConfig {
     /// Sends of one command over the radio, the first included; 1 turns retransmission off.
     /// The default, 8, outlasts a ground station's 5 tries 1.5 s apart.
     pub command_attempts: u32,
+    /// A second copy of each command this long after its first, before any timeout (see
+    /// [`CommandRetransmitter::with_early_copy`]); `None`: only timeouts resend.
+    pub command_early_copy: Option<Duration>,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
     /// Who on the ground may reach the vehicle (addresses, system ids, command budget).
@@ -66,6 +69,7 @@ impl RouterConfig {
             initial_rtt: Duration::from_millis(1500),
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,
+            command_early_copy: Some(Duration::from_millis(120)),
             signing: None,
             ground: GroundPolicy::default(),
             ground_signing: None,
@@ -155,13 +159,19 @@ impl Router {
             ),
             // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
             // congestion, so doubling the timeout past it only adds latency.
-            commands: CommandRetransmitter::new(
-                config.command_initial_rto,
-                Duration::from_millis(200),
-                Duration::from_millis(1500),
-                config.command_attempts,
-            )
-            .with_source_limit(config.ground.commands_in_flight),
+            commands: {
+                let c = CommandRetransmitter::new(
+                    config.command_initial_rto,
+                    Duration::from_millis(200),
+                    Duration::from_millis(1500),
+                    config.command_attempts,
+                )
+                .with_source_limit(config.ground.commands_in_flight);
+                match config.command_early_copy {
+                    Some(d) => c.with_early_copy(d),
+                    None => c,
+                }
+            },
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
