@@ -829,4 +829,53 @@ mod tests {
         assert!(r.from_radio_tagged(t0 + MS(2300), 1, 1, &ack(cam), Some(1)));
         assert_eq!(r.stats().acked, 2);
     }
+
+    #[test]
+    fn an_ack_flood_of_other_generations_never_completes_a_command() {
+        // hostile or broken radio peer: 1000 acks naming every other generation, and
+        // untagged ones for other vehicles, while generation 0 is on the radio
+        let mut r = retransmitter();
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let t0 = Instant::from_millis(0);
+        let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+        let (f, m) = command_with(&mut gcs, set_mode, 4.0, 0);
+        forwarded(r.from_ground(t0, GCS, &f, &m));
+        for k in 0..1000u32 {
+            let g = 1 + (k % 31) as u8;
+            r.from_radio_tagged(t0 + MS(1), 1, 1, &ack(set_mode), Some(g));
+            r.from_radio_tagged(t0 + MS(1), 2 + (k % 200) as u8, 1, &ack(set_mode), None);
+        }
+        assert_eq!(r.stats().acked, 0);
+        // still resent on its timeout, and its own ack completes it
+        assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (4.0, 0, 1));
+        assert!(r.from_radio_tagged(t0 + MS(1100), 1, 1, &ack(set_mode), Some(0)));
+        assert_eq!(r.stats().acked, 1);
+        assert!(resend(&mut r, t0 + MS(5000)).is_none());
+    }
+
+    #[test]
+    fn a_late_replay_of_an_acked_command_goes_as_that_command() {
+        // the ground's copy (confirmation 3) of a command acked 5 s ago arrives: it goes on
+        // the radio as the same generation with attempt > 0, so the bridge answers it from
+        // its cache instead of running it again
+        let mut r = retransmitter();
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let t0 = Instant::from_millis(0);
+        let cam = MavCmd::MAV_CMD_DO_DIGICAM_CONTROL;
+        let (f, m) = command_with(&mut gcs, cam, 1.0, 0);
+        forwarded(r.from_ground(t0, GCS, &f, &m));
+        assert!(r.from_radio_tagged(t0 + MS(150), 1, 1, &ack(cam), Some(0)));
+        let (late, late_m) = command_with(&mut gcs, cam, 1.0, 3);
+        let (_, generation, attempt) = sent(&forwarded(r.from_ground(
+            t0 + MS(5000),
+            GCS,
+            &late,
+            &late_m,
+        )));
+        assert_eq!(generation, 0);
+        assert!(attempt > 0, "a copy, not a new command");
+        // its (replayed) ack is the ground's, once; a second replay's ack is swallowed
+        assert!(r.from_radio_tagged(t0 + MS(5150), 1, 1, &ack(cam), Some(0)));
+        assert!(!r.from_radio_tagged(t0 + MS(5200), 1, 1, &ack(cam), Some(0)));
+    }
 }
