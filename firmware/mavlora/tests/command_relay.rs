@@ -45,7 +45,7 @@ const IDS: [MavCmd; 2] = [
 /// The `result_param2` of the autopilot's n-th execution of a command id (negative and
 /// positive: the relay's tag must give back both).
 fn result_param2(n: usize) -> i32 {
-    if n % 2 == 0 {
+    if n.is_multiple_of(2) {
         n as i32 * 1000
     } else {
         -(n as i32)

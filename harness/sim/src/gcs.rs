@@ -169,7 +169,7 @@ impl GcsMock {
         let set_mode = if mix {
             serial % 3 == 1
         } else {
-            serial % 2 == 0
+            serial.is_multiple_of(2)
         };
         let (command, param1, param2, param3) = if set_mode {
             // base mode: custom mode enabled; PX4 main mode AUTO (4), sub mode MISSION (4)
