@@ -47,6 +47,11 @@ pub struct CommandPlan {
     pub retry: Duration,
     /// Copies sent at most before the command counts as failed.
     pub attempts: u32,
+    /// A mix instead of the alternation: `DO_CHANGE_SPEED` with a new speed each time (same
+    /// id, new parameters) and `DO_SET_MODE`, every third addressed to component 0 (all)
+    /// instead of 1, and each carrying its serial number in `param7` (unused by both), so the
+    /// autopilot's log tells which command ran how often.
+    pub mix: bool,
 }
 
 impl Default for CommandPlan {
@@ -57,6 +62,7 @@ impl Default for CommandPlan {
             period: Duration::from_secs(2),
             retry: Duration::from_millis(1500),
             attempts: 5,
+            mix: false,
         }
     }
 }
@@ -79,6 +85,7 @@ pub struct CommandStats {
 #[derive(Debug)]
 struct Pending {
     command: MavCmd,
+    msg: COMMAND_LONG_DATA,
     first_sent: Instant,
     last_sent: Instant,
     copies: u32,
@@ -157,23 +164,38 @@ impl GcsMock {
             .unwrap_or_default()
     }
 
-    fn command_copy(&mut self, command: MavCmd, confirmation: u8) {
-        let (param1, param2, param3) = match command {
-            // base mode: custom mode enabled; PX4 main mode AUTO (4), sub mode MISSION (4)
-            MavCmd::MAV_CMD_DO_SET_MODE => (1.0, 4.0, 4.0),
-            // ground speed, 10 m/s, no throttle change
-            _ => (1.0, 10.0, -1.0),
+    /// The `serial`-th command of the plan (see [`CommandPlan`]).
+    pub fn planned_command(serial: u64, mix: bool) -> COMMAND_LONG_DATA {
+        let set_mode = if mix {
+            serial % 3 == 1
+        } else {
+            serial.is_multiple_of(2)
         };
-        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        let (command, param1, param2, param3) = if set_mode {
+            // base mode: custom mode enabled; PX4 main mode AUTO (4), sub mode MISSION (4)
+            (MavCmd::MAV_CMD_DO_SET_MODE, 1.0, 4.0, 4.0)
+        } else if mix {
+            // ground speed, 8 to 12 m/s: same id, new parameters
+            (
+                MavCmd::MAV_CMD_DO_CHANGE_SPEED,
+                1.0,
+                8.0 + (serial % 5) as f32,
+                -1.0,
+            )
+        } else {
+            // ground speed, 10 m/s, no throttle change
+            (MavCmd::MAV_CMD_DO_CHANGE_SPEED, 1.0, 10.0, -1.0)
+        };
+        COMMAND_LONG_DATA {
             param1,
             param2,
             param3,
+            param7: if mix { serial as f32 } else { 0.0 },
             command,
             target_system: 1,
-            target_component: 1,
-            confirmation,
+            target_component: if mix && serial % 3 == 2 { 0 } else { 1 },
             ..COMMAND_LONG_DATA::default()
-        }));
+        }
     }
 
     fn commands_tick(&mut self, now: Instant) {
@@ -189,27 +211,27 @@ impl GcsMock {
                     p.copies += 1;
                     p.last_sent = now;
                     c.stats.copies += 1;
-                    copy = Some((p.command, (p.copies - 1) as u8));
+                    copy = Some(COMMAND_LONG_DATA {
+                        confirmation: (p.copies - 1) as u8,
+                        ..p.msg.clone()
+                    });
                 }
             }
         } else if now >= c.next_at {
-            let command = if c.stats.started % 2 == 0 {
-                MavCmd::MAV_CMD_DO_SET_MODE
-            } else {
-                MavCmd::MAV_CMD_DO_CHANGE_SPEED
-            };
+            let msg = Self::planned_command(c.stats.started, c.plan.mix);
             c.stats.started += 1;
             c.stats.copies += 1;
             c.pending = Some(Pending {
-                command,
+                command: msg.command,
+                msg: msg.clone(),
                 first_sent: now,
                 last_sent: now,
                 copies: 1,
             });
-            copy = Some((command, 0));
+            copy = Some(msg);
         }
-        if let Some((command, confirmation)) = copy {
-            self.command_copy(command, confirmation);
+        if let Some(msg) = copy {
+            self.send(&MavMessage::COMMAND_LONG(msg));
         }
     }
 

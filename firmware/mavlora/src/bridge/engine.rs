@@ -246,8 +246,8 @@ impl Bridge {
                     return;
                 }
             }
-            // COMMAND_ACK has no target in our dialect (extension fields are not generated):
-            // acks for SET_MESSAGE_INTERVAL are ours while we wait for some.
+            // Many autopilots leave COMMAND_ACK's target (an extension field) at 0: acks
+            // for SET_MESSAGE_INTERVAL are ours while we wait for some.
             if let MavMessage::COMMAND_ACK(ack) = msg
                 && ack.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
                 && self.config_state.acks < self.config_state.expected_acks
@@ -255,9 +255,16 @@ impl Bridge {
                 self.config_ack(ack.result, now);
                 return;
             }
-            if id == ids::COMMAND_ACK {
-                self.commands
-                    .ack(frame.system_id(), frame.component_id(), &frame, msg);
+            if id == ids::COMMAND_ACK
+                && let Some(tagged) =
+                    self.commands
+                        .ack(frame.system_id(), frame.component_id(), &frame, msg)
+            {
+                // The ack of a command from the radio, tagged with the command it answers.
+                if self.filter.check(&tagged, now) == Verdict::Pass {
+                    self.scheduler.push(tagged, Class::of(id), now);
+                }
+                return;
             }
             if let Some(compactor) = &mut self.compactor
                 && self.watch.is_fc(&frame)

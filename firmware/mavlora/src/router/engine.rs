@@ -7,6 +7,7 @@ use std::net::{IpAddr, Ipv4Addr};
 use mavlink::{MavHeader, MavlinkVersion};
 
 use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
+use crate::command::ack_tag::untag_ack;
 use crate::command::{Admission, CommandRetransmitter, RetransmitStats};
 use crate::compact::Expander;
 use crate::dialect::MavMessage;
@@ -42,6 +43,9 @@ pub struct RouterConfig {
     /// Sends of one command over the radio, the first included; 1 turns retransmission off.
     /// The default, 8, outlasts a ground station's 5 tries 1.5 s apart.
     pub command_attempts: u32,
+    /// A second copy of each command this long after its first, before any timeout (see
+    /// [`CommandRetransmitter::with_early_copy`]); `None`: only timeouts resend.
+    pub command_early_copy: Option<Duration>,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
     /// Who on the ground may reach the vehicle (addresses, system ids, command budget).
@@ -65,6 +69,7 @@ impl RouterConfig {
             initial_rtt: Duration::from_millis(1500),
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,
+            command_early_copy: Some(Duration::from_millis(120)),
             signing: None,
             ground: GroundPolicy::default(),
             ground_signing: None,
@@ -154,13 +159,19 @@ impl Router {
             ),
             // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
             // congestion, so doubling the timeout past it only adds latency.
-            commands: CommandRetransmitter::new(
-                config.command_initial_rto,
-                Duration::from_millis(200),
-                Duration::from_millis(1500),
-                config.command_attempts,
-            )
-            .with_source_limit(config.ground.commands_in_flight),
+            commands: {
+                let c = CommandRetransmitter::new(
+                    config.command_initial_rto,
+                    Duration::from_millis(200),
+                    Duration::from_millis(1500),
+                    config.command_attempts,
+                )
+                .with_source_limit(config.ground.commands_in_flight);
+                match config.command_early_copy {
+                    Some(d) => c.with_early_copy(d),
+                    None => c,
+                }
+            },
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
@@ -336,17 +347,24 @@ impl Router {
                     self.push_gcs(now, frame);
                 }
                 ids::COMMAND_ACK => {
-                    if let Ok(msg) = frame.decode::<MavMessage>()
-                        && !self.commands.from_radio(
-                            now,
-                            frame.system_id(),
-                            frame.component_id(),
-                            &msg,
-                        )
-                    {
+                    let Ok(MavMessage::COMMAND_ACK(ack)) = frame.decode::<MavMessage>() else {
+                        self.push_gcs(now, frame);
                         continue;
+                    };
+                    // The bridge's tag names the command answered; the ground gets the ack
+                    // as the autopilot sent it.
+                    let (generation, frame, ack) = match untag_ack(&frame, &ack) {
+                        Some((g, plain, ack)) => (Some(g), plain, ack),
+                        None => (None, frame, ack),
+                    };
+                    let (system, component) = (frame.system_id(), frame.component_id());
+                    let msg = MavMessage::COMMAND_ACK(ack);
+                    if self
+                        .commands
+                        .from_radio_tagged(now, system, component, &msg, generation)
+                    {
+                        self.push_gcs(now, frame);
                     }
-                    self.push_gcs(now, frame);
                 }
                 _ => self.push_gcs(now, frame),
             }

@@ -174,7 +174,10 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
     });
     r.handle_gcs_bytes(ms(0), gcs.frame(&cmd).as_bytes());
     assert_eq!(commands(&radio_out(&mut r, ms(0))), 1);
-    // lost on the radio: resent after the initial 1 s timeout, not at the ground's 1.5 s
+    // its early second copy, before any timeout (another air packet)
+    assert_eq!(commands(&radio_out(&mut r, ms(119))), 0);
+    assert_eq!(commands(&radio_out(&mut r, ms(120))), 1);
+    // both lost on the radio: resent after the initial 1 s timeout, not at the ground's 1.5 s
     assert_eq!(commands(&radio_out(&mut r, ms(999))), 0);
     assert_eq!(commands(&radio_out(&mut r, ms(1000))), 1);
     // the ground station's own retry (confirmation 1) is not sent again

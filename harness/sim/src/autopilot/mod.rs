@@ -5,7 +5,9 @@
 
 mod px4;
 
-pub use px4::{Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec};
+pub use px4::{
+    Executed, Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec,
+};
 
 use mavlora::Instant;
 use mavlora::dialect::MISSION_ITEM_INT_DATA;

@@ -252,6 +252,19 @@ pub struct Px4Fc {
     item_retry: Duration,
     flight: Flight,
     stats: Px4Stats,
+    /// Commands executed (other than `SET_MESSAGE_INTERVAL`), in order.
+    executed: Vec<Executed>,
+}
+
+/// A command the simulated PX4 executed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Executed {
+    /// Command id.
+    pub command: MavCmd,
+    /// The target component it was addressed to (0: all).
+    pub target_component: u8,
+    /// Its seven parameters.
+    pub params: [f32; 7],
 }
 
 impl Px4Fc {
@@ -278,6 +291,7 @@ impl Px4Fc {
             item_retry: Duration::from_millis(250),
             flight: Flight::Circle,
             stats: Px4Stats::default(),
+            executed: Vec::new(),
         }
     }
 
@@ -320,6 +334,11 @@ impl Px4Fc {
     /// Counters so far.
     pub fn stats(&self) -> Px4Stats {
         self.stats
+    }
+
+    /// Every command executed so far (each copy that reached it counts), in order.
+    pub fn executed(&self) -> &[Executed] {
+        &self.executed
     }
 
     /// The mission stored by the last accepted upload.
@@ -370,8 +389,17 @@ impl Px4Fc {
             }
             // Any other command (mode changes, speed changes): accepted at once. PX4 acks
             // every copy it receives, retries included.
-            MavMessage::COMMAND_LONG(c) if c.target_system == 1 => {
+            MavMessage::COMMAND_LONG(c)
+                if c.target_system == 1 && matches!(c.target_component, 0 | 1) =>
+            {
                 self.stats.commands_acked += 1;
+                self.executed.push(Executed {
+                    command: c.command,
+                    target_component: c.target_component,
+                    params: [
+                        c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+                    ],
+                });
                 self.send(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                     command: c.command,
                     result: MavResult::MAV_RESULT_ACCEPTED,
