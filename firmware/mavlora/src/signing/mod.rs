@@ -48,3 +48,6 @@ impl SigningConfig {
         )
     }
 }
+
+#[cfg(test)]
+mod mavlink1_tests;
