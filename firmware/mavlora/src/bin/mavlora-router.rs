@@ -44,7 +44,7 @@ struct Options {
     /// [default: 255].
     #[arg(long, value_delimiter = ',')]
     allow_sysid: Option<Vec<u8>>,
-    /// MAVLink 2 signing key file for the ground side (64 hex characters or 32 bytes; not
+    /// MAVLink 2 signing key file for the ground side (64 hex characters, mode 600; not
     /// the radio's --key): frames from ground stations must be signed with it, frames to
     /// them are signed with it.
     #[arg(long)]
