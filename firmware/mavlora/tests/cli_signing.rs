@@ -43,13 +43,23 @@ fn without_key_or_unsigned_both_binaries_refuse_to_start() {
     let router = ["--radio", "/dev/null/none", "--udp-bind", "127.0.0.1:0"];
     let (code, stderr) = run(ROUTER, &dir, &router);
     assert_eq!(code, Some(2), "{stderr}");
-    assert!(stderr.contains("--key") && stderr.contains("--unsigned"), "{stderr}");
+    assert!(
+        stderr.contains("--key") && stderr.contains("--unsigned"),
+        "{stderr}"
+    );
     let bridge = ["--fc", "/dev/null/fc", "--radio", "/dev/null/none"];
     let (code, stderr) = run(BRIDGE, &dir, &bridge);
     assert_eq!(code, Some(2), "{stderr}");
-    assert!(stderr.contains("--key") && stderr.contains("--unsigned"), "{stderr}");
+    assert!(
+        stderr.contains("--key") && stderr.contains("--unsigned"),
+        "{stderr}"
+    );
     // a config file can say it too, and the status line shows it
-    std::fs::write(dir.join("router.toml"), "unsigned = true\nstatus_interval = 0.2\n").unwrap();
+    std::fs::write(
+        dir.join("router.toml"),
+        "unsigned = true\nstatus_interval = 0.2\n",
+    )
+    .unwrap();
     let mut args = router.to_vec();
     args.extend(["--config", "router.toml"]);
     let (_, stderr) = run_for(ROUTER, &dir, &args, Duration::from_millis(1500));
@@ -92,7 +102,10 @@ fn readable_truncated_and_raw_keys_are_refused_naming_the_file() {
     std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o644)).unwrap();
     let (code, stderr) = run(ROUTER, &dir, &args);
     assert_eq!(code, Some(1), "{stderr}");
-    assert!(stderr.contains("radio.key") && stderr.contains("0644"), "{stderr}");
+    assert!(
+        stderr.contains("radio.key") && stderr.contains("0644"),
+        "{stderr}"
+    );
     for (contents, says) in [
         (&"2a".repeat(31)[..], "62 characters"),
         (&"*".repeat(32)[..], "column 1"),
@@ -101,7 +114,10 @@ fn readable_truncated_and_raw_keys_are_refused_naming_the_file() {
         std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600)).unwrap();
         let (code, stderr) = run(ROUTER, &dir, &args);
         assert_eq!(code, Some(1), "{stderr}");
-        assert!(stderr.contains("radio.key") && stderr.contains(says), "{stderr}");
+        assert!(
+            stderr.contains("radio.key") && stderr.contains(says),
+            "{stderr}"
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

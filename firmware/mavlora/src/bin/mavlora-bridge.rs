@@ -108,7 +108,13 @@ fn run(o: Options) -> Result<()> {
     let clock = Clock::start();
     let compact = config.compact.is_some();
     let mut bridge = Bridge::new(config, clock.now())?;
-    info!(rate, burst, compact, signing = signing_label, "bridge running");
+    info!(
+        rate,
+        burst,
+        compact,
+        signing = signing_label,
+        "bridge running"
+    );
     let mut next_status = clock.now() + status_every;
     loop {
         let now = clock.now();

@@ -142,11 +142,9 @@ impl RadioOptions {
             }
             (None, true) => {
                 if self.signing_state.is_some() {
-                    return Err(UsageError::option(
-                        "signing_state",
-                        "has no use with --unsigned",
-                    )
-                    .into());
+                    return Err(
+                        UsageError::option("signing_state", "has no use with --unsigned").into(),
+                    );
                 }
                 tracing::warn!(
                     "radio link NOT signed (--unsigned): anyone on the radio channel can inject and replay frames"

@@ -141,7 +141,9 @@ mod tests {
         };
         state.streams.insert((2, 255, 190), 41);
         file.save(&state).unwrap();
-        let second = SigningStateFile::open(path.clone()).unwrap_err().to_string();
+        let second = SigningStateFile::open(path.clone())
+            .unwrap_err()
+            .to_string();
         assert!(second.contains("in use by another process"), "{second}");
         drop(file);
         let (_file, read) = SigningStateFile::open(path.clone()).unwrap();
@@ -149,7 +151,10 @@ mod tests {
         std::fs::write(&path, "garbage\n").unwrap();
         drop(_file);
         let bad = format!("{:#}", SigningStateFile::open(path.clone()).unwrap_err());
-        assert!(bad.contains("radio.key.bridge-state") && bad.contains("line 1"), "{bad}");
+        assert!(
+            bad.contains("radio.key.bridge-state") && bad.contains("line 1"),
+            "{bad}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -137,8 +137,14 @@ mod tests {
     #[test]
     fn hex_with_or_without_one_newline() {
         assert_eq!(SigningKey::parse(HEX.as_bytes()).unwrap(), want());
-        assert_eq!(SigningKey::parse(format!("{HEX}\n").as_bytes()).unwrap(), want());
-        assert_eq!(SigningKey::parse(format!("{HEX}\r\n").as_bytes()).unwrap(), want());
+        assert_eq!(
+            SigningKey::parse(format!("{HEX}\n").as_bytes()).unwrap(),
+            want()
+        );
+        assert_eq!(
+            SigningKey::parse(format!("{HEX}\r\n").as_bytes()).unwrap(),
+            want()
+        );
         assert_eq!(
             SigningKey::parse(HEX.to_uppercase().as_bytes()).unwrap(),
             want()
@@ -195,7 +201,10 @@ mod tests {
         assert_eq!(SigningKey::load(&path).unwrap(), want());
         std::fs::write(&path, &HEX[..40]).unwrap();
         let err = SigningKey::load(&path).unwrap_err().to_string();
-        assert!(err.contains("radio.key") && err.contains("40 characters"), "{err}");
+        assert!(
+            err.contains("radio.key") && err.contains("40 characters"),
+            "{err}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

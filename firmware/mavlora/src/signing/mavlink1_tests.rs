@@ -108,7 +108,8 @@ impl Pair {
             self.bridge.handle_radio_bytes(now, f.as_bytes());
             self.radio.push(f);
         }
-        self.gcs.extend(std::iter::from_fn(|| self.router.poll_gcs_transmit()));
+        self.gcs
+            .extend(std::iter::from_fn(|| self.router.poll_gcs_transmit()));
         self.to_fc
             .extend(std::iter::from_fn(|| self.bridge.poll_fc_transmit(now)));
     }
@@ -120,7 +121,9 @@ impl Pair {
         // A reader holds a frame of an unknown id while a byte inside it (a sequence number
         // of 0xFD, say) could start a known frame: the next frame's bytes release it.
         let end = Instant::from_millis(ticks * 100);
-        let hb = self.fc.frame(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
+        let hb = self
+            .fc
+            .frame(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
         self.bridge.handle_fc_bytes(end, hb.as_bytes());
         self.pump(end);
         self.pump(end + Duration::from_millis(100));
@@ -137,7 +140,11 @@ impl Pair {
 fn mavlink1_autopilot_telemetry_crosses_a_signed_radio() {
     let mut p = Pair::new(true);
     p.run(100);
-    assert_eq!(p.at_gcs(ids::ATTITUDE), 100, "every ATTITUDE reached the ground");
+    assert_eq!(
+        p.at_gcs(ids::ATTITUDE),
+        100,
+        "every ATTITUDE reached the ground"
+    );
     // ArduPilot's own messages too (the scheduler may replace a queued sample by a newer
     // one of the same message: nothing else is missing)
     let replaced = p.bridge.stats().scheduler.replaced as usize;
@@ -149,7 +156,11 @@ fn mavlink1_autopilot_telemetry_crosses_a_signed_radio() {
         assert!(f.crc_matches(SIMSTATE_EXTRA));
         assert_eq!(f.payload(), &[0x11; 44]);
     }
-    let att = p.gcs.iter().find(|f| f.message_id() == ids::ATTITUDE).unwrap();
+    let att = p
+        .gcs
+        .iter()
+        .find(|f| f.message_id() == ids::ATTITUDE)
+        .unwrap();
     let MavMessage::ATTITUDE(a) = att.decode::<MavMessage>().unwrap() else {
         panic!("not ATTITUDE")
     };
@@ -230,7 +241,8 @@ fn mavlink1_peers_get_mavlink1_back() {
         ..Default::default()
     });
     let now = Instant::from_millis(700);
-    p.router.handle_gcs_bytes(now, old_gcs.frame(&hb).as_bytes());
+    p.router
+        .handle_gcs_bytes(now, old_gcs.frame(&hb).as_bytes());
     p.gcs.clear();
     for t in 8..20 {
         p.tick(Instant::from_millis(t * 100));

@@ -305,7 +305,11 @@ mod tests {
         assert_eq!(restarted.stats().replayed, 20);
         // without the stored state they would all pass: the window the spec leaves is a minute
         let mut amnesiac = LinkSigner::new(key, 2, 1_000_000 + 300_000);
-        assert!(captured.iter().all(|s| amnesiac.verify(s, Instant::ZERO).is_ok()));
+        assert!(
+            captured
+                .iter()
+                .all(|s| amnesiac.verify(s, Instant::ZERO).is_ok())
+        );
         // the sender's own next frame is still accepted by the restarted receiver
         let next = sender.sign(&frame(HEARTBEAT, 1, 1, 20), Instant::from_secs(3));
         assert!(restarted.verify(&next.unwrap(), Instant::ZERO).is_ok());
@@ -319,7 +323,9 @@ mod tests {
         let last = before.sign(&frame(HEARTBEAT, 1, 1, 0), Instant::from_secs(9));
         let stored = before.state(Instant::from_secs(10));
         let mut after = LinkSigner::with_state(key.clone(), 1, 0, stored.clone());
-        let first = after.sign(&frame(HEARTBEAT, 1, 1, 1), Instant::ZERO).unwrap();
+        let first = after
+            .sign(&frame(HEARTBEAT, 1, 1, 1), Instant::ZERO)
+            .unwrap();
         let stamp = |f: &OwnedFrame| {
             let mut ts = [0u8; 8];
             ts[..6].copy_from_slice(&f.signature().unwrap()[1..7]);
@@ -329,7 +335,9 @@ mod tests {
         assert!(stamp(&first) > stored.timestamp);
         // and with a clock ahead of the stored value, the clock wins
         let mut ahead = LinkSigner::with_state(key, 1, stored.timestamp + 1_000, stored);
-        let s = ahead.sign(&frame(HEARTBEAT, 1, 1, 2), Instant::ZERO).unwrap();
+        let s = ahead
+            .sign(&frame(HEARTBEAT, 1, 1, 2), Instant::ZERO)
+            .unwrap();
         assert_eq!(stamp(&s), ahead.state(Instant::ZERO).timestamp);
     }
 
@@ -355,6 +363,9 @@ mod tests {
 
         let mut close = LinkSigner::new(key, 3, 50 * ten_minutes - 30 * 100_000);
         let f = close.sign(&frame(HEARTBEAT, 2, 1, 0), t).unwrap();
-        assert!(ground.verify(&f, t).is_ok(), "30 s behind is within the minute");
+        assert!(
+            ground.verify(&f, t).is_ok(),
+            "30 s behind is within the minute"
+        );
     }
 }

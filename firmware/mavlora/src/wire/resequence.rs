@@ -83,7 +83,10 @@ mod tests {
                 raw_frame(MavlinkVersion::V2, 1, 1, seq.wrapping_add(2), 164, &[7; 44]);
             unknown.fill_checksum(154);
             assert!(r.apply(&mut known) && r.apply(&mut unknown));
-            assert!(unknown.crc_matches(154), "checksum rebuilt with its own CRC_EXTRA");
+            assert!(
+                unknown.crc_matches(154),
+                "checksum rebuilt with its own CRC_EXTRA"
+            );
             reader.push(known.as_bytes());
             reader.push(unknown.as_bytes());
         }

@@ -142,7 +142,10 @@ mod tests {
         let v1 = simstate_v1(9);
         assert_eq!(crc_extra_of(&v1), Some(154));
         let v2 = to_v2(v1.clone()).unwrap();
-        assert!(v2.crc_matches(154), "v2 checksum made with SIMSTATE's CRC_EXTRA");
+        assert!(
+            v2.crc_matches(154),
+            "v2 checksum made with SIMSTATE's CRC_EXTRA"
+        );
         assert_eq!(v2.payload(), v1.payload());
         assert_eq!(to_v1(v2).unwrap(), v1);
     }
