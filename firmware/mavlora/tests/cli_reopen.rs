@@ -57,6 +57,7 @@ fn router_reopens_a_radio_that_disappears_and_returns() {
         .unwrap();
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .arg("--radio")
         .arg(&link)
         .args(["--udp", &udp.local_addr().unwrap().to_string()])
@@ -104,6 +105,7 @@ fn config_file_with_an_unknown_key_is_an_error_naming_the_file() {
     let config = dir.join("router.toml");
     std::fs::write(&config, "radio = \"/dev/null\"\nradoi_baud = 57600\n").unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .arg("--config")
         .arg(&config)
         .output()
@@ -118,6 +120,7 @@ fn config_file_with_an_unknown_key_is_an_error_naming_the_file() {
     );
     // a bad flag is a usage error
     let usage = Command::new(env!("CARGO_BIN_EXE_mavlora-bridge"))
+        .arg("--unsigned")
         .arg("--no-such-flag")
         .output()
         .unwrap();

@@ -133,6 +133,8 @@ fn pymavlink_telemetry_and_fifty_item_mission_through_bridge_and_router() {
     // the radio link is signed end to end; the flight controller and ground station are not
     let key = dir.join("radio.key");
     std::fs::write(&key, "2a".repeat(32)).unwrap();
+    // a key others may read is refused
+    std::fs::set_permissions(&key, std::os::unix::fs::PermissionsExt::from_mode(0o600)).unwrap();
 
     let mut fc = Guard(
         Some(

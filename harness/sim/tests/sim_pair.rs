@@ -219,6 +219,7 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
         key: SigningKey([42; 32]),
         link_id,
         epoch: 3_000_000_000,
+        state: Default::default(),
     };
     let mut b = BridgeConfig::new(profile("px4-compact.toml"), budget());
     b.compact = Some(CompactConfig::default());

@@ -44,7 +44,7 @@ struct Options {
     /// [default: 255].
     #[arg(long, value_delimiter = ',')]
     allow_sysid: Option<Vec<u8>>,
-    /// MAVLink 2 signing key file for the ground side (64 hex characters or 32 bytes; not
+    /// MAVLink 2 signing key file for the ground side (64 hex characters, mode 600; not
     /// the radio's --key): frames from ground stations must be signed with it, frames to
     /// them are signed with it.
     #[arg(long)]
@@ -81,7 +81,9 @@ fn run(o: Options) -> Result<()> {
     if let Some(period) = o.shared.link_quality_period() {
         config.quality.period = period;
     }
-    config.signing = o.shared.signing(2)?;
+    let mut signing = o.shared.signing(2, "router")?;
+    config.signing = signing.config.clone();
+    let signing_label = signing.label();
     if let Some(allow) = o.allow {
         config.ground.allow = allow;
     }
@@ -100,6 +102,7 @@ fn run(o: Options) -> Result<()> {
                 .with_context(|| format!("ground key {}", path.display()))?,
             link_id: 3,
             epoch: signing_epoch_now(),
+            state: Default::default(),
         });
         info!(key = %path.display(), "ground signing on");
     }
@@ -137,7 +140,7 @@ fn run(o: Options) -> Result<()> {
     )?;
     let clock = Clock::start();
     let mut router = Router::new(config, clock.now())?;
-    info!(rate, burst, "router running");
+    info!(rate, burst, signing = signing_label, "router running");
     let mut next_status = clock.now() + status_every;
     let record = |tlog: &mut Option<Tlog>, bytes: &[u8]| {
         if let Some(t) = tlog
@@ -196,17 +199,25 @@ fn run(o: Options) -> Result<()> {
         while let Some(f) = router.poll_radio_transmit(now, usize::MAX) {
             radio.write(f.as_bytes());
         }
+        if let Some(file) = &mut signing.state_file {
+            file.tick(now, || router.signing_state(now));
+        }
         if now >= next_status {
-            status(&router, &radio, &udp, tcp.as_ref(), &inbox);
+            status(signing_label, &router, &radio, &udp, tcp.as_ref(), &inbox);
             next_status = now + status_every;
         }
     }
     stop.store(true, Ordering::Relaxed);
+    if let Some(file) = &signing.state_file
+        && let Some(state) = router.signing_state(clock.now())
+    {
+        file.save(&state)?;
+    }
     radio.stop();
     if let Some(t) = &mut tlog {
         t.flush().context("flushing tlog")?;
     }
-    status(&router, &radio, &udp, tcp.as_ref(), &inbox);
+    status(signing_label, &router, &radio, &udp, tcp.as_ref(), &inbox);
     Ok(())
 }
 
@@ -218,6 +229,7 @@ fn report(from: SocketAddr, input: &GroundInput) {
 }
 
 fn status(
+    signing: &str,
     router: &Router,
     radio: &SerialLink,
     udp: &UdpEndpoint,
@@ -266,6 +278,9 @@ fn status(
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,
+        rejected_stale = s.signing.stale,
+        radio_tx_unsigned = s.signing.sent_unsigned,
+        signing = %signing,
         peer_loss = ?peer_loss,
         "status"
     );

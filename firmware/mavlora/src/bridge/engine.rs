@@ -20,7 +20,7 @@ use crate::quality::LinkQuality;
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
 use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, ids};
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, ids, to_v1};
 
 /// Counters of one bridge, for the status line and tests.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -63,6 +63,10 @@ pub struct BridgeStats {
     pub link_quality_sent: u64,
     /// `LINK_QUALITY` reports received from the radio.
     pub link_quality_received: u64,
+    /// Radio frames turned into MAVLink 1 for a MAVLink 1 flight controller.
+    pub to_fc_downgraded: u64,
+    /// Radio frames a MAVLink 1 flight controller could not be given (ids above 255).
+    pub to_fc_not_v1: u64,
 }
 
 #[derive(Debug)]
@@ -158,6 +162,16 @@ impl Bridge {
             signing: self.radio_leg.stats(),
             ..self.stats.clone()
         }
+    }
+
+    /// Whether radio frames are signed.
+    pub fn radio_signed(&self) -> bool {
+        self.radio_leg.signed()
+    }
+
+    /// The radio signer's state to store at `now` (`None`: signing off).
+    pub fn signing_state(&self, now: Instant) -> Option<crate::signing::SigningState> {
+        self.radio_leg.signing_state(now)
     }
 
     /// The link-quality engine (the peer's latest report, its state).
@@ -280,7 +294,11 @@ impl Bridge {
             return;
         }
         if self.filter.check(&frame, now) == Verdict::Pass {
-            self.scheduler.push(frame, Class::of(id), now);
+            // a MAVLink 1 autopilot's frames go as MAVLink 2 (so they can be signed): the
+            // budget counts the bytes that are sent
+            if let Some(frame) = self.radio_leg.admit(frame) {
+                self.scheduler.push(frame, Class::of(id), now);
+            }
         }
     }
 
@@ -442,8 +460,21 @@ impl Bridge {
         self.forward_to_fc(frame);
     }
 
+    /// Queues a radio frame for the flight controller, in MAVLink 1 if that is what it
+    /// speaks (the radio carries only MAVLink 2); what MAVLink 1 cannot carry (ids above
+    /// 255) is dropped and counted.
     fn forward_to_fc(&mut self, frame: OwnedFrame) {
-        self.to_fc.push_back(frame);
+        if self.watch.version() != Some(MavlinkVersion::V1) {
+            self.to_fc.push_back(frame);
+            return;
+        }
+        match to_v1(frame) {
+            Some(v1) => {
+                self.stats.to_fc_downgraded += 1;
+                self.to_fc.push_back(v1);
+            }
+            None => self.stats.to_fc_not_v1 += 1,
+        }
     }
 
     /// Does what is due at `now`: link-quality reports, compact telemetry, regenerated ground

@@ -17,7 +17,9 @@ use crate::quality::{LinkQuality, LinkQualityConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, encode, ids, known};
+use crate::wire::{
+    FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, encode, ids, known, to_v1,
+};
 
 /// Router settings.
 #[derive(Debug, Clone)]
@@ -96,6 +98,8 @@ pub struct RouterStats {
     pub to_gcs_frames: u64,
     /// Bytes sent to the ground station.
     pub to_gcs_bytes: u64,
+    /// Radio frames a MAVLink 1 ground station could not be given (ids above 255).
+    pub to_gcs_not_v1: u64,
     /// Ground mission retransmissions dropped within one radio round trip.
     pub mission_duplicates: u64,
     /// The command relay's resends and dropped ground retries.
@@ -126,9 +130,11 @@ pub struct Router {
     /// Streams towards the ground station that we renumber, by (system, component).
     resequenced: HashMap<(u8, u8), u8>,
     to_gcs: VecDeque<OwnedFrame>,
-    /// Renumbers what leaves on the radio (thinned heartbeats must not read as loss).
     /// Renumbers and signs what leaves on the radio, verifies what arrives.
     radio_leg: RadioLeg,
+    /// The version the ground station speaks (its last accepted frame's); MAVLink 2 until
+    /// it said otherwise.
+    ground_version: MavlinkVersion,
     /// Verifies what the ground sends and signs what it gets, with the ground key.
     ground_signer: Option<LinkSigner>,
     /// When each (source, reason) rejection was last reported.
@@ -176,11 +182,22 @@ impl Router {
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
             radio_leg: RadioLeg::new(config.signing.as_ref()),
+            ground_version: MavlinkVersion::V2,
             reported: HashMap::new(),
             ground_signer: config.ground_signing.as_ref().map(SigningConfig::signer),
             stats: RouterStats::default(),
             config,
         })
+    }
+
+    /// Whether radio frames are signed.
+    pub fn radio_signed(&self) -> bool {
+        self.radio_leg.signed()
+    }
+
+    /// The radio signer's state to store at `now` (`None`: signing off).
+    pub fn signing_state(&self, now: Instant) -> Option<crate::signing::SigningState> {
+        self.radio_leg.signing_state(now)
     }
 
     /// Counters as of now.
@@ -262,6 +279,12 @@ impl Router {
                 );
                 continue;
             }
+            // the radio carries MAVLink 2 only; a ground station that speaks MAVLink 1 gets
+            // MAVLink 1 back
+            self.ground_version = frame.version();
+            let Some(frame) = self.radio_leg.admit(frame) else {
+                continue;
+            };
             let id = frame.message_id();
             if matches!(id, ids::COMMAND_INT | ids::COMMAND_LONG)
                 && let Ok(msg) = frame.decode::<MavMessage>()
@@ -412,6 +435,13 @@ impl Router {
     /// dropped: a station that signs would reject them).
     fn enqueue_gcs(&mut self, now: Instant, frame: OwnedFrame) {
         let frame = match &mut self.ground_signer {
+            None if self.ground_version == MavlinkVersion::V1 => match to_v1(frame) {
+                Some(v1) => v1,
+                None => {
+                    self.stats.to_gcs_not_v1 += 1;
+                    return;
+                }
+            },
             None => frame,
             Some(signer) => match signer.sign(&frame, now) {
                 Some(signed) => signed,

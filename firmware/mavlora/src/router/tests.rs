@@ -301,6 +301,7 @@ fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_ge
         key: key.clone(),
         link_id: 2,
         epoch: 1_000_000,
+        state: Default::default(),
     });
     let mut r = Router::new(config, Instant::ZERO).unwrap();
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
