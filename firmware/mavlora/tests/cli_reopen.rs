@@ -142,6 +142,7 @@ fn router_never_attaches_to_an_unrelated_pty_that_reuses_the_radios_number() {
     let node = slave.name().unwrap();
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .args(["--radio", &node])
         .args(["--udp", &udp.local_addr().unwrap().to_string()])
         .args(["--udp-bind", "127.0.0.1:0", "--status-interval", "0.5"])
@@ -226,6 +227,7 @@ fn router_waits_for_a_radio_named_by_an_absent_usb_serial_number() {
     std::fs::create_dir_all(&dir).unwrap();
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .args(["--radio", "usb-serial:NO-SUCH-RADIO-7"])
         .args(["--udp-bind", "127.0.0.1:0"])
         .env("RUST_LOG", "info")
@@ -247,7 +249,13 @@ fn router_waits_for_a_radio_named_by_an_absent_usb_serial_number() {
     assert!(status.success(), "{status:?}");
     // An empty serial number is bad usage, named by the port it was given for.
     let out = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
-        .args(["--radio", "usb-serial:", "--udp-bind", "127.0.0.1:0"])
+        .args([
+            "--unsigned",
+            "--radio",
+            "usb-serial:",
+            "--udp-bind",
+            "127.0.0.1:0",
+        ])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
