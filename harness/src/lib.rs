@@ -17,6 +17,7 @@
 
 pub mod clock;
 pub mod driver;
+pub mod evidence;
 pub mod measurement;
 pub mod px4;
 pub mod record;

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use harness::evidence::{build, certify, manifest};
 use harness::record::RunOutcome;
 use harness::report;
 use harness::rigfile::{DeviceSetup, Mode, RigFile};
@@ -69,7 +70,73 @@ enum Command {
     },
     /// Render junit.xml and summary.txt again from a saved results.json.
     Report { results: PathBuf },
+    /// Build the firmware (and the host programs) reproducibly and write build.json:
+    /// per artifact SHA-256 and size, git commit and dirty flag, toolchain versions.
+    Build {
+        /// Rig file whose MultiRX configs are compiled into firmware images (one per mode);
+        /// without one, the firmware crate's default config.
+        rig: Option<PathBuf>,
+        /// Output folder for build.json and the firmware images.
+        #[arg(long, default_value = "rig-build")]
+        out: PathBuf,
+        /// Cargo target folder (kept apart from target/release: other rustflags).
+        #[arg(long, default_value = "target/rig-build")]
+        target_dir: PathBuf,
+        /// Firmware only (no rig, bridge, router, emulator).
+        #[arg(long)]
+        firmware_only: bool,
+    },
+    /// Build, run the suite with the programs just built, and write a sealed evidence folder:
+    /// report.html, trace matrix, results.json, junit.xml, traces, SBOM, in-toto statements,
+    /// MANIFEST.sha256 (signed with --key).
+    #[command(after_help = CERTIFY_EXIT_CODES)]
+    Certify {
+        rig: PathBuf,
+        /// Evidence folder (must not exist or be empty).
+        #[arg(long, default_value = "evidence")]
+        out: PathBuf,
+        /// ed25519 private key, PKCS#8 PEM (`openssl genpkey -algorithm ed25519 -out key.pem`).
+        #[arg(long)]
+        key: Option<PathBuf>,
+        /// Only run phases whose name contains this: the verdict is then at best PARTIAL.
+        #[arg(long)]
+        filter: Option<String>,
+        /// Match --filter exactly.
+        #[arg(long, requires = "filter")]
+        exact: bool,
+        /// Cargo target folder for the build.
+        #[arg(long, default_value = "target/rig-build")]
+        target_dir: PathBuf,
+    },
+    /// Re-check every digest and the signature of an evidence folder; names the file that changed.
+    #[command(after_help = VERIFY_EXIT_CODES)]
+    Verify {
+        dir: PathBuf,
+        /// The team's published public key (SPKI PEM); default: the folder's own, whose
+        /// fingerprint is printed for comparison.
+        #[arg(long)]
+        pubkey: Option<PathBuf>,
+    },
 }
+
+/// `rig certify --help`'s exit codes.
+const CERTIFY_EXIT_CODES: &str = "\
+Exit codes:
+  0  PASS: every phase ran and passed, every requirement covered and met
+  1  FAIL: a phase or a requirement's measurement failed (evidence written)
+  2  nothing certified: bad rig file, requirements file, key or command line,
+     a build that failed, or a suite that did not run
+  3  PARTIAL: nothing failed, but the run does not show every requirement
+     (--filter, an uncovered requirement, a skipped phase); evidence written";
+
+/// `rig verify --help`'s exit codes.
+const VERIFY_EXIT_CODES: &str = "\
+Exit codes:
+  0  every file matches MANIFEST.sha256 and the ed25519 signature is valid
+  1  a file changed, was added or removed, or the signature is not valid
+     (the message names the file)
+  2  not an evidence folder (no manifest or seal) or a file cannot be read
+  3  every digest matches but the folder is not signed";
 
 /// `--mode`: the core's mode names, listed in `--help` as before.
 fn mode_parser() -> impl clap::builder::TypedValueParser<Value = Mode> {
@@ -199,6 +266,74 @@ fn execute(command: Command) -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
+        Command::Build {
+            rig,
+            out,
+            target_dir,
+            firmware_only,
+        } => {
+            let rig = rig.map(|r| RigFile::load(&r)).transpose()?;
+            let options = certify::build_options(rig.as_ref(), out, target_dir, !firmware_only)?;
+            let record = build::build(&options)?;
+            for a in &record.artifacts {
+                println!("{}  {:>10} B  {}", a.sha256, a.size, a.path.display());
+            }
+            println!(
+                "{}: commit {}{}",
+                options.out_dir.join(build::BUILD_FILE).display(),
+                record.git_commit,
+                if record.git_dirty { " (dirty)" } else { "" }
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Certify {
+            rig,
+            out,
+            key,
+            filter,
+            exact,
+            target_dir,
+        } => {
+            let record = certify::certify(&certify::CertifyOptions {
+                rig,
+                out_dir: out.clone(),
+                key,
+                filter,
+                exact,
+                target_dir,
+            })?;
+            println!(
+                "rig certify: {}: {}\nevidence: {}",
+                record.verdict.as_str(),
+                record.why,
+                out.display()
+            );
+            Ok(ExitCode::from(record.verdict.exit_code()))
+        }
+        Command::Verify { dir, pubkey } => match manifest::verify(&dir, pubkey.as_deref()) {
+            Ok(v) => match v.signed_by {
+                Some(key) => {
+                    println!(
+                        "{}: {} files match MANIFEST.sha256; signed by {key}",
+                        dir.display(),
+                        v.files
+                    );
+                    Ok(ExitCode::SUCCESS)
+                }
+                None => {
+                    println!(
+                        "{}: {} files match MANIFEST.sha256; NOT signed",
+                        dir.display(),
+                        v.files
+                    );
+                    Ok(ExitCode::from(3))
+                }
+            },
+            Err(e) => {
+                eprintln!("rig verify: {}: {e}", dir.display());
+                Ok(ExitCode::from(e.exit_code()))
+            }
+        },
         Command::Report { results } => {
             let paths = report::rerender(&results)?;
             println!("{}\n{}", paths.junit.display(), paths.summary.display());

@@ -76,6 +76,9 @@ pub struct RigSection {
     /// Default output folder, absolute; `None` uses [`DEFAULT_OUTPUT`]
     /// (see [`RigFile::output_dir`]).
     pub output: Option<PathBuf>,
+    /// Lock file of the bench (absolute): a run holds an exclusive `flock` on it, so two jobs
+    /// never drive the same hardware at once (see `runner::lock`).
+    pub lock: Option<PathBuf>,
 }
 
 /// `[fixtures]`: the Python programs that play peers (pymavlink, receivers).
@@ -467,6 +470,7 @@ impl Checker<'_> {
             name: raw.rig.name,
             description: raw.rig.description,
             output: raw.rig.output.map(|p| self.resolve(&p)),
+            lock: raw.rig.lock.map(|p| self.resolve(&p)),
         };
         let python = match raw.fixtures.python.as_deref() {
             None => PathBuf::from(DEFAULT_PYTHON),

@@ -32,6 +32,7 @@ pub(super) struct RawRig {
     #[serde(default)]
     pub description: String,
     pub output: Option<PathBuf>,
+    pub lock: Option<PathBuf>,
 }
 
 #[derive(Debug, Default, Deserialize)]

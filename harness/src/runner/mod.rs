@@ -30,6 +30,7 @@ use crate::strategy::firmware::{self, FirmwareImage};
 use crate::strategy::multirx::MultirxSession;
 
 pub mod interrupt;
+pub mod lock;
 mod mavlora;
 
 /// What to run and where to write.
@@ -190,45 +191,8 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
         },
         &out_dir,
     );
-    let mut trials = Vec::new();
-    let mut known_names = Vec::new();
     let images: Images = Arc::default();
-    if let Some(section) = &rig.multirx {
-        for &mode in &section.modes {
-            let limits = mode_limits(&rig, mode)?;
-            if let DeviceSetup::Board(board) = &section.device.setup
-                && board.flash
-            {
-                let flash = declare_flash(mode);
-                known_names.extend(names(&flash.0));
-                trials.push(flash_trial(
-                    &rig,
-                    &phases,
-                    &images,
-                    mode,
-                    board.clone(),
-                    flash,
-                ));
-            }
-            for scenario in multirx::scenarios() {
-                let plan = ScenarioPlan::declare(&scenario, &limits);
-                known_names.extend(names(&plan.declared));
-                trials.push(scenario_trial(
-                    &rig,
-                    &phases,
-                    &out_dir,
-                    mode,
-                    scenario,
-                    limits.clone(),
-                    plan,
-                ));
-            }
-            let whole_run = declare_whole_run(&limits);
-            known_names.extend(names(&whole_run.0));
-            trials.push(whole_run_trial(&rig, &phases, mode, limits, whole_run));
-        }
-    }
-    known_names.extend(mavlora::add_trials(&rig, &phases, &out_dir, &mut trials));
+    let (trials, known_names) = plan(&rig, &phases, &out_dir, &images)?;
     rig.check_limit_names(known_names.iter().map(String::as_str))?;
 
     let args = Arguments {
@@ -261,6 +225,11 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
         }
         .into());
     }
+    // Held until the run's record is final: no other run drives this bench meanwhile.
+    let _bench = match &rig.rig.lock {
+        Some(path) => Some(lock::BenchLock::acquire(path)?.0),
+        None => None,
+    };
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("cannot create output folder {}", out_dir.display()))?;
     phases.open()?;
@@ -285,6 +254,70 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
         record: Some(record),
         paths: Some(paths),
     })
+}
+
+/// Every phase the rig file describes as a trial, with the flat names of the measurements they
+/// declare.
+fn plan(
+    rig: &Arc<RigFile>,
+    phases: &Phases,
+    out_dir: &Path,
+    images: &Images,
+) -> Result<(Vec<Trial>, Vec<String>)> {
+    let mut trials = Vec::new();
+    let mut known_names = Vec::new();
+    if let Some(section) = &rig.multirx {
+        for &mode in &section.modes {
+            let limits = mode_limits(rig, mode)?;
+            if let DeviceSetup::Board(board) = &section.device.setup
+                && board.flash
+            {
+                let flash = declare_flash(mode);
+                known_names.extend(names(&flash.0));
+                trials.push(flash_trial(rig, phases, images, mode, board.clone(), flash));
+            }
+            for scenario in multirx::scenarios() {
+                let plan = ScenarioPlan::declare(&scenario, &limits);
+                known_names.extend(names(&plan.declared));
+                trials.push(scenario_trial(
+                    rig,
+                    phases,
+                    out_dir,
+                    mode,
+                    scenario,
+                    limits.clone(),
+                    plan,
+                ));
+            }
+            let whole_run = declare_whole_run(&limits);
+            known_names.extend(names(&whole_run.0));
+            trials.push(whole_run_trial(rig, phases, mode, limits, whole_run));
+        }
+    }
+    known_names.extend(mavlora::add_trials(rig, phases, out_dir, &mut trials));
+    Ok((trials, known_names))
+}
+
+/// The flat names of every measurement the phases of `rig` declare (the trace matrix checks its
+/// requirements against them). Runs nothing and writes nothing.
+pub fn declared_names(rig: RigFile) -> Result<Vec<String>> {
+    let rig = Arc::new(rig);
+    let phases = Phases::new(
+        RunRecord {
+            tool: ToolIdentity::this_build(None),
+            rig: RigIdentity::of_file(rig.rig.name.clone(), &rig.path)?,
+            devices: Vec::new(),
+            started: String::new(),
+            ended: String::new(),
+            outcome: RunOutcome::Running,
+            phases: Vec::new(),
+        },
+        Path::new(""),
+    );
+    let (_, mut names) = plan(&rig, &phases, Path::new(""), &Images::default())?;
+    names.sort();
+    names.dedup();
+    Ok(names)
 }
 
 /// One trial: the phase `body` runs with the run told it started, and its
