@@ -81,10 +81,8 @@ fn run(o: Options) -> Result<()> {
     if let Some(id) = o.system_id {
         config.system_id = id;
     }
-    if let Some(period) = o.shared.link_quality_period() {
-        config.quality.period = period;
-    }
     config.signing = o.shared.signing(1)?;
+    config.quality = o.shared.link_quality(config.signing.is_some());
     let status_every = o.shared.status_every();
 
     let inbox = Inbox::new(INBOX_BYTES);

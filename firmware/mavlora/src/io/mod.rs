@@ -13,7 +13,7 @@ mod udp;
 
 pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
 pub use framing::{DatagramFramer, FramingCounters};
-pub use options::{RadioOptions, Seconds, SecondsError, UsageError, main};
+pub use options::{Percent, PercentError, RadioOptions, Seconds, SecondsError, UsageError, main};
 pub use queue::{Lane, PopError, Queue, QueueStats};
 pub use serial::{SerialCounters, SerialEvent, SerialLink, frame_gap};
 pub use tcp::{DEFAULT_MAX_CLIENTS, TcpCounters, TcpEndpoint};

@@ -274,7 +274,12 @@ impl LinkQuality {
         }
         self.peer_window
             .push(now, self.peer_totals.0, self.peer_totals.1);
-        debug!(?loss_ratio, unheard, rx = report.rx_packets, "peer link-quality report");
+        debug!(
+            ?loss_ratio,
+            unheard,
+            rx = report.rx_packets,
+            "peer link-quality report"
+        );
         self.peer = Some(PeerReport {
             report,
             received_at: now,

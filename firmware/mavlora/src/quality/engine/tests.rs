@@ -175,7 +175,11 @@ fn budget_sets_the_steady_cost() {
     // 3 B/s of LoRa SF7's 683 B/s at most (issue 12), signed or not.
     for signed in [false, true] {
         let c = LinkQualityConfig::for_budget(683, signed);
-        let bytes = if signed { REPORT_BYTES_SIGNED } else { REPORT_BYTES };
+        let bytes = if signed {
+            REPORT_BYTES_SIGNED
+        } else {
+            REPORT_BYTES
+        };
         let cost = f64::from(bytes) / c.period.as_secs_f64();
         assert!(cost <= 3.0, "{cost} B/s");
     }
@@ -217,7 +221,10 @@ fn a_loss_change_sends_a_report_early_and_a_steady_link_stays_sparse() {
             if let Some(r) = due_report(&mut lq, now, reader.stats()) {
                 reports.push((now, r));
             }
-            now = lq.poll_timeout().unwrap().max(now + Duration::from_millis(1));
+            now = lq
+                .poll_timeout()
+                .unwrap()
+                .max(now + Duration::from_millis(1));
         }
     }
     assert_eq!(reports.len(), 2, "keep-alives at 10 s and 20 s only");
@@ -234,7 +241,10 @@ fn a_loss_change_sends_a_report_early_and_a_steady_link_stays_sparse() {
             if let Some(r) = due_report(&mut lq, now, reader.stats()) {
                 reports.push((now, r));
             }
-            now = lq.poll_timeout().unwrap().max(now + Duration::from_millis(1));
+            now = lq
+                .poll_timeout()
+                .unwrap()
+                .max(now + Duration::from_millis(1));
         }
     }
     // first loss counted when seq 32 arrives (31 missing); the keep-alive is due at 40 s
@@ -259,7 +269,10 @@ fn a_quiet_peer_is_reported_once_per_spell() {
         if due_report(&mut lq, now, &stats).is_some() {
             got.push(now);
         }
-        now = lq.poll_timeout().unwrap().max(now + Duration::from_millis(1));
+        now = lq
+            .poll_timeout()
+            .unwrap()
+            .max(now + Duration::from_millis(1));
     }
     assert_eq!(got, vec![secs(4)], "once, 3 s after the last frame");
     assert!(lq.peer_quiet(secs(20)));

@@ -70,7 +70,10 @@ fn degraded_then_restored_once_each_with_direction_and_figure() {
         &mut totals,
     );
     assert_eq!(texts.len(), 2, "{texts:?}");
-    assert!(texts[0].1.starts_with("Uplink GCS>UAV degraded: "), "{texts:?}");
+    assert!(
+        texts[0].1.starts_with("Uplink GCS>UAV degraded: "),
+        "{texts:?}"
+    );
     assert!(texts[0].0 <= 11, "{texts:?}");
     assert!(texts[1].1.starts_with("Uplink GCS>UAV restored: 0% lost"));
     // the 4 s window forgets the loss 4 s after the last lossy second (17 s)
@@ -115,7 +118,10 @@ fn a_bridge_that_stops_reporting_is_flagged_by_silence() {
     }
     assert_eq!(texts.len(), 1, "{texts:?}");
     assert_eq!(texts[0].2, Health::Silent);
-    assert_eq!(texts[0].0, 15, "peer timeout (10 s) after the last report at 4 s");
+    assert_eq!(
+        texts[0].0, 15,
+        "peer timeout (10 s) after the last report at 4 s"
+    );
     assert_eq!(texts[0].1, "Uplink GCS>UAV unknown: no drone report 11s");
 }
 
