@@ -91,9 +91,9 @@ pub struct PeerReport {
     /// the differences of its wrapping counters; `None` for its first report or when no
     /// frames were counted in between.
     pub loss_ratio: Option<f64>,
-    /// Frames we sent (counted with [`LinkQuality::sent_frame`]) between the previous
-    /// report's arrival and one second before this one's, of which the peer received
-    /// none: a deaf peer when at least two.
+    /// Frames we sent (counted with [`LinkQuality::sent_frame`]) between the arrival of the
+    /// last report that counted new frames and one second before this one's, while the peer
+    /// received none since: a deaf peer when at least two.
     pub unheard: u32,
 }
 
@@ -153,6 +153,8 @@ pub struct LinkQuality {
     quiet_reported: bool,
     /// When our radio frames left, recent ones.
     sent: VecDeque<Instant>,
+    /// When the last peer report that counted new frames of ours arrived.
+    progress_at: Option<Instant>,
     /// When the early conditions were last looked at.
     checked_at: Option<Instant>,
     /// Our report, made at its time and waiting for [`poll_report`](Self::poll_report).
@@ -178,6 +180,7 @@ impl LinkQuality {
             heard: None,
             quiet_reported: false,
             sent: VecDeque::new(),
+            progress_at: None,
             checked_at: None,
             due: None,
         }
@@ -257,16 +260,21 @@ impl LinkQuality {
             let total = u32::from(lost) + u32::from(received);
             (total > 0).then(|| f64::from(lost) / f64::from(total))
         });
-        // Ours sent since the previous report came, and old enough to have arrived.
-        let unheard = match (prev, deltas) {
-            (Some(p), Some((0, _))) => {
-                let from = p.received_at;
+        // Ours sent since the last report that counted progress, old enough to have
+        // arrived: reports of "nothing new" add up (each alone may span less than the
+        // in-flight allowance).
+        let unheard = match deltas {
+            Some((0, _)) => {
+                let from = self.progress_at.unwrap_or(now);
                 self.sent
                     .iter()
                     .filter(|t| **t >= from && **t + IN_FLIGHT <= now)
                     .count() as u32
             }
-            _ => 0,
+            _ => {
+                self.progress_at = Some(now);
+                0
+            }
         };
         if let Some((received, lost)) = deltas {
             self.peer_totals.0 += u64::from(received);

@@ -315,6 +315,8 @@ impl LinkMonitor {
     /// radio's remote RSSI), receive errors on the downlink (lost + bad CRC, wrapping), the
     /// local radio's noise, remote noise, corrected packets and free buffer when it sends
     /// `RADIO_STATUS` (else unknown: 255, 0 corrected, 100 % free).
+    // `..Default::default()` stays: the dialect gains MAVLink 2 extension fields.
+    #[allow(clippy::needless_update)]
     pub fn poll_radio_status(&mut self, q: &LinkQuality) -> Option<RADIO_STATUS_DATA> {
         if !std::mem::take(&mut self.status_due) {
             return None;

@@ -290,7 +290,11 @@ fn a_report_of_nothing_received_while_we_sent_reads_as_a_deaf_peer() {
     lq.handle_frame(secs(5), &sender.frame(&report(100, 0)));
     assert_eq!(lq.peer().unwrap().unheard, 4);
     assert_eq!(lq.peer_loss(secs(5)), Some(1.0));
+    // reports of "nothing new" a second apart still add up
+    lq.handle_frame(Instant::from_millis(5_500), &sender.frame(&report(100, 0)));
+    assert_eq!(lq.peer().unwrap().unheard, 4);
     // it hears us again
     lq.handle_frame(secs(6), &sender.frame(&report(101, 0)));
     assert_eq!(lq.peer_loss(secs(6)), Some(0.0));
+    assert_eq!(lq.peer().unwrap().unheard, 0);
 }
