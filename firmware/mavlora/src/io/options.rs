@@ -99,7 +99,7 @@ impl RadioOptions {
         if let Some(period) = self.link_quality_period() {
             q = crate::quality::LinkQualityConfig {
                 period,
-                window: q.window.max(period * 2),
+                window: Duration::from_secs(4).max(period * 2),
                 quiet_after: (period * 3) / 2 + Duration::from_millis(500),
                 peer_timeout: (period * 5) / 2 + Duration::from_secs(5),
                 ..q
