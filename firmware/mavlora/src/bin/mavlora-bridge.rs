@@ -81,12 +81,10 @@ fn run(o: Options) -> Result<()> {
     if let Some(id) = o.system_id {
         config.system_id = id;
     }
-    if let Some(period) = o.shared.link_quality_period() {
-        config.quality.period = period;
-    }
     let mut signing = o.shared.signing(1, "bridge")?;
     config.signing = signing.config.clone();
     let signing_label = signing.label();
+    config.quality = o.shared.link_quality(config.signing.is_some());
     let status_every = o.shared.status_every();
 
     let inbox = Inbox::new(INBOX_BYTES);

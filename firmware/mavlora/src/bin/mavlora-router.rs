@@ -16,8 +16,9 @@ use serde::Deserialize;
 use tracing::{info, warn};
 
 use mavlora::io::{
-    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, Seconds, SerialEvent, SerialLink,
-    TcpEndpoint, Tlog, UdpEndpoint, UsageError, frame_gap, on_signal, signing_epoch_now,
+    Clock, Event, INBOX_BYTES, Inbox, Percent, PopError, RadioOptions, Seconds, SerialEvent,
+    SerialLink, TcpEndpoint, Tlog, UdpEndpoint, UsageError, frame_gap, on_signal,
+    signing_epoch_now,
 };
 use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
 use mavlora::signing::{SigningConfig, SigningKey};
@@ -65,6 +66,13 @@ struct Options {
     /// Seconds between ground heartbeats sent over the radio, 0.1..=86400 [default: 5].
     #[arg(long)]
     gcs_heartbeat_period: Option<Seconds>,
+    /// Uplink or downlink loss (percent) at which the ground station is told the link is
+    /// degraded (STATUSTEXT) [default: 20].
+    #[arg(long)]
+    link_degraded: Option<Percent>,
+    /// Loss (percent) below which a degraded link is announced restored [default: 10].
+    #[arg(long)]
+    link_restored: Option<Percent>,
 }
 
 fn main() -> ExitCode {
@@ -78,12 +86,27 @@ fn run(o: Options) -> Result<()> {
     if let Some(p) = o.gcs_heartbeat_period {
         config.gcs_heartbeat_period = p.into();
     }
-    if let Some(period) = o.shared.link_quality_period() {
-        config.quality.period = period;
-    }
     let mut signing = o.shared.signing(2, "router")?;
     config.signing = signing.config.clone();
     let signing_label = signing.label();
+    config.quality = o.shared.link_quality(config.signing.is_some());
+    if let Some(p) = o.link_degraded {
+        config.monitor.degraded = p.fraction();
+    }
+    if let Some(p) = o.link_restored {
+        config.monitor.restored = p.fraction();
+    }
+    if config.monitor.restored > config.monitor.degraded {
+        return Err(UsageError::option(
+            "link_restored",
+            format!(
+                "{} % is above the degraded threshold ({} %)",
+                100.0 * config.monitor.restored,
+                100.0 * config.monitor.degraded
+            ),
+        )
+        .into());
+    }
     if let Some(allow) = o.allow {
         config.ground.allow = allow;
     }

@@ -410,6 +410,7 @@ impl Bridge {
         while let Some(rx) = self.radio_reader.next_frame() {
             self.radio_frame(rx.frame, now);
         }
+        self.quality.observe(now, self.radio_reader.stats());
     }
 
     fn radio_frame(&mut self, frame: OwnedFrame, now: Instant) {
@@ -551,6 +552,7 @@ impl Bridge {
         loop {
             let frame = self.scheduler.poll_transmit(now, room)?;
             if let Some(frame) = self.radio_leg.outgoing(frame, now) {
+                self.quality.sent_frame(now);
                 return Some(frame);
             }
         }

@@ -14,7 +14,9 @@ mod udp;
 
 pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
 pub use framing::{DatagramFramer, FramingCounters};
-pub use options::{RadioOptions, RadioSigning, Seconds, SecondsError, UsageError, main};
+pub use options::{
+    Percent, PercentError, RadioOptions, RadioSigning, Seconds, SecondsError, UsageError, main,
+};
 pub use queue::{Lane, PopError, Queue, QueueStats};
 pub use serial::{SerialCounters, SerialEvent, SerialLink, frame_gap};
 pub use signing_state::{SAVE_EVERY, SigningStateFile};

@@ -13,7 +13,7 @@ use crate::compact::Expander;
 use crate::dialect::MavMessage;
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::DuplicateSuppressor;
-use crate::quality::{LinkQuality, LinkQualityConfig};
+use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
@@ -28,6 +28,8 @@ pub struct RouterConfig {
     pub scheduler: SchedulerConfig,
     /// Link-quality reports.
     pub quality: LinkQualityConfig,
+    /// What the ground station is told about the link (`RADIO_STATUS`, `STATUSTEXT`).
+    pub monitor: MonitorConfig,
     /// Our system id (reports we originate).
     pub system_id: u8,
     /// Our component id.
@@ -63,7 +65,8 @@ impl RouterConfig {
     pub fn new(scheduler: SchedulerConfig) -> Self {
         Self {
             scheduler,
-            quality: LinkQualityConfig::default(),
+            quality: LinkQualityConfig::for_budget(scheduler.rate_bytes_per_s, false),
+            monitor: MonitorConfig::default(),
             system_id: 255,
             component_id: 191,
             autopilot_component: 1,
@@ -106,6 +109,13 @@ pub struct RouterStats {
     pub commands: RetransmitStats,
     /// `LINK_QUALITY` reports sent to the radio.
     pub link_quality_sent: u64,
+    /// `STATUSTEXT` link announcements sent to the ground.
+    pub link_notices: u64,
+    /// `RADIO_STATUS` sent to the ground.
+    pub radio_status_sent: u64,
+    /// `LINK_QUALITY` frames from the ground, dropped: only the router speaks for the
+    /// ground end of the link.
+    pub ground_link_quality_dropped: u64,
     /// Radio link signing (all zero when signing is off).
     pub signing: SigningStats,
     /// What the ground-side gate rejected.
@@ -121,6 +131,9 @@ pub struct Router {
     radio_reader: FrameReader,
     gcs_reader: FrameReader,
     quality: LinkQuality,
+    monitor: LinkMonitor,
+    /// The vehicle's system id, from its link-quality reports (or its first frame).
+    vehicle: Option<u8>,
     scheduler: LinkScheduler,
     heartbeat_filter: RadioFilter,
     expander: Expander,
@@ -155,6 +168,8 @@ impl Router {
             radio_reader: FrameReader::new(),
             gcs_reader: FrameReader::new(),
             quality: LinkQuality::new(config.quality, now),
+            monitor: LinkMonitor::new(config.monitor),
+            vehicle: None,
             scheduler: LinkScheduler::new(config.scheduler, now)?,
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
@@ -222,6 +237,11 @@ impl Router {
     /// The link-quality engine.
     pub fn quality(&self) -> &LinkQuality {
         &self.quality
+    }
+
+    /// What the ground station is told about the link.
+    pub fn monitor(&self) -> &LinkMonitor {
+        &self.monitor
     }
 
     /// The radio's serial port was closed.
@@ -309,6 +329,10 @@ impl Router {
             if rx.integrity == Integrity::Checked {
                 input.accepted += 1;
             }
+            if id == ids::LINK_QUALITY {
+                self.stats.ground_link_quality_dropped += 1;
+                continue;
+            }
             if id == ids::HEARTBEAT {
                 if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
                     continue;
@@ -357,7 +381,12 @@ impl Router {
                 continue;
             };
             self.quality.handle_frame(now, &frame);
+            if self.vehicle.is_none() || frame.message_id() == ids::LINK_QUALITY {
+                self.vehicle = Some(frame.system_id());
+            }
             match frame.message_id() {
+                // The local radio's: the ground gets ours, which includes its fields.
+                ids::RADIO_STATUS => {}
                 ids::MAVLORA_POSITION_BATCH | ids::MAVLORA_STATUS => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.expand(now, frame.system_id(), &msg);
@@ -392,6 +421,7 @@ impl Router {
                 _ => self.push_gcs(now, frame),
             }
         }
+        self.quality.observe(now, self.radio_reader.stats());
     }
 
     fn expand(&mut self, now: Instant, system: u8, msg: &MavMessage) {
@@ -467,6 +497,35 @@ impl Router {
             self.enqueue_gcs(now, frame.clone());
             self.scheduler.push(frame, Class::Periodic, now);
         }
+        self.link_monitor(now);
+    }
+
+    /// `STATUSTEXT` announcements and `RADIO_STATUS` for the ground, as the vehicle's
+    /// telemetry radio (component 68, as a SiK radio would), so ground stations that show
+    /// only their vehicle's messages show these.
+    fn link_monitor(&mut self, now: Instant) {
+        self.monitor.handle_timeout(now, &self.quality);
+        let Some(system) = self.vehicle else {
+            return;
+        };
+        const RADIO_COMPONENT: u8 = 68; // MAV_COMP_ID_TELEMETRY_RADIO
+        let mut out = Vec::new();
+        while let Some(notice) = self.monitor.poll_notice() {
+            self.stats.link_notices += 1;
+            out.push(MavMessage::STATUSTEXT(notice.statustext()));
+        }
+        if let Some(status) = self.monitor.poll_radio_status(&self.quality) {
+            self.stats.radio_status_sent += 1;
+            out.push(MavMessage::RADIO_STATUS(status));
+        }
+        for msg in out {
+            let header = MavHeader {
+                system_id: system.into(),
+                component_id: RADIO_COMPONENT,
+                sequence: self.next_sequence((system, RADIO_COMPONENT)),
+            };
+            self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, &msg));
+        }
     }
 
     /// The next frame for the ground station (already signed with the ground key when
@@ -480,6 +539,7 @@ impl Router {
         loop {
             let frame = self.scheduler.poll_transmit(now, room)?;
             if let Some(frame) = self.radio_leg.outgoing(frame, now) {
+                self.quality.sent_frame(now);
                 return Some(frame);
             }
         }
@@ -489,6 +549,7 @@ impl Router {
     pub fn poll_timeout(&self) -> Option<Instant> {
         [
             self.quality.poll_timeout(),
+            self.monitor.poll_timeout(),
             self.scheduler.poll_timeout(),
             self.commands.poll_timeout(),
             // Frames waiting for the ground stations: due at once.
