@@ -13,7 +13,8 @@ use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
 use crate::dialect::{MavCmd, MavMessage, MavResult, MavType};
 use crate::filter::{
-    FilterStats, RadioFilter, Verdict, request_data_stream_requests, set_message_interval_requests,
+    FilterStats, RadioFilter, Unlisted, Verdict, request_data_stream_requests,
+    set_message_interval_requests,
 };
 use crate::mission::{MissionRelay, MissionStats};
 use crate::quality::LinkQuality;
@@ -63,6 +64,8 @@ pub struct BridgeStats {
     pub link_quality_sent: u64,
     /// `LINK_QUALITY` reports received from the radio.
     pub link_quality_received: u64,
+    /// Telemetry frames the profile does not name, dropped (`unlisted = "drop"`).
+    pub unlisted_dropped: u64,
 }
 
 #[derive(Debug)]
@@ -272,9 +275,21 @@ impl Bridge {
             self.stats.held_before_fc += 1;
             return;
         }
-        if self.filter.check(&frame, now) == Verdict::Pass {
-            self.scheduler.push(frame, Class::of(id), now);
+        if self.filter.check(&frame, now) != Verdict::Pass {
+            return;
         }
+        // Telemetry the profile does not name only gets what the named leaves, or nothing.
+        let class = match Class::of(id) {
+            Class::Periodic if !self.filter.profile().names(id) => {
+                if self.filter.profile().unlisted() == Unlisted::Drop {
+                    self.stats.unlisted_dropped += 1;
+                    return;
+                }
+                Class::Unlisted
+            }
+            class => class,
+        };
+        self.scheduler.push(frame, class, now);
     }
 
     fn addressed_to_us(&self, msg: &MavMessage) -> bool {
