@@ -131,10 +131,19 @@ fn parameter_stream_is_paced_to_the_ground_not_dropped() {
     assert_eq!(s.dropped_priority, 0, "{s:?}");
     let params = w.gcs.received.get(&ids::PARAM_VALUE).copied().unwrap_or(0);
     let radio = w.link_stats(Direction::Downlink).unwrap();
-    eprintln!("{params} PARAM_VALUE at the ground; radio buffer overflow: {} bytes", radio.bytes_dropped);
-    assert!(params + radio.bytes_dropped / 33 >= 300, "{params} received");
+    eprintln!(
+        "{params} PARAM_VALUE at the ground; radio buffer overflow: {} bytes",
+        radio.bytes_dropped
+    );
+    assert!(
+        params + radio.bytes_dropped / 33 >= 300,
+        "{params} received"
+    );
     let (hz, _) = positions(&w, secs(10.0));
-    assert!(hz >= 2.8, "position at {hz:.2} Hz during the parameter stream");
+    assert!(
+        hz >= 2.8,
+        "position at {hz:.2} Hz during the parameter stream"
+    );
 }
 
 #[test]

@@ -231,7 +231,10 @@ impl Profile {
         })?;
         let line_of = |span: std::ops::Range<usize>| text[..span.start].matches('\n').count() + 1;
 
-        let unlisted = file.defaults.as_ref().map_or(Unlisted::Share, |d| d.unlisted);
+        let unlisted = file
+            .defaults
+            .as_ref()
+            .map_or(Unlisted::Share, |d| d.unlisted);
         let default_radio = match file.defaults.and_then(|d| d.radio) {
             None => RadioRule::Pass,
             Some(value) => radio_rule(&value, "defaults", origin, line_of(value.span()))?,
@@ -318,7 +321,9 @@ impl Profile {
     /// Whether the profile names message `id` for the radio (listed, and not dropped): named
     /// telemetry gets its rate before anything unnamed.
     pub fn names(&self, id: u32) -> bool {
-        self.rules.get(&id).is_some_and(|r| r.radio != RadioRule::Drop)
+        self.rules
+            .get(&id)
+            .is_some_and(|r| r.radio != RadioRule::Drop)
     }
 
     /// What happens to periodic telemetry the profile does not name.
@@ -444,8 +449,11 @@ radio = 0.5
         let p = Profile::parse(SAMPLE, "sample").unwrap();
         assert_eq!(p.unlisted(), Unlisted::Share);
         assert!(p.names(33) && p.names(0) && !p.names(105));
-        let p = Profile::parse("[defaults]\nunlisted = \"drop\"\n[messages.33]\nradio = 3\n", "p")
-            .unwrap();
+        let p = Profile::parse(
+            "[defaults]\nunlisted = \"drop\"\n[messages.33]\nradio = 3\n",
+            "p",
+        )
+        .unwrap();
         assert_eq!(p.unlisted(), Unlisted::Drop);
         let err = Profile::parse("[defaults]\n\nunlisted = \"keep\"\n", "p.toml").unwrap_err();
         assert!(err.to_string().contains("line 3"), "{err}");

@@ -267,7 +267,11 @@ impl LinkScheduler {
     /// `room`, the bytes the radio can accept right now (its free buffer).
     pub fn poll_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
         let (source, len) = self.next_source()?;
-        if len > room || !self.bucket.try_take_keeping(len, self.reserve_for(source), now) {
+        if len > room
+            || !self
+                .bucket
+                .try_take_keeping(len, self.reserve_for(source), now)
+        {
             return None;
         }
         let frame = match source {
@@ -327,9 +331,8 @@ impl LinkScheduler {
         if let Some(f) = self.priority.front() {
             return Some((Source::Priority, len(f)));
         }
-        let share_due = |f: &OwnedFrame| {
-            self.param_credit >= len(f) as u64 * (PARAM_SHARE_DIVISOR - 1)
-        };
+        let share_due =
+            |f: &OwnedFrame| self.param_credit >= len(f) as u64 * (PARAM_SHARE_DIVISOR - 1);
         if let Some(f) = self.params.front()
             && share_due(f)
         {

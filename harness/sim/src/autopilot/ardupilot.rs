@@ -18,9 +18,9 @@ use std::collections::VecDeque;
 use mavlink::MavlinkVersion;
 use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType,
-    HEARTBEAT_DATA, MISSION_CURRENT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd,
-    MavMessage, MavModeFlag, MavParamType, MavResult, MavState, MavType, PARAM_VALUE_DATA,
-    SYS_STATUS_DATA, VFR_HUD_DATA,
+    HEARTBEAT_DATA, MISSION_CURRENT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage,
+    MavModeFlag, MavParamType, MavResult, MavState, MavType, PARAM_VALUE_DATA, SYS_STATUS_DATA,
+    VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 use mavlora::{Duration, Instant};
@@ -86,36 +86,36 @@ const fn st(group: Group, id: u32, payload_len: usize, crc_extra: u8) -> ApStrea
 /// types, 11 of them ardupilotmega-only. At 4 Hz per group: ~120 msg/s, ~3.8 kB/s in
 /// MAVLink 1, the brief's recorded SITL flight.
 pub const ARDUPILOT_STREAMS: &[ApStream] = &[
-    st(Group::RawSensors, 27, 26, 144),  // RAW_IMU
-    st(Group::RawSensors, 116, 22, 76),  // SCALED_IMU2
-    st(Group::RawSensors, 129, 22, 46),  // SCALED_IMU3
-    st(Group::RawSensors, 29, 14, 115),  // SCALED_PRESSURE
-    st(Group::RawSensors, 137, 14, 195), // SCALED_PRESSURE2
-    st(Group::RawSensors, 150, 42, 134), // SENSOR_OFFSETS (apm)
-    st(Group::ExtendedStatus, 1, 31, 124), // SYS_STATUS
+    st(Group::RawSensors, 27, 26, 144),     // RAW_IMU
+    st(Group::RawSensors, 116, 22, 76),     // SCALED_IMU2
+    st(Group::RawSensors, 129, 22, 46),     // SCALED_IMU3
+    st(Group::RawSensors, 29, 14, 115),     // SCALED_PRESSURE
+    st(Group::RawSensors, 137, 14, 195),    // SCALED_PRESSURE2
+    st(Group::RawSensors, 150, 42, 134),    // SENSOR_OFFSETS (apm)
+    st(Group::ExtendedStatus, 1, 31, 124),  // SYS_STATUS
     st(Group::ExtendedStatus, 125, 6, 203), // POWER_STATUS
     st(Group::ExtendedStatus, 152, 4, 208), // MEMINFO (apm)
-    st(Group::ExtendedStatus, 42, 2, 28), // MISSION_CURRENT
-    st(Group::ExtendedStatus, 24, 30, 24), // GPS_RAW_INT
+    st(Group::ExtendedStatus, 42, 2, 28),   // MISSION_CURRENT
+    st(Group::ExtendedStatus, 24, 30, 24),  // GPS_RAW_INT
     st(Group::ExtendedStatus, 62, 26, 183), // NAV_CONTROLLER_OUTPUT
-    st(Group::Position, 33, 28, 104),    // GLOBAL_POSITION_INT
-    st(Group::Position, 32, 28, 185),    // LOCAL_POSITION_NED
-    st(Group::RcChannels, 36, 21, 222),  // SERVO_OUTPUT_RAW
-    st(Group::RcChannels, 65, 42, 118),  // RC_CHANNELS
-    st(Group::RcChannels, 35, 22, 244),  // RC_CHANNELS_RAW
-    st(Group::Extra1, 30, 28, 39),       // ATTITUDE
-    st(Group::Extra1, 164, 44, 154),     // SIMSTATE (apm)
-    st(Group::Extra1, 178, 24, 47),      // AHRS2 (apm)
-    st(Group::Extra2, 74, 20, 20),       // VFR_HUD
-    st(Group::Extra3, 163, 28, 127),     // AHRS (apm)
-    st(Group::Extra3, 165, 3, 21),       // HWSTATUS (apm)
-    st(Group::Extra3, 2, 12, 137),       // SYSTEM_TIME
-    st(Group::Extra3, 168, 12, 1),       // WIND (apm)
-    st(Group::Extra3, 136, 22, 1),       // TERRAIN_REPORT
-    st(Group::Extra3, 182, 40, 229),     // AHRS3 (apm)
-    st(Group::Extra3, 193, 22, 71),      // EKF_STATUS_REPORT (apm)
-    st(Group::Extra3, 241, 32, 90),      // VIBRATION
-    st(Group::Extra3, 147, 36, 154),     // BATTERY_STATUS
+    st(Group::Position, 33, 28, 104),       // GLOBAL_POSITION_INT
+    st(Group::Position, 32, 28, 185),       // LOCAL_POSITION_NED
+    st(Group::RcChannels, 36, 21, 222),     // SERVO_OUTPUT_RAW
+    st(Group::RcChannels, 65, 42, 118),     // RC_CHANNELS
+    st(Group::RcChannels, 35, 22, 244),     // RC_CHANNELS_RAW
+    st(Group::Extra1, 30, 28, 39),          // ATTITUDE
+    st(Group::Extra1, 164, 44, 154),        // SIMSTATE (apm)
+    st(Group::Extra1, 178, 24, 47),         // AHRS2 (apm)
+    st(Group::Extra2, 74, 20, 20),          // VFR_HUD
+    st(Group::Extra3, 163, 28, 127),        // AHRS (apm)
+    st(Group::Extra3, 165, 3, 21),          // HWSTATUS (apm)
+    st(Group::Extra3, 2, 12, 137),          // SYSTEM_TIME
+    st(Group::Extra3, 168, 12, 1),          // WIND (apm)
+    st(Group::Extra3, 136, 22, 1),          // TERRAIN_REPORT
+    st(Group::Extra3, 182, 40, 229),        // AHRS3 (apm)
+    st(Group::Extra3, 193, 22, 71),         // EKF_STATUS_REPORT (apm)
+    st(Group::Extra3, 241, 32, 90),         // VIBRATION
+    st(Group::Extra3, 147, 36, 154),        // BATTERY_STATUS
 ];
 
 /// How the simulated ArduPilot behaves.
@@ -498,7 +498,11 @@ impl Autopilot for ArduPilotFc {
         }
         let groups = self.groups.iter().filter(|g| g.hz > 0.0).map(|g| g.next);
         groups
-            .chain([Some(self.next_heartbeat), self.param_stream.map(|p| p.1)].into_iter().flatten())
+            .chain(
+                [Some(self.next_heartbeat), self.param_stream.map(|p| p.1)]
+                    .into_iter()
+                    .flatten(),
+            )
             .min()
     }
 
@@ -541,8 +545,8 @@ mod tests {
 
     #[test]
     fn request_data_stream_sets_groups_unless_told_to_ignore_it() {
-        use mavlora::dialect::REQUEST_DATA_STREAM_DATA;
         use mavlora::dialect::MavDataStream;
+        use mavlora::dialect::REQUEST_DATA_STREAM_DATA;
         let req = |id: MavDataStream, hz: u16| {
             let mut s = Sender::new(255, 190, MavlinkVersion::V1);
             s.frame(&MavMessage::REQUEST_DATA_STREAM(REQUEST_DATA_STREAM_DATA {
@@ -554,8 +558,14 @@ mod tests {
             }))
         };
         let mut fc = ArduPilotFc::new(ArduPilotConfig::default(), Instant::ZERO, 1);
-        fc.handle_bytes(Instant::ZERO, req(MavDataStream::MAV_DATA_STREAM_ALL, 0).as_bytes());
-        fc.handle_bytes(Instant::ZERO, req(MavDataStream::MAV_DATA_STREAM_POSITION, 3).as_bytes());
+        fc.handle_bytes(
+            Instant::ZERO,
+            req(MavDataStream::MAV_DATA_STREAM_ALL, 0).as_bytes(),
+        );
+        fc.handle_bytes(
+            Instant::ZERO,
+            req(MavDataStream::MAV_DATA_STREAM_POSITION, 3).as_bytes(),
+        );
         assert_eq!(fc.group_rate(Group::Extra3), 0.0);
         assert_eq!(fc.group_rate(Group::Position), 3.0);
         let stubborn = ArduPilotConfig {
@@ -563,7 +573,10 @@ mod tests {
             ..Default::default()
         };
         let mut fc = ArduPilotFc::new(stubborn, Instant::ZERO, 1);
-        fc.handle_bytes(Instant::ZERO, req(MavDataStream::MAV_DATA_STREAM_ALL, 0).as_bytes());
+        fc.handle_bytes(
+            Instant::ZERO,
+            req(MavDataStream::MAV_DATA_STREAM_ALL, 0).as_bytes(),
+        );
         assert_eq!(fc.group_rate(Group::Extra3), 4.0);
         assert_eq!(fc.stats().stream_requests_ignored, 1);
     }

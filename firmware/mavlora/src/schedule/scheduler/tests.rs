@@ -159,7 +159,9 @@ fn spare_traffic_leaves_a_reserve_for_named_telemetry() {
     drain(&mut s, ms(0));
     // the unlisted flood stopped short of the reserve: a position that arrives now leaves now
     s.push(frame(GLOBAL_POSITION_INT, 1, 1, 0), Class::Periodic, ms(0));
-    let out = s.poll_transmit(ms(0), ROOM).expect("reserve kept for named telemetry");
+    let out = s
+        .poll_transmit(ms(0), ROOM)
+        .expect("reserve kept for named telemetry");
     assert_eq!(out.message_id(), GLOBAL_POSITION_INT);
 }
 
@@ -202,7 +204,11 @@ fn waiting_parameters_get_their_share_against_saturating_named_telemetry() {
     for t in (0..60_000).step_by(10) {
         // named telemetry offered far above the budget (fresh samples from many senders)
         for sys in 1..=3 {
-            s.push(frame(GLOBAL_POSITION_INT, sys, 1, 0), Class::Periodic, ms(t));
+            s.push(
+                frame(GLOBAL_POSITION_INT, sys, 1, 0),
+                Class::Periodic,
+                ms(t),
+            );
         }
         for f in drain(&mut s, ms(t)) {
             bytes += f.as_bytes().len();
@@ -213,7 +219,10 @@ fn waiting_parameters_get_their_share_against_saturating_named_telemetry() {
         }
     }
     let share = param_bytes as f64 / bytes as f64;
-    assert!(params > 0 && share >= 0.95 / PARAM_SHARE_DIVISOR as f64, "{params} params, share {share:.3}");
+    assert!(
+        params > 0 && share >= 0.95 / PARAM_SHARE_DIVISOR as f64,
+        "{params} params, share {share:.3}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
