@@ -117,6 +117,9 @@ pub struct GcsMock {
     pub items_sent: u64,
     /// Messages of each id received.
     pub received: std::collections::BTreeMap<u32, u64>,
+    /// Each `GLOBAL_POSITION_INT` received: when, and its `time_boot_ms` (the autopilot's
+    /// clock, which in the world starts with the world's): the position lag is the difference.
+    pub positions: Vec<(Instant, u32)>,
     commands: Option<Commands>,
 }
 
@@ -135,6 +138,7 @@ impl GcsMock {
             downloaded: None,
             items_sent: 0,
             received: Default::default(),
+            positions: Vec::new(),
             commands: None,
         }
     }
@@ -380,6 +384,9 @@ impl GcsMock {
     }
 
     fn handle(&mut self, msg: MavMessage, now: Instant) {
+        if let MavMessage::GLOBAL_POSITION_INT(p) = &msg {
+            self.positions.push((now, p.time_boot_ms));
+        }
         if let MavMessage::COMMAND_ACK(a) = &msg {
             self.command_ack(a.command, now);
             return;

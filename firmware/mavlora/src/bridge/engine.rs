@@ -13,7 +13,8 @@ use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
 use crate::dialect::{MavCmd, MavMessage, MavResult, MavType};
 use crate::filter::{
-    FilterStats, RadioFilter, Verdict, request_data_stream_requests, set_message_interval_requests,
+    FilterStats, RadioFilter, Unlisted, Verdict, request_data_stream_requests,
+    set_message_interval_requests,
 };
 use crate::mission::{MissionRelay, MissionStats};
 use crate::quality::LinkQuality;
@@ -67,6 +68,8 @@ pub struct BridgeStats {
     pub to_fc_downgraded: u64,
     /// Radio frames a MAVLink 1 flight controller could not be given (ids above 255).
     pub to_fc_not_v1: u64,
+    /// Telemetry frames the profile does not name, dropped (`unlisted = "drop"`).
+    pub unlisted_dropped: u64,
 }
 
 #[derive(Debug)]
@@ -293,12 +296,24 @@ impl Bridge {
             self.stats.held_before_fc += 1;
             return;
         }
-        if self.filter.check(&frame, now) == Verdict::Pass {
-            // a MAVLink 1 autopilot's frames go as MAVLink 2 (so they can be signed): the
-            // budget counts the bytes that are sent
-            if let Some(frame) = self.radio_leg.admit(frame) {
-                self.scheduler.push(frame, Class::of(id), now);
+        if self.filter.check(&frame, now) != Verdict::Pass {
+            return;
+        }
+        // Telemetry the profile does not name only gets what the named leaves, or nothing.
+        let class = match Class::of(id) {
+            Class::Periodic if !self.filter.profile().names(id) => {
+                if self.filter.profile().unlisted() == Unlisted::Drop {
+                    self.stats.unlisted_dropped += 1;
+                    return;
+                }
+                Class::Unlisted
             }
+            class => class,
+        };
+        // a MAVLink 1 autopilot's frames go as MAVLink 2 (so they can be signed): the budget
+        // counts the bytes that are sent
+        if let Some(frame) = self.radio_leg.admit(frame) {
+            self.scheduler.push(frame, class, now);
         }
     }
 

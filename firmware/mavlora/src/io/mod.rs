@@ -63,7 +63,7 @@ impl Inbox {
             Event::Serial(_, SerialEvent::Bytes(b)) => (b.len(), Lane::Bulk),
             Event::Udp(f, _) | Event::Tcp(f, _) => {
                 let lane = match crate::wire::Frame::new_checked(f.as_slice()) {
-                    Ok(f) if Class::of(f.message_id()) == Class::Priority => Lane::Priority,
+                    Ok(f) if Class::of(f.message_id()).is_protocol() => Lane::Priority,
                     _ => Lane::Bulk,
                 };
                 (f.len(), lane)

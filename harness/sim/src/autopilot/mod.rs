@@ -1,9 +1,14 @@
 //! Simulated flight controllers. The [`World`](crate::World) drives any [`Autopilot`]; the
-//! PX4-like one is [`Px4Fc`]. An ArduPilot-like one (MAVLink 1, `REQUEST_DATA_STREAM`) plugs in
-//! beside it by implementing the trait, and scenarios that need its specifics use
-//! `World<ThatFc>` as they use `World<Px4Fc>` (the default) for PX4's.
+//! PX4-like one is [`Px4Fc`], the ArduPilot-like one (MAVLink 1, `REQUEST_DATA_STREAM` groups,
+//! ardupilotmega messages, parameter streams) is [`ArduPilotFc`]. Scenarios that need one's
+//! specifics use `World<ArduPilotFc>` as they use `World<Px4Fc>` (the default) for PX4's.
 
+mod ardupilot;
 mod px4;
+
+pub use ardupilot::{
+    ARDUPILOT_STREAMS, ApStream, ArduPilotConfig, ArduPilotFc, ArduPilotStats, Group,
+};
 
 pub use px4::{
     Executed, Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec,

@@ -77,7 +77,16 @@ fn value(ms: &[Measurement], base: &str, dims: &[(Dimension, &str)]) -> f64 {
 #[test]
 fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
     let (ms, _, _) = run_one("table_ii", &Radios::paper_defaults(), Path::new(""));
-    let b = |v: &str| value(&ms, "bytes_per_s", &[(Dimension::Variant, v)]);
+    let b = |v: &str| {
+        value(
+            &ms,
+            "bytes_per_s",
+            &[
+                (Dimension::Autopilot, crate::measurement::PX4),
+                (Dimension::Variant, v),
+            ],
+        )
+    };
     assert!(b("wired") > b("limit") && b("limit") > b("limit_filter"));
     assert!(b("limit_filter") > b("compact"));
     let compact_bytes = Selector::base("bytes_per_s").dim(Dimension::Variant, "compact");
