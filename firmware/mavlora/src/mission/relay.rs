@@ -57,7 +57,8 @@ impl Default for MissionConfig {
             min_rto: Duration::from_millis(300),
             max_rto: Duration::from_secs(8),
             radio_attempts: 10,
-            repair_batch: 32,
+            // 8 requests (~140 bytes) fit a LoRa modem's 256-byte buffer beside telemetry.
+            repair_batch: 8,
             wire_timeout: Duration::from_millis(1500),
             wire_attempts: 6,
         }
@@ -149,8 +150,14 @@ pub struct MissionRelay {
     wire: Wire,
     to_radio: VecDeque<MavMessage>,
     to_fc: VecDeque<MavMessage>,
+    /// Items that arrived with no transfer open (its `MISSION_COUNT` was lost): kept for
+    /// the next transfer, whose CRC check rejects them if they belong to another plan.
+    orphans: BTreeMap<u16, MISSION_ITEM_INT_DATA>,
     stats: MissionStats,
 }
+
+/// Orphan items kept at most.
+const MAX_ORPHANS: usize = 1024;
 
 impl MissionRelay {
     /// An idle relay.
@@ -162,6 +169,7 @@ impl MissionRelay {
             wire: Wire::Idle,
             to_radio: VecDeque::new(),
             to_fc: VecDeque::new(),
+            orphans: BTreeMap::new(),
             stats: MissionStats::default(),
         }
     }
@@ -223,16 +231,28 @@ impl MissionRelay {
         );
         self.stats.transfers += 1;
         self.abort_wire();
+        let mut slots = vec![None; usize::from(c.count)];
+        let mut horizon = 0;
+        for (seq, item) in std::mem::take(&mut self.orphans) {
+            if let Some(slot) = slots.get_mut(usize::from(seq))
+                && item.mission_type == c.mission_type
+            {
+                *slot = Some(item);
+                horizon = seq + 1;
+            }
+        }
         self.radio = Radio::Receiving {
             router: from,
             id: c.opaque_id,
             mission_type: c.mission_type,
-            slots: vec![None; usize::from(c.count)],
-            horizon: 0,
+            slots,
+            horizon,
             requested: BTreeMap::new(),
             heard: now,
             rounds: 0,
         };
+        // Orphans below the horizon that are missing were lost: ask for them now.
+        self.repair(now, false);
         self.check_complete(now);
     }
 
@@ -246,7 +266,12 @@ impl MissionRelay {
             ..
         } = &mut self.radio
         else {
-            self.stats.radio_duplicate_items += 1;
+            if matches!(self.radio, Radio::Forwarding { .. }) || self.orphans.len() >= MAX_ORPHANS {
+                self.stats.radio_duplicate_items += 1;
+            } else {
+                // Perhaps a new transfer whose count was lost: keep it for that count.
+                self.orphans.insert(item.seq, item.clone());
+            }
             return;
         };
         let seq = item.seq;
@@ -276,8 +301,8 @@ impl MissionRelay {
         self.check_complete(now);
     }
 
-    /// Requests missing items: below the horizon (known lost) unless asked within one RTO;
-    /// with `all`, every missing one (a poll or our timeout: the tail may be lost too).
+    /// Requests missing items not asked for within one RTO: below the horizon (known lost),
+    /// or with `all` every missing one (a poll or our timeout: the tail may be lost too).
     fn repair(&mut self, now: Instant, all: bool) {
         let rto = self.rtt.rto();
         let Radio::Receiving {
@@ -302,7 +327,9 @@ impl MissionRelay {
             }
             let seq = seq as u16;
             let entry = requested.entry(seq).or_insert((now, 0));
-            if entry.1 > 0 && now.saturating_duration_since(entry.0) < rto && !all {
+            // A request younger than one timeout may still be answered: asking again
+            // would only put a second copy on the air.
+            if entry.1 > 0 && now.saturating_duration_since(entry.0) < rto {
                 continue;
             }
             *entry = (now, entry.1 + 1);
@@ -525,9 +552,10 @@ impl MissionRelay {
             } else {
                 *rounds += 1;
                 *heard = now;
-                self.rtt.backoff();
                 debug!(rto = ?self.rtt.rto(), "no item for one timeout, repairing");
+                // Repair first: the requests it repeats are one (un-backed-off) timeout old.
                 self.repair(now, true);
+                self.rtt.backoff();
             }
         }
         if let Wire::Sending {

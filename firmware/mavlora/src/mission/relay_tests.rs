@@ -214,3 +214,18 @@ fn silent_autopilot_and_silent_router_end_in_an_error_ack() {
         if a.mavtype == MavMissionResult::MAV_MISSION_OPERATION_CANCELLED));
     assert_eq!(r.stats().failed, 1);
 }
+
+#[test]
+fn items_whose_count_was_lost_are_kept_for_it_and_not_sent_again() {
+    let items = plan(&[5, 6, 7]);
+    let mut r = MissionRelay::new(MissionConfig::default());
+    // the COUNT is lost; items 0 and 2 arrive (1 lost too)
+    r.handle_radio(ms(10), ROUTER, &MavMessage::MISSION_ITEM_INT(items[0].clone()));
+    r.handle_radio(ms(20), ROUTER, &MavMessage::MISSION_ITEM_INT(items[2].clone()));
+    // the router's poll repeats the count: only item 1 is asked for
+    r.handle_radio(ms(2000), ROUTER, &count_for(&items, 1));
+    assert_eq!(requested(&radio_out(&mut r)), vec![1]);
+    r.handle_radio(ms(2500), ROUTER, &MavMessage::MISSION_ITEM_INT(items[1].clone()));
+    let got = wire_upload(&mut r, 3, ms(2600));
+    assert!(super::super::plan::same_plan(&got, &items));
+}

@@ -44,7 +44,18 @@ pub struct TerminatorConfig {
     pub poll_max: Duration,
     /// The bridge silent this long after the stream left: the ground is told MAV_MISSION_ERROR.
     pub silence_limit: Duration,
+    /// Stream frames handed to the radio scheduler at most at once: the rest wait here, so
+    /// a 100-item plan neither overflows the scheduler's queue nor bursts past the radio's
+    /// buffer, a command still gets out between items, and a restart drops what never left.
+    pub window: usize,
+    /// The stream is released at most at this many bytes/s (the router sets its radio
+    /// budget): the scheduler's burst allowance would otherwise pour a plan into a radio
+    /// whose buffer (256 bytes on a LoRa modem) drops what does not fit. `None`: no pacing.
+    pub pace_bytes_per_s: Option<u32>,
 }
+
+/// Bytes a stream frame may take on the radio (a signed `MISSION_ITEM_INT`: 37 + 12 + 13).
+const STREAM_FRAME_BYTES: u64 = 62;
 
 impl Default for TerminatorConfig {
     fn default() -> Self {
@@ -55,6 +66,8 @@ impl Default for TerminatorConfig {
             poll_initial: Duration::from_secs(2),
             poll_max: Duration::from_secs(8),
             silence_limit: Duration::from_secs(60),
+            window: 4,
+            pace_bytes_per_s: None,
         }
     }
 }
@@ -103,8 +116,6 @@ enum State {
         items: Vec<MISSION_ITEM_INT_DATA>,
         id: u32,
         keepalive_at: Instant,
-        /// Our frames still in the radio queue.
-        outstanding: usize,
         /// When the last of our frames left, or the bridge last spoke.
         quiet_since: Instant,
         poll_every: Duration,
@@ -131,7 +142,14 @@ pub struct MissionTerminator {
     /// Transfer ids of recent transfers (acks for them are stale, not the ground's business).
     recent: VecDeque<u32>,
     to_ground: VecDeque<((u8, u8), MavMessage)>,
+    /// Cancels: out at once.
     to_radio: VecDeque<MavMessage>,
+    /// The stream (count, items, repairs, polls): out through the window.
+    stream: VecDeque<MavMessage>,
+    /// Stream frames in the scheduler, not yet on the radio.
+    in_queue: usize,
+    /// The next stream frame is not released before this (pacing).
+    next_release: Instant,
     stats: TerminatorStats,
 }
 
@@ -145,6 +163,9 @@ impl MissionTerminator {
             recent: VecDeque::new(),
             to_ground: VecDeque::new(),
             to_radio: VecDeque::new(),
+            stream: VecDeque::new(),
+            in_queue: 0,
+            next_release: Instant::ZERO,
             stats: TerminatorStats::default(),
         }
     }
@@ -298,6 +319,8 @@ impl MissionTerminator {
             );
             self.to_radio.push_back(cancel);
         }
+        // What has not left yet is of no use to anyone.
+        self.stream.clear();
     }
 
     /// Asks the ground for the next item, or starts the radio leg with all of them.
@@ -330,7 +353,7 @@ impl MissionTerminator {
             self.recent.pop_front();
         }
         info!(count = items.len(), id, "plan from the ground complete, streaming it over the radio");
-        self.to_radio.push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+        self.stream.push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
             count: items.len() as u16,
             target_system: vehicle.0,
             target_component: vehicle.1,
@@ -339,11 +362,10 @@ impl MissionTerminator {
             ..Default::default()
         }));
         for item in &items {
-            self.to_radio
+            self.stream
                 .push_back(MavMessage::MISSION_ITEM_INT(to_vehicle(item, vehicle)));
         }
         self.stats.items_streamed += items.len() as u64;
-        let outstanding = items.len() + 1;
         self.state = State::Relaying {
             ground,
             vehicle,
@@ -351,7 +373,6 @@ impl MissionTerminator {
             items,
             id,
             keepalive_at: now + self.config.keepalive,
-            outstanding,
             quiet_since: now,
             poll_every: self.config.poll_initial,
             heard: now,
@@ -387,7 +408,6 @@ impl MissionTerminator {
             vehicle,
             mission_type,
             items,
-            outstanding,
             quiet_since,
             poll_every,
             heard,
@@ -403,11 +423,23 @@ impl MissionTerminator {
         *quiet_since = now;
         *poll_every = self.config.poll_initial;
         // seq == count: "all items here, the autopilot is busy": alive, nothing to send.
-        if let Some(item) = items.get(usize::from(seq)) {
+        let waiting = self
+            .stream
+            .iter()
+            .any(|m| matches!(m, MavMessage::MISSION_ITEM_INT(i) if i.seq == seq));
+        if let Some(item) = items.get(usize::from(seq))
+            && !waiting
+        {
+            // A repair goes before the rest of the stream (the bridge only looks for gaps
+            // above what it has seen), and only once while it waits here.
             self.stats.items_repaired += 1;
-            *outstanding += 1;
-            self.to_radio
-                .push_back(MavMessage::MISSION_ITEM_INT(to_vehicle(item, *vehicle)));
+            let at = usize::from(
+                self.stream
+                    .front()
+                    .is_some_and(|m| matches!(m, MavMessage::MISSION_COUNT(_))),
+            );
+            self.stream
+                .insert(at, MavMessage::MISSION_ITEM_INT(to_vehicle(item, *vehicle)));
         }
     }
 
@@ -461,35 +493,46 @@ impl MissionTerminator {
     /// One of the frames it queued for the radio left (the caller tells it by the frame's
     /// sender and id): the status poll waits for the whole stream to be on the air.
     pub fn radio_frame_left(&mut self, now: Instant) {
+        self.in_queue = self.in_queue.saturating_sub(1);
+        let outstanding = self.outstanding();
         if let State::Relaying {
-            outstanding,
             quiet_since,
             heard,
             streamed,
             ..
         } = &mut self.state
         {
-            *outstanding = outstanding.saturating_sub(1);
             *quiet_since = now;
-            if *outstanding == 0 && !*streamed {
+            if outstanding == 0 && !*streamed {
                 *streamed = true;
                 *heard = (*heard).max(now);
             }
         }
     }
 
+    /// Stream frames not yet on the radio.
+    fn outstanding(&self) -> usize {
+        self.stream.len() + self.in_queue
+    }
+
     /// When something is due.
     pub fn poll_timeout(&self) -> Option<Instant> {
+        let release = (!self.stream.is_empty() && self.in_queue < self.config.window)
+            .then_some(self.next_release);
+        self.state_timeout().into_iter().chain(release).min()
+    }
+
+    fn state_timeout(&self) -> Option<Instant> {
+        let outstanding = self.outstanding();
         match &self.state {
             State::Collecting { asked_at, .. } => Some(*asked_at + self.config.ground_timeout),
             State::Relaying {
                 keepalive_at,
-                outstanding,
                 quiet_since,
                 poll_every,
                 ..
             } => {
-                let poll = (*outstanding == 0).then(|| *quiet_since + *poll_every);
+                let poll = (outstanding == 0).then(|| *quiet_since + *poll_every);
                 Some(poll.map_or(*keepalive_at, |p| p.min(*keepalive_at)))
             }
             _ => None,
@@ -498,6 +541,7 @@ impl MissionTerminator {
 
     /// Keep-alives, polls and give-ups due at `now`.
     pub fn handle_timeout(&mut self, now: Instant) {
+        let outstanding = self.outstanding();
         match &mut self.state {
             State::Collecting {
                 ground,
@@ -526,7 +570,6 @@ impl MissionTerminator {
                 items,
                 id,
                 keepalive_at,
-                outstanding,
                 quiet_since,
                 poll_every,
                 heard,
@@ -540,7 +583,7 @@ impl MissionTerminator {
                         self.to_ground.push_back((*vehicle, again));
                     }
                 }
-                if *outstanding > 0 || now < *quiet_since + *poll_every {
+                if outstanding > 0 || now < *quiet_since + *poll_every {
                     return;
                 }
                 if now.saturating_duration_since(*heard) >= self.config.silence_limit {
@@ -550,10 +593,9 @@ impl MissionTerminator {
                     return;
                 }
                 self.stats.polls += 1;
-                *outstanding += 1;
                 *quiet_since = now;
                 *poll_every = (*poll_every * 2).min(self.config.poll_max);
-                self.to_radio.push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                self.stream.push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
                     count: items.len() as u16,
                     target_system: vehicle.0,
                     target_component: vehicle.1,
@@ -572,9 +614,23 @@ impl MissionTerminator {
         self.to_ground.pop_front()
     }
 
-    /// Next message for the radio.
-    pub fn poll_radio(&mut self) -> Option<MavMessage> {
-        self.to_radio.pop_front()
+    /// Next message for the radio: cancels at once, the stream while fewer than
+    /// [`TerminatorConfig::window`] of its frames wait in the scheduler (each one that
+    /// leaves is reported with [`radio_frame_left`](Self::radio_frame_left)).
+    pub fn poll_radio(&mut self, now: Instant) -> Option<MavMessage> {
+        if let Some(msg) = self.to_radio.pop_front() {
+            return Some(msg);
+        }
+        if self.in_queue >= self.config.window || now < self.next_release {
+            return None;
+        }
+        let msg = self.stream.pop_front()?;
+        self.in_queue += 1;
+        if let Some(rate) = self.config.pace_bytes_per_s.filter(|r| *r > 0) {
+            let gap = Duration::from_micros(STREAM_FRAME_BYTES * 1_000_000 / u64::from(rate));
+            self.next_release = self.next_release.max(now) + gap;
+        }
+        Some(msg)
     }
 }
 

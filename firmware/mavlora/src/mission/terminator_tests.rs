@@ -38,11 +38,13 @@ fn ground_out(m: &mut MissionTerminator) -> Vec<MavMessage> {
 }
 
 fn radio_out(m: &mut MissionTerminator, now: Instant) -> Vec<MavMessage> {
-    let out: Vec<_> = std::iter::from_fn(|| m.poll_radio()).collect();
-    for msg in &out {
+    // Each frame leaves the radio queue as soon as it is handed over.
+    let mut out = Vec::new();
+    while let Some(msg) = m.poll_radio(now) {
         if matches!(msg, MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_)) {
             m.radio_frame_left(now);
         }
+        out.push(msg);
     }
     out
 }
@@ -189,6 +191,43 @@ fn ground_cancel_stops_the_transfer_and_tells_the_bridge() {
         ..Default::default()
     });
     assert!(!m.from_ground(ms(10), GROUND, 1, &done));
+}
+
+#[test]
+fn stream_goes_out_through_a_window_and_a_restart_drops_what_never_left() {
+    let mut m = MissionTerminator::new(TerminatorConfig::default());
+    m.from_ground(ms(0), GROUND, 1, &count(10, MISSION));
+    for seq in 0..10 {
+        m.from_ground(ms(0), GROUND, 1, &item(seq, 1, MISSION));
+    }
+    let first: Vec<_> = std::iter::from_fn(|| m.poll_radio(ms(0))).collect();
+    assert_eq!(first.len(), 4, "count + 3 items, then the window is full");
+    m.radio_frame_left(ms(1));
+    assert!(m.poll_radio(ms(1)).is_some(), "one left, one more goes");
+    // a new plan: the old one's items still waiting never reach the radio
+    m.from_ground(ms(2), GROUND, 1, &count(1, MISSION));
+    m.from_ground(ms(2), GROUND, 1, &item(0, 77, MISSION));
+    (0..4).for_each(|_| m.radio_frame_left(ms(3)));
+    let rest = radio_out(&mut m, ms(3));
+    assert!(matches!(&rest[0], MavMessage::MISSION_ACK(_)), "the bridge hears the cancel first");
+    assert_eq!(items_of(&rest), vec![(0, 77)]);
+}
+
+#[test]
+fn stream_is_paced_at_the_radio_budget() {
+    let config = TerminatorConfig {
+        pace_bytes_per_s: Some(620),
+        ..TerminatorConfig::default()
+    };
+    let mut m = MissionTerminator::new(config);
+    m.from_ground(ms(0), GROUND, 1, &count(3, MISSION));
+    for seq in 0..3 {
+        m.from_ground(ms(0), GROUND, 1, &item(seq, 1, MISSION));
+    }
+    assert!(m.poll_radio(ms(0)).is_some());
+    assert!(m.poll_radio(ms(0)).is_none(), "62 bytes at 620 B/s: 100 ms apart");
+    assert_eq!(m.poll_timeout(), Some(ms(100)));
+    assert!(m.poll_radio(ms(100)).is_some());
 }
 
 #[test]

@@ -147,7 +147,13 @@ impl Router {
             scheduler: LinkScheduler::new(config.scheduler, now)?,
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
-            mission: MissionTerminator::new(config.mission),
+            mission: MissionTerminator::new(TerminatorConfig {
+                pace_bytes_per_s: config
+                    .mission
+                    .pace_bytes_per_s
+                    .or(Some(config.scheduler.rate_bytes_per_s)),
+                ..config.mission
+            }),
             // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
             // congestion, so doubling the timeout past it only adds latency.
             commands: CommandRetransmitter::new(
@@ -416,7 +422,7 @@ impl Router {
     /// Mission frames for the radio (priority, in order: the radio leg relies on it) and for
     /// the ground (as the vehicle it addressed, in that stream's numbering).
     fn drain_mission(&mut self, now: Instant) {
-        while let Some(msg) = self.mission.poll_radio() {
+        while let Some(msg) = self.mission.poll_radio(now) {
             let frame = self.sender.frame(&msg);
             self.scheduler.push(frame, Class::Priority, now);
         }
@@ -465,7 +471,9 @@ impl Router {
                     ids::MISSION_COUNT | ids::MISSION_ITEM_INT
                 )
             {
+                // The stream's window moves on.
                 self.mission.radio_frame_left(now);
+                self.drain_mission(now);
             }
             if let Some(frame) = self.radio_leg.outgoing(frame, now) {
                 return Some(frame);
