@@ -254,6 +254,9 @@ pub enum Dimension {
     /// (`b_handover`, `ifs_override`) or it is named for its scenario
     /// (`blind_drone`); otherwise the phase says which scenario it is.
     Scenario,
+    /// A ground station's mission timeout per step (`0_5s`, `1_5s`): SDKs wait 0.5 s, the
+    /// MAVLink spec 1.5 s.
+    GroundTimeout,
 }
 
 impl Dimension {
@@ -267,6 +270,7 @@ impl Dimension {
             Dimension::Radio => "radio",
             Dimension::Variant => "variant",
             Dimension::Scenario => "scenario",
+            Dimension::GroundTimeout => "ground_timeout",
         }
     }
 }
