@@ -54,10 +54,7 @@ fn world(seed: u64) -> World {
 fn plan(n: u16, salt: i32) -> Vec<MISSION_ITEM_INT_DATA> {
     GcsMock::mission(n)
         .into_iter()
-        .map(|i| MISSION_ITEM_INT_DATA {
-            x: i.x + salt,
-            ..i
-        })
+        .map(|i| MISSION_ITEM_INT_DATA { x: i.x + salt, ..i })
         .collect()
 }
 

@@ -210,13 +210,23 @@ impl MissionRelay {
                 self.repair(now, true);
                 return;
             }
-            Radio::Forwarding { id, router, count, mission_type } if *id == c.opaque_id => {
+            Radio::Forwarding {
+                id,
+                router,
+                count,
+                mission_type,
+            } if *id == c.opaque_id => {
                 // All items are here; the autopilot is still taking them.
                 let busy = request(*router, *count, *mission_type);
                 self.to_radio.push_back(busy);
                 return;
             }
-            Radio::Done { id, router, mission_type, result } if *id == c.opaque_id => {
+            Radio::Done {
+                id,
+                router,
+                mission_type,
+                result,
+            } if *id == c.opaque_id => {
                 let again = ack(*router, *result, *mission_type, *id);
                 self.to_radio.push_back(again);
                 return;
@@ -316,7 +326,11 @@ impl MissionRelay {
         else {
             return;
         };
-        let limit = if all { slots.len() } else { usize::from(*horizon) };
+        let limit = if all {
+            slots.len()
+        } else {
+            usize::from(*horizon)
+        };
         let mut sent = 0;
         for seq in 0..limit {
             if sent >= self.config.repair_batch {
@@ -358,7 +372,10 @@ impl MissionRelay {
         }
         let items: Vec<_> = slots.iter().flatten().cloned().collect();
         if *id != 0 && plan_hash(*mission_type, &items) & 0x00FF_FFFF != plan_part(*id) {
-            warn!(id = *id, "assembled plan does not match the transfer id, asking again");
+            warn!(
+                id = *id,
+                "assembled plan does not match the transfer id, asking again"
+            );
             self.stats.plan_mismatches += 1;
             slots.iter_mut().for_each(|s| *s = None);
             *horizon = 0;

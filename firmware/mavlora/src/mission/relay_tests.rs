@@ -86,19 +86,46 @@ fn lost_items_are_requested_selectively_and_a_lost_tail_after_one_timeout() {
     let items = plan(&[10, 11, 12, 13, 14]);
     let mut r = MissionRelay::new(MissionConfig::default());
     r.handle_radio(ms(0), ROUTER, &count_for(&items, 1));
-    assert!(radio_out(&mut r).is_empty(), "a loss-free stream costs no request");
-    r.handle_radio(ms(100), ROUTER, &MavMessage::MISSION_ITEM_INT(items[0].clone()));
+    assert!(
+        radio_out(&mut r).is_empty(),
+        "a loss-free stream costs no request"
+    );
+    r.handle_radio(
+        ms(100),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[0].clone()),
+    );
     // item 1 and 2 lost: item 3 shows the gap
-    r.handle_radio(ms(200), ROUTER, &MavMessage::MISSION_ITEM_INT(items[3].clone()));
+    r.handle_radio(
+        ms(200),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[3].clone()),
+    );
     assert_eq!(requested(&radio_out(&mut r)), vec![1, 2]);
     // item 4 (the tail) lost too; the repairs arrive
-    r.handle_radio(ms(500), ROUTER, &MavMessage::MISSION_ITEM_INT(items[1].clone()));
-    r.handle_radio(ms(510), ROUTER, &MavMessage::MISSION_ITEM_INT(items[2].clone()));
+    r.handle_radio(
+        ms(500),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[1].clone()),
+    );
+    r.handle_radio(
+        ms(510),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[2].clone()),
+    );
     assert!(radio_out(&mut r).is_empty());
     let due = r.poll_timeout().unwrap();
     r.handle_timeout(due);
-    assert_eq!(requested(&radio_out(&mut r)), vec![4], "only what is missing");
-    r.handle_radio(due + Duration::from_millis(300), ROUTER, &MavMessage::MISSION_ITEM_INT(items[4].clone()));
+    assert_eq!(
+        requested(&radio_out(&mut r)),
+        vec![4],
+        "only what is missing"
+    );
+    r.handle_radio(
+        due + Duration::from_millis(300),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[4].clone()),
+    );
     let got = wire_upload(&mut r, 5, ms(3000));
     assert!(super::super::plan::same_plan(&got, &items));
     let out = radio_out(&mut r);
@@ -115,13 +142,29 @@ fn items_of_another_plan_are_refused_and_all_asked_again() {
     let mut r = MissionRelay::new(MissionConfig::default());
     r.handle_radio(ms(0), ROUTER, &count_for(&new, 2));
     // the old plan's items (a COUNT lost, a late copy) arrive under the new transfer
-    r.handle_radio(ms(10), ROUTER, &MavMessage::MISSION_ITEM_INT(old[0].clone()));
-    r.handle_radio(ms(20), ROUTER, &MavMessage::MISSION_ITEM_INT(new[1].clone()));
+    r.handle_radio(
+        ms(10),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(old[0].clone()),
+    );
+    r.handle_radio(
+        ms(20),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(new[1].clone()),
+    );
     assert!(fc_out(&mut r).is_empty(), "nothing reaches the autopilot");
     assert_eq!(requested(&radio_out(&mut r)), vec![0, 1]);
     assert_eq!(r.stats().plan_mismatches, 1);
-    r.handle_radio(ms(30), ROUTER, &MavMessage::MISSION_ITEM_INT(new[0].clone()));
-    r.handle_radio(ms(40), ROUTER, &MavMessage::MISSION_ITEM_INT(new[1].clone()));
+    r.handle_radio(
+        ms(30),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(new[0].clone()),
+    );
+    r.handle_radio(
+        ms(40),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(new[1].clone()),
+    );
     let got = wire_upload(&mut r, 2, ms(50));
     assert!(super::super::plan::same_plan(&got, &new));
 }
@@ -141,8 +184,10 @@ fn autopilot_reboot_mid_upload_restarts_the_wire_leg() {
     r.fc_rebooted(ms(4000));
     let got = wire_upload(&mut r, 3, ms(4100));
     assert!(super::super::plan::same_plan(&got, &items));
-    assert!(matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
-        if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED));
+    assert!(
+        matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
+        if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED)
+    );
     assert_eq!(r.stats().wire_restarts, 1);
 }
 
@@ -156,7 +201,12 @@ fn router_cancel_stops_the_wire_leg_and_tells_the_autopilot() {
         r.handle_radio(ms(10), ROUTER, &MavMessage::MISSION_ITEM_INT(i.clone()));
     }
     fc_out(&mut r);
-    let cancel = ack((1, 1), MavMissionResult::MAV_MISSION_OPERATION_CANCELLED, MISSION, id);
+    let cancel = ack(
+        (1, 1),
+        MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
+        MISSION,
+        id,
+    );
     assert!(r.handle_radio(ms(20), ROUTER, &cancel));
     assert!(matches!(&fc_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
         if a.mavtype == MavMissionResult::MAV_MISSION_OPERATION_CANCELLED));
@@ -164,7 +214,11 @@ fn router_cancel_stops_the_wire_leg_and_tells_the_autopilot() {
     assert!(!r.handle_fc(ms(30), &fc_request(1)));
     assert_eq!(r.poll_timeout(), None);
     // an ack without a transfer id (a ground's download ACK) is for the autopilot
-    assert!(!r.handle_radio(ms(40), ROUTER, &ack((1, 1), MavMissionResult::MAV_MISSION_ACCEPTED, MISSION, 0)));
+    assert!(!r.handle_radio(
+        ms(40),
+        ROUTER,
+        &ack((1, 1), MavMissionResult::MAV_MISSION_ACCEPTED, MISSION, 0)
+    ));
 }
 
 #[test]
@@ -173,17 +227,27 @@ fn poll_is_answered_by_state_missing_busy_or_the_same_ack() {
     let count = count_for(&items, 1);
     let mut r = MissionRelay::new(MissionConfig::default());
     r.handle_radio(ms(0), ROUTER, &count);
-    r.handle_radio(ms(10), ROUTER, &MavMessage::MISSION_ITEM_INT(items[0].clone()));
+    r.handle_radio(
+        ms(10),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[0].clone()),
+    );
     r.handle_radio(ms(20), ROUTER, &count);
     assert_eq!(requested(&radio_out(&mut r)), vec![1]);
-    r.handle_radio(ms(30), ROUTER, &MavMessage::MISSION_ITEM_INT(items[1].clone()));
+    r.handle_radio(
+        ms(30),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[1].clone()),
+    );
     r.handle_radio(ms(40), ROUTER, &count);
     assert_eq!(requested(&radio_out(&mut r)), vec![2], "busy: seq = count");
     wire_upload(&mut r, 2, ms(50));
     radio_out(&mut r);
     r.handle_radio(ms(60), ROUTER, &count);
-    assert!(matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
-        if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED));
+    assert!(
+        matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
+        if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED)
+    );
     assert_eq!(r.stats().completed, 1, "the poll did not upload again");
 }
 
@@ -198,8 +262,10 @@ fn silent_autopilot_and_silent_router_end_in_an_error_ack() {
         r.handle_timeout(now);
     }
     assert_eq!(fc_out(&mut r).len(), 6, "COUNT sent wire_attempts times");
-    assert!(matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
-        if a.mavtype == MavMissionResult::MAV_MISSION_ERROR));
+    assert!(
+        matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
+        if a.mavtype == MavMissionResult::MAV_MISSION_ERROR)
+    );
     assert_eq!(now, ms(6 * 1500));
 
     let items = plan(&[1, 2, 3]);
@@ -220,12 +286,24 @@ fn items_whose_count_was_lost_are_kept_for_it_and_not_sent_again() {
     let items = plan(&[5, 6, 7]);
     let mut r = MissionRelay::new(MissionConfig::default());
     // the COUNT is lost; items 0 and 2 arrive (1 lost too)
-    r.handle_radio(ms(10), ROUTER, &MavMessage::MISSION_ITEM_INT(items[0].clone()));
-    r.handle_radio(ms(20), ROUTER, &MavMessage::MISSION_ITEM_INT(items[2].clone()));
+    r.handle_radio(
+        ms(10),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[0].clone()),
+    );
+    r.handle_radio(
+        ms(20),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[2].clone()),
+    );
     // the router's poll repeats the count: only item 1 is asked for
     r.handle_radio(ms(2000), ROUTER, &count_for(&items, 1));
     assert_eq!(requested(&radio_out(&mut r)), vec![1]);
-    r.handle_radio(ms(2500), ROUTER, &MavMessage::MISSION_ITEM_INT(items[1].clone()));
+    r.handle_radio(
+        ms(2500),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[1].clone()),
+    );
     let got = wire_upload(&mut r, 3, ms(2600));
     assert!(super::super::plan::same_plan(&got, &items));
 }

@@ -225,7 +225,10 @@ impl MissionTerminator {
         {
             return;
         }
-        if matches!(self.state, State::Collecting { .. } | State::Relaying { .. }) {
+        if matches!(
+            self.state,
+            State::Collecting { .. } | State::Relaying { .. }
+        ) {
             self.stats.restarts += 1;
             self.cancel_radio();
         }
@@ -263,11 +266,11 @@ impl MissionTerminator {
                 }
                 true
             }
-            State::Relaying { ground, mission_type, .. }
-                if *ground == from && item.mission_type == *mission_type =>
-            {
-                true
-            }
+            State::Relaying {
+                ground,
+                mission_type,
+                ..
+            } if *ground == from && item.mission_type == *mission_type => true,
             State::Done {
                 ground,
                 vehicle,
@@ -289,8 +292,16 @@ impl MissionTerminator {
 
     fn ground_cancel(&mut self, from: (u8, u8), mission_type: MavMissionType) -> bool {
         let ours = match &self.state {
-            State::Collecting { ground, mission_type: t, .. }
-            | State::Relaying { ground, mission_type: t, .. } => *ground == from && *t == mission_type,
+            State::Collecting {
+                ground,
+                mission_type: t,
+                ..
+            }
+            | State::Relaying {
+                ground,
+                mission_type: t,
+                ..
+            } => *ground == from && *t == mission_type,
             _ => false,
         };
         if ours {
@@ -352,15 +363,19 @@ impl MissionTerminator {
         if self.recent.len() > 16 {
             self.recent.pop_front();
         }
-        info!(count = items.len(), id, "plan from the ground complete, streaming it over the radio");
-        self.stream.push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-            count: items.len() as u16,
-            target_system: vehicle.0,
-            target_component: vehicle.1,
-            mission_type,
-            opaque_id: id,
-            ..Default::default()
-        }));
+        info!(
+            count = items.len(),
+            id, "plan from the ground complete, streaming it over the radio"
+        );
+        self.stream
+            .push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                count: items.len() as u16,
+                target_system: vehicle.0,
+                target_component: vehicle.1,
+                mission_type,
+                opaque_id: id,
+                ..Default::default()
+            }));
         for item in &items {
             self.stream
                 .push_back(MavMessage::MISSION_ITEM_INT(to_vehicle(item, vehicle)));
@@ -595,14 +610,15 @@ impl MissionTerminator {
                 self.stats.polls += 1;
                 *quiet_since = now;
                 *poll_every = (*poll_every * 2).min(self.config.poll_max);
-                self.stream.push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                    count: items.len() as u16,
-                    target_system: vehicle.0,
-                    target_component: vehicle.1,
-                    mission_type: *mission_type,
-                    opaque_id: *id,
-                    ..Default::default()
-                }));
+                self.stream
+                    .push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                        count: items.len() as u16,
+                        target_system: vehicle.0,
+                        target_component: vehicle.1,
+                        mission_type: *mission_type,
+                        opaque_id: *id,
+                        ..Default::default()
+                    }));
             }
             _ => {}
         }

@@ -31,17 +31,26 @@ fn item(seq: u16, x: i32, t: MavMissionType) -> MavMessage {
 }
 
 fn ground_out(m: &mut MissionTerminator) -> Vec<MavMessage> {
-    std::iter::from_fn(|| m.poll_ground()).map(|(from, msg)| {
-        assert_eq!(from, (1, 1), "answers come from the vehicle the ground addressed");
-        msg
-    }).collect()
+    std::iter::from_fn(|| m.poll_ground())
+        .map(|(from, msg)| {
+            assert_eq!(
+                from,
+                (1, 1),
+                "answers come from the vehicle the ground addressed"
+            );
+            msg
+        })
+        .collect()
 }
 
 fn radio_out(m: &mut MissionTerminator, now: Instant) -> Vec<MavMessage> {
     // Each frame leaves the radio queue as soon as it is handed over.
     let mut out = Vec::new();
     while let Some(msg) = m.poll_radio(now) {
-        if matches!(msg, MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_)) {
+        if matches!(
+            msg,
+            MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_)
+        ) {
             m.radio_frame_left(now);
         }
         out.push(msg);
@@ -147,22 +156,40 @@ fn accepted_only_for_the_ack_naming_the_current_plan() {
     assert_ne!(first, second);
     ground_out(&mut m);
     // the vehicle's ack for the first plan arrives late: not the ground's answer
-    assert!(m.from_radio(ms(20), &bridge_ack(first, MavMissionResult::MAV_MISSION_ACCEPTED, MISSION)));
+    assert!(m.from_radio(
+        ms(20),
+        &bridge_ack(first, MavMissionResult::MAV_MISSION_ACCEPTED, MISSION)
+    ));
     assert!(acks(&ground_out(&mut m)).is_empty());
     assert_eq!(m.stats().stale_acks, 1);
-    assert!(m.from_radio(ms(30), &bridge_ack(second, MavMissionResult::MAV_MISSION_ACCEPTED, MISSION)));
-    assert_eq!(acks(&ground_out(&mut m)), vec![MavMissionResult::MAV_MISSION_ACCEPTED]);
+    assert!(m.from_radio(
+        ms(30),
+        &bridge_ack(second, MavMissionResult::MAV_MISSION_ACCEPTED, MISSION)
+    ));
+    assert_eq!(
+        acks(&ground_out(&mut m)),
+        vec![MavMissionResult::MAV_MISSION_ACCEPTED]
+    );
     // a lost ack: the ground repeats its last item and hears it again
     m.from_ground(ms(40), GROUND, 1, &item(1, 4, MISSION));
-    assert_eq!(acks(&ground_out(&mut m)), vec![MavMissionResult::MAV_MISSION_ACCEPTED]);
+    assert_eq!(
+        acks(&ground_out(&mut m)),
+        vec![MavMissionResult::MAV_MISSION_ACCEPTED]
+    );
 }
 
 #[test]
 fn vehicle_error_reaches_the_ground_as_an_error() {
     let mut m = MissionTerminator::new(TerminatorConfig::default());
     let id = id_of(&upload(&mut m, 0, &[1], MISSION));
-    m.from_radio(ms(5), &bridge_ack(id, MavMissionResult::MAV_MISSION_NO_SPACE, MISSION));
-    assert_eq!(acks(&ground_out(&mut m)), vec![MavMissionResult::MAV_MISSION_NO_SPACE]);
+    m.from_radio(
+        ms(5),
+        &bridge_ack(id, MavMissionResult::MAV_MISSION_NO_SPACE, MISSION),
+    );
+    assert_eq!(
+        acks(&ground_out(&mut m)),
+        vec![MavMissionResult::MAV_MISSION_NO_SPACE]
+    );
 }
 
 /// Issue 9, 3.4: the relay kept going after the ground cancelled.
@@ -180,10 +207,21 @@ fn ground_cancel_stops_the_transfer_and_tells_the_bridge() {
     let radio = radio_out(&mut m, ms(5));
     assert!(matches!(&radio[..], [MavMessage::MISSION_ACK(a)]
         if a.opaque_id == id && a.mavtype == MavMissionResult::MAV_MISSION_OPERATION_CANCELLED));
-    assert_eq!(m.poll_timeout(), None, "no keep-alive, no poll after a cancel");
+    assert_eq!(
+        m.poll_timeout(),
+        None,
+        "no keep-alive, no poll after a cancel"
+    );
     // a late ACCEPTED for it is not passed on
-    m.from_radio(ms(9), &bridge_ack(id, MavMissionResult::MAV_MISSION_ACCEPTED, MISSION));
-    assert!(ground_out(&mut m).iter().all(|msg| !matches!(msg, MavMessage::MISSION_ACK(_))));
+    m.from_radio(
+        ms(9),
+        &bridge_ack(id, MavMissionResult::MAV_MISSION_ACCEPTED, MISSION),
+    );
+    assert!(
+        ground_out(&mut m)
+            .iter()
+            .all(|msg| !matches!(msg, MavMessage::MISSION_ACK(_)))
+    );
     // a download's final ACCEPTED from the ground is not a cancel: it passes through
     let done = MavMessage::MISSION_ACK(MISSION_ACK_DATA {
         target_system: 1,
@@ -209,7 +247,10 @@ fn stream_goes_out_through_a_window_and_a_restart_drops_what_never_left() {
     m.from_ground(ms(2), GROUND, 1, &item(0, 77, MISSION));
     (0..4).for_each(|_| m.radio_frame_left(ms(3)));
     let rest = radio_out(&mut m, ms(3));
-    assert!(matches!(&rest[0], MavMessage::MISSION_ACK(_)), "the bridge hears the cancel first");
+    assert!(
+        matches!(&rest[0], MavMessage::MISSION_ACK(_)),
+        "the bridge hears the cancel first"
+    );
     assert_eq!(items_of(&rest), vec![(0, 77)]);
 }
 
@@ -225,7 +266,10 @@ fn stream_is_paced_at_the_radio_budget() {
         m.from_ground(ms(0), GROUND, 1, &item(seq, 1, MISSION));
     }
     assert!(m.poll_radio(ms(0)).is_some());
-    assert!(m.poll_radio(ms(0)).is_none(), "62 bytes at 620 B/s: 100 ms apart");
+    assert!(
+        m.poll_radio(ms(0)).is_none(),
+        "62 bytes at 620 B/s: 100 ms apart"
+    );
     assert_eq!(m.poll_timeout(), Some(ms(100)));
     assert!(m.poll_radio(ms(100)).is_some());
 }

@@ -144,13 +144,14 @@ impl MissionStore {
             // Download and clear: answered once each; only the requester retries.
             MavMessage::MISSION_REQUEST_LIST(r) if r.target_system == me => {
                 let count = self.plan(r.mission_type).len() as u16;
-                self.out.push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                    count,
-                    target_system: from.0,
-                    target_component: from.1,
-                    mission_type: r.mission_type,
-                    ..Default::default()
-                }));
+                self.out
+                    .push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                        count,
+                        target_system: from.0,
+                        target_component: from.1,
+                        mission_type: r.mission_type,
+                        ..Default::default()
+                    }));
             }
             MavMessage::MISSION_REQUEST_INT(r) if r.target_system == me => {
                 if let Some(item) = self.plan(r.mission_type).get(usize::from(r.seq)) {
@@ -175,13 +176,14 @@ impl MissionStore {
     }
 
     fn ack(&mut self, to: (u8, u8), mission_type: MavMissionType, result: MavMissionResult) {
-        self.out.push_back(MavMessage::MISSION_ACK(MISSION_ACK_DATA {
-            target_system: to.0,
-            target_component: to.1,
-            mavtype: result,
-            mission_type,
-            ..Default::default()
-        }));
+        self.out
+            .push_back(MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+                target_system: to.0,
+                target_component: to.1,
+                mavtype: result,
+                mission_type,
+                ..Default::default()
+            }));
     }
 
     fn request_next(&mut self, now: Instant) {

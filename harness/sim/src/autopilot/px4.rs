@@ -13,8 +13,7 @@ use mavlora::Instant;
 use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType,
     HEARTBEAT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionType,
-    MavModeFlag,
-    MavResult, MavState, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
+    MavModeFlag, MavResult, MavState, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 

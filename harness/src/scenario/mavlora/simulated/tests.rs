@@ -179,7 +179,10 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
                     (Dimension::GroundTimeout, ground),
                 ],
             );
-            assert!(relay > 0.0 && relay <= mission::CUT_OFF_S, "{key} {ground}: {relay}");
+            assert!(
+                relay > 0.0 && relay <= mission::CUT_OFF_S,
+                "{key} {ground}: {relay}"
+            );
         }
         assert_eq!(on(key, RELAY, "mission_mismatch_on_accept"), 0.0);
         let e = on(key, RELAY, "mission_efficiency");
