@@ -313,6 +313,8 @@ impl MissionRelay {
 
     /// Requests missing items not asked for within one RTO: below the horizon (known lost),
     /// or with `all` every missing one (a poll or our timeout: the tail may be lost too).
+    // Indexing: the loop also builds `requested` entries keyed by the same seq.
+    #[allow(clippy::needless_range_loop)]
     fn repair(&mut self, now: Instant, all: bool) {
         let rto = self.rtt.rto();
         let Radio::Receiving {

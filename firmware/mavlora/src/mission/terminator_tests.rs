@@ -1,3 +1,4 @@
+#![allow(clippy::needless_update)] // full literals keep `..Default::default()`: the dialect may grow
 use super::*;
 use crate::dialect::{MISSION_ACK_DATA, MavMissionResult, MavMissionType};
 

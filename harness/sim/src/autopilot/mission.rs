@@ -186,6 +186,8 @@ impl MissionStore {
             }));
     }
 
+    // `..Default::default()` on a full literal: the dialect may grow.
+    #[allow(clippy::needless_update)]
     fn request_next(&mut self, now: Instant) {
         let Some(up) = &mut self.upload else { return };
         let (peer, mission_type) = (up.peer, up.mission_type);
