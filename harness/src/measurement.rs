@@ -258,6 +258,9 @@ pub enum Dimension {
     /// (`b_handover`, `ifs_override`) or it is named for its scenario
     /// (`blind_drone`); otherwise the phase says which scenario it is.
     Scenario,
+    /// A ground station's mission timeout per step (`0_5s`, `1_5s`): SDKs wait 0.5 s, the
+    /// MAVLink spec 1.5 s.
+    GroundTimeout,
 }
 
 impl Dimension {
@@ -272,6 +275,7 @@ impl Dimension {
             Dimension::Autopilot => "autopilot",
             Dimension::Variant => "variant",
             Dimension::Scenario => "scenario",
+            Dimension::GroundTimeout => "ground_timeout",
         }
     }
 }

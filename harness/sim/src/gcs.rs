@@ -1,5 +1,6 @@
 //! A ground station as the MAVLink mission protocol specifies it: heartbeats at 1 Hz, upload
-//! with a 1500 ms timeout and up to 5 retries of the last message sent.
+//! with a per-step timeout (1500 ms by default, the spec's; SDKs often use 0.5 s) and a few
+//! retries of the last message sent (5 by default; see [`GcsMock::with_mission_timeouts`]).
 
 use mavlora::Duration;
 use std::collections::VecDeque;
@@ -10,7 +11,7 @@ use mavlora::Instant;
 use mavlora::dialect::{
     COMMAND_LONG_DATA, HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA,
     MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA,
-    MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionResult, MavType,
+    MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionResult, MavMissionType, MavType,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender};
 
@@ -25,6 +26,7 @@ struct Download {
 
 #[derive(Debug)]
 struct Upload {
+    mission_type: MavMissionType,
     items: Vec<MISSION_ITEM_INT_DATA>,
     /// `None`: MISSION_COUNT was the last thing sent.
     last: Option<u16>,
@@ -109,6 +111,11 @@ pub struct GcsMock {
     upload: Option<Upload>,
     download: Option<Download>,
     timeout: Duration,
+    retries: u32,
+    /// The last plan it started uploading, by type (what the vehicle should end up with).
+    pub last_upload: Option<(MavMissionType, Vec<MISSION_ITEM_INT_DATA>)>,
+    /// Uploads it cancelled itself.
+    pub cancels: u64,
     /// Result of the last upload or clear, once finished.
     pub result: Option<(MavMissionResult, Instant)>,
     /// The last mission downloaded completely.
@@ -134,6 +141,9 @@ impl GcsMock {
             upload: None,
             download: None,
             timeout: Duration::from_millis(1500),
+            retries: 5,
+            last_upload: None,
+            cancels: 0,
             result: None,
             downloaded: None,
             items_sent: 0,
@@ -141,6 +151,14 @@ impl GcsMock {
             positions: Vec::new(),
             commands: None,
         }
+    }
+
+    /// The same ground station with the mission protocol's per-step `timeout` and `retries`
+    /// (the spec: 1.5 s and 5; SDKs: 0.5 s and 3).
+    pub fn with_mission_timeouts(mut self, timeout: Duration, retries: u32) -> Self {
+        self.timeout = timeout;
+        self.retries = retries;
+        self
     }
 
     /// Starts sending commands at `now` (see [`CommandPlan`]).
@@ -279,10 +297,27 @@ impl GcsMock {
             .collect()
     }
 
-    /// Starts uploading `items` at `now`.
+    /// Starts uploading `items` as the mission at `now`.
     pub fn upload(&mut self, items: Vec<MISSION_ITEM_INT_DATA>, now: Instant) {
+        self.upload_typed(MavMissionType::MAV_MISSION_TYPE_MISSION, items, now);
+    }
+
+    /// Starts uploading `items` as a plan of `mission_type` at `now` (an upload in progress
+    /// is replaced: a new `MISSION_COUNT` restarts the transfer).
+    pub fn upload_typed(
+        &mut self,
+        mission_type: MavMissionType,
+        items: Vec<MISSION_ITEM_INT_DATA>,
+        now: Instant,
+    ) {
         let count = items.len() as u16;
+        let items: Vec<_> = items
+            .into_iter()
+            .map(|i| MISSION_ITEM_INT_DATA { mission_type, ..i })
+            .collect();
+        self.last_upload = Some((mission_type, items.clone()));
         self.upload = Some(Upload {
+            mission_type,
             items,
             last: None,
             at: now,
@@ -293,8 +328,31 @@ impl GcsMock {
             count,
             target_system: 1,
             target_component: 1,
+            mission_type,
             ..Default::default()
         }));
+    }
+
+    /// Cancels the upload in progress (the protocol's cancel: a `MISSION_ACK` with
+    /// `MAV_MISSION_OPERATION_CANCELLED`). Returns whether one was in progress.
+    pub fn cancel(&mut self) -> bool {
+        let Some(up) = self.upload.take() else {
+            return false;
+        };
+        self.cancels += 1;
+        self.send(&MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+            target_system: 1,
+            target_component: 1,
+            mavtype: MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
+            mission_type: up.mission_type,
+            ..Default::default()
+        }));
+        true
+    }
+
+    /// Whether an upload is in progress.
+    pub fn uploading(&self) -> bool {
+        self.upload.is_some()
     }
 
     /// Starts downloading the vehicle's mission at `now`.
@@ -400,7 +458,9 @@ impl GcsMock {
         }
         let Some(up) = &mut self.upload else { return };
         match msg {
-            MavMessage::MISSION_REQUEST_INT(r) if r.target_system == 255 => {
+            MavMessage::MISSION_REQUEST_INT(r)
+                if r.target_system == 255 && r.mission_type == up.mission_type =>
+            {
                 let Some(item) = up.items.get(usize::from(r.seq)).cloned() else {
                     return;
                 };
@@ -412,7 +472,9 @@ impl GcsMock {
                 self.items_sent += 1;
                 self.send(&MavMessage::MISSION_ITEM_INT(item));
             }
-            MavMessage::MISSION_ACK(a) if a.target_system == 255 => {
+            MavMessage::MISSION_ACK(a)
+                if a.target_system == 255 && a.mission_type == up.mission_type =>
+            {
                 self.upload = None;
                 self.result = Some((a.mavtype, now));
             }
@@ -471,7 +533,7 @@ impl GcsMock {
         if now < up.at + self.timeout {
             return;
         }
-        if up.retries >= 5 {
+        if up.retries >= self.retries {
             self.upload = None;
             self.result = Some((MavMissionResult::MAV_MISSION_OPERATION_CANCELLED, now));
             return;
@@ -483,6 +545,7 @@ impl GcsMock {
                 count: up.items.len() as u16,
                 target_system: 1,
                 target_component: 1,
+                mission_type: up.mission_type,
                 ..Default::default()
             }),
             Some(seq) => {

@@ -74,13 +74,12 @@ fn fifty_item_mission_completes_under_ten_percent_loss() {
         let (b, r) = (w.bridge().unwrap(), w.router().unwrap());
         let m = b.stats().mission;
         println!(
-            "seed {seed}: {:.1} s, radio requests {} + {} retries, duplicate items at bridge {}, \
-             suppressed at router {}, srtt {:?}, rto {:?}, fc item requests {}",
+            "seed {seed}: {:.1} s, radio repair requests {}, duplicate items at bridge {}, \
+             repaired by the router {}, srtt {:?}, rto {:?}, fc item requests {}",
             at.saturating_duration_since(secs(5)).as_secs_f64(),
             m.radio_requests,
-            m.radio_retries,
             m.radio_duplicate_items,
-            r.stats().mission_duplicates,
+            r.stats().mission.items_repaired,
             b.mission_rtt().srtt(),
             b.mission_rtt().rto(),
             w.fc.stats().item_requests,
@@ -255,7 +254,9 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
     let router = w.router().unwrap().stats().signing;
     println!("bridge signing {s:?}, router signing {router:?}");
     assert!(s.unsigned >= 1 && s.replayed >= 1, "{s:?}");
-    assert!(s.accepted > 50 && router.accepted > 50);
+    // Signed frames flow both ways (the streamed upload sends no request per item, so the
+    // router hears fewer frames than the bridge).
+    assert!(s.accepted > 50 && router.accepted > 20, "{s:?} {router:?}");
     assert_eq!(s.bad_signature, 0);
 }
 

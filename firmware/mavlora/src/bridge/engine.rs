@@ -248,6 +248,7 @@ impl Bridge {
                 info!("flight controller rebooted, configuring stream rates again");
                 self.stats.fc_reboots += 1;
                 self.start_config(now);
+                self.mission.fc_rebooted(now);
             }
             None => {}
         }
@@ -440,7 +441,7 @@ impl Bridge {
                 self.stats.link_quality_received += 1;
                 return;
             }
-            ids::HEARTBEAT | ids::MISSION_COUNT | ids::MISSION_ITEM_INT => {
+            ids::HEARTBEAT | ids::MISSION_COUNT | ids::MISSION_ITEM_INT | ids::MISSION_ACK => {
                 let Ok(msg) = frame.decode::<MavMessage>() else {
                     self.forward_to_fc(frame);
                     return;
@@ -451,7 +452,8 @@ impl Bridge {
                     self.gcs_heartbeat.heard(&frame, hb.clone(), now);
                 }
                 let from = (frame.system_id(), frame.component_id());
-                // Uploads addressed to this vehicle are relayed; others pass through.
+                // Uploads addressed to this vehicle are relayed (and the router's cancel of
+                // one); others pass through.
                 let for_vehicle = msg.target_system_id() == Some(self.radio_sender.system());
                 if id != ids::HEARTBEAT && for_vehicle && self.mission.handle_radio(now, from, &msg)
                 {

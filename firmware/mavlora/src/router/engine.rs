@@ -12,7 +12,7 @@ use crate::command::{Admission, CommandRetransmitter, RetransmitStats};
 use crate::compact::Expander;
 use crate::dialect::MavMessage;
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
-use crate::mission::DuplicateSuppressor;
+use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
 use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
@@ -39,8 +39,8 @@ pub struct RouterConfig {
     /// At most one ground heartbeat per sender per this period goes over the radio; the
     /// bridge regenerates them at 1 Hz for the flight controller.
     pub gcs_heartbeat_period: Duration,
-    /// Initial radio round trip for the mission duplicate suppressor.
-    pub initial_rtt: Duration,
+    /// Mission uploads: the ground's transfer ends here (keep-alive, radio polls).
+    pub mission: TerminatorConfig,
     /// First timeout before a command is resent over the radio; later ones follow the
     /// measured command round trip.
     pub command_initial_rto: Duration,
@@ -71,7 +71,7 @@ impl RouterConfig {
             component_id: 191,
             autopilot_component: 1,
             gcs_heartbeat_period: Duration::from_secs(5),
-            initial_rtt: Duration::from_millis(1500),
+            mission: TerminatorConfig::default(),
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,
             command_early_copy: Some(Duration::from_millis(120)),
@@ -103,8 +103,8 @@ pub struct RouterStats {
     pub to_gcs_bytes: u64,
     /// Radio frames a MAVLink 1 ground station could not be given (ids above 255).
     pub to_gcs_not_v1: u64,
-    /// Ground mission retransmissions dropped within one radio round trip.
-    pub mission_duplicates: u64,
+    /// Mission uploads terminated here: started, accepted, failed, repairs, keep-alives.
+    pub mission: TerminatorStats,
     /// The command relay's resends and dropped ground retries.
     pub commands: RetransmitStats,
     /// `LINK_QUALITY` reports sent to the radio.
@@ -137,7 +137,7 @@ pub struct Router {
     scheduler: LinkScheduler,
     heartbeat_filter: RadioFilter,
     expander: Expander,
-    dedup: DuplicateSuppressor,
+    mission: MissionTerminator,
     commands: CommandRetransmitter,
     sender: Sender,
     /// Streams towards the ground station that we renumber, by (system, component).
@@ -173,11 +173,13 @@ impl Router {
             scheduler: LinkScheduler::new(config.scheduler, now)?,
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
-            dedup: DuplicateSuppressor::new(
-                config.initial_rtt,
-                Duration::from_millis(300),
-                Duration::from_secs(8),
-            ),
+            mission: MissionTerminator::new(TerminatorConfig {
+                pace_bytes_per_s: config
+                    .mission
+                    .pace_bytes_per_s
+                    .or(Some(config.scheduler.rate_bytes_per_s)),
+                ..config.mission
+            }),
             // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
             // congestion, so doubling the timeout past it only adds latency.
             commands: {
@@ -222,7 +224,7 @@ impl Router {
             gcs_reader: self.gcs_reader.stats().clone(),
             filter: self.heartbeat_filter.stats(),
             scheduler: self.scheduler.stats(),
-            mission_duplicates: self.dedup.suppressed(),
+            mission: self.mission.stats(),
             commands: self.commands.stats(),
             signing: self.radio_leg.stats(),
             ground_signing: self
@@ -337,10 +339,19 @@ impl Router {
                 if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
                     continue;
                 }
-            } else if matches!(id, ids::MISSION_COUNT | ids::MISSION_ITEM_INT)
-                && let Ok(msg) = frame.decode::<MavMessage>()
-                && !self.dedup.from_ground(&msg, now)
+            } else if matches!(
+                id,
+                ids::MISSION_COUNT | ids::MISSION_ITEM_INT | ids::MISSION_ACK
+            ) && let Ok(msg) = frame.decode::<MavMessage>()
+                && self.mission.from_ground(
+                    now,
+                    (frame.system_id(), frame.component_id()),
+                    self.config.autopilot_component,
+                    &msg,
+                )
             {
+                // The ground's upload ends here (see `mission`).
+                self.drain_mission(now);
                 continue;
             }
             self.scheduler.push(frame, Class::of(id), now);
@@ -392,9 +403,12 @@ impl Router {
                         self.expand(now, frame.system_id(), &msg);
                     }
                 }
-                ids::MISSION_REQUEST | ids::MISSION_REQUEST_INT => {
-                    if let Ok(msg) = frame.decode::<MavMessage>() {
-                        self.dedup.from_radio(&msg, now);
+                ids::MISSION_REQUEST | ids::MISSION_REQUEST_INT | ids::MISSION_ACK => {
+                    if let Ok(msg) = frame.decode::<MavMessage>()
+                        && self.mission.from_radio(now, &msg)
+                    {
+                        self.drain_mission(now);
+                        continue;
                     }
                     self.push_gcs(now, frame);
                 }
@@ -483,9 +497,28 @@ impl Router {
         self.to_gcs.push_back(frame);
     }
 
+    /// Mission frames for the radio (priority, in order: the radio leg relies on it) and for
+    /// the ground (as the vehicle it addressed, in that stream's numbering).
+    fn drain_mission(&mut self, now: Instant) {
+        while let Some(msg) = self.mission.poll_radio(now) {
+            let frame = self.sender.frame(&msg);
+            self.scheduler.push(frame, Class::Priority, now);
+        }
+        while let Some(((system, component), msg)) = self.mission.poll_ground() {
+            let header = MavHeader {
+                system_id: system.into(),
+                component_id: component,
+                sequence: self.next_sequence((system, component)),
+            };
+            self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, &msg));
+        }
+    }
+
     /// Does what is due at `now`: our link-quality report (also shown to the ground
-    /// station), command retransmissions.
+    /// station), command retransmissions, mission keep-alives and polls.
     pub fn handle_timeout(&mut self, now: Instant) {
+        self.mission.handle_timeout(now);
+        self.drain_mission(now);
         self.commands.handle_timeout(now);
         while let Some(frame) = self.commands.poll_retransmit() {
             self.scheduler.push(frame, Class::Priority, now);
@@ -538,6 +571,17 @@ impl Router {
     pub fn poll_radio_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
         loop {
             let frame = self.scheduler.poll_transmit(now, room)?;
+            if (frame.system_id(), frame.component_id())
+                == (self.config.system_id, self.config.component_id)
+                && matches!(
+                    frame.message_id(),
+                    ids::MISSION_COUNT | ids::MISSION_ITEM_INT
+                )
+            {
+                // The stream's window moves on.
+                self.mission.radio_frame_left(now);
+                self.drain_mission(now);
+            }
             if let Some(frame) = self.radio_leg.outgoing(frame, now) {
                 self.quality.sent_frame(now);
                 return Some(frame);
@@ -552,6 +596,7 @@ impl Router {
             self.monitor.poll_timeout(),
             self.scheduler.poll_timeout(),
             self.commands.poll_timeout(),
+            self.mission.poll_timeout(),
             // Frames waiting for the ground stations: due at once.
             (!self.to_gcs.is_empty()).then_some(Instant::ZERO),
         ]

@@ -178,8 +178,22 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
         )
     };
     for (key, _) in &radios.mission {
-        let relay = on(key, RELAY, "mission_upload_s");
-        assert!(relay > 0.0 && relay <= mission::CUT_OFF_S);
+        for (ground, _, _) in mission::GROUNDS {
+            let relay = value(
+                &ms,
+                "mission_upload_s",
+                &[
+                    (Dimension::Radio, key.as_str()),
+                    (Dimension::Variant, RELAY),
+                    (Dimension::GroundTimeout, ground),
+                ],
+            );
+            assert!(
+                relay > 0.0 && relay <= mission::CUT_OFF_S,
+                "{key} {ground}: {relay}"
+            );
+        }
+        assert_eq!(on(key, RELAY, "mission_mismatch_on_accept"), 0.0);
         let e = on(key, RELAY, "mission_efficiency");
         assert!(e > 0.0 && e <= 1.0, "{key}: efficiency {e}");
     }
@@ -187,7 +201,16 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
     let naive = |base: &str| on("lora_sf7", "naive", base);
     assert!(naive("duplicate_items") >= 50.0);
     assert!(naive("mission_bytes_on_air") > 2.0 * relay("mission_bytes_on_air"));
-    assert!(naive("mission_upload_s") > relay("mission_upload_s"));
+    let relay_05 = value(
+        &ms,
+        "mission_upload_s",
+        &[
+            (Dimension::Radio, "lora_sf7"),
+            (Dimension::Variant, RELAY),
+            (Dimension::GroundTimeout, "0_5s"),
+        ],
+    );
+    assert!(naive("mission_upload_s") > relay_05);
     // the relay's own uploads to PX4 never duplicate
     assert!(
         log.iter()
@@ -200,7 +223,7 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
 fn mission_radios_lose_ten_percent_on_average() {
     let radios = Radios::paper_defaults();
     for (key, setup) in &radios.mission {
-        let u = mission::upload(&radios, &radios.seeded(setup), true).unwrap();
+        let u = mission::upload(&radios, &radios.seeded(setup), true, None).unwrap();
         for (dir, loss) in [("down", u.loss.0), ("up", u.loss.1)] {
             assert!(
                 (0.06..=0.14).contains(&loss),
@@ -374,8 +397,8 @@ fn runs_are_deterministic_for_a_seed() {
     };
     let c = blind_drone::detect(&other).unwrap();
     assert_ne!(a.views, c.views);
-    let m1 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true).unwrap();
-    let m2 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true).unwrap();
+    let m1 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true, None).unwrap();
+    let m2 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true, None).unwrap();
     assert_eq!(m1, m2);
 }
 
