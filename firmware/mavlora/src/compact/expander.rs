@@ -3,8 +3,8 @@
 
 use crate::dialect::{
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, HEARTBEAT_DATA, MAVLORA_POSITION_BATCH_DATA,
-    MAVLORA_STATUS_DATA, MISSION_CURRENT_DATA, MavMessage, MavSysStatusSensor, SYS_STATUS_DATA,
-    VFR_HUD_DATA,
+    MAVLORA_STATUS_DATA, MISSION_CURRENT_DATA, MavMessage, MavSysStatusSensor,
+    MavSysStatusSensorExtended, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 
 /// Sans-IO expander: keeps the latest status so position batches can be expanded into full
@@ -123,6 +123,11 @@ impl Expander {
                 voltage_battery: s.voltage_battery,
                 current_battery: -1,
                 battery_remaining: s.battery_remaining,
+                // The generated Default of a bitflags field is its first flag, not empty: the
+                // extended sensor sets must be said to be empty.
+                onboard_control_sensors_present_extended: MavSysStatusSensorExtended::empty(),
+                onboard_control_sensors_enabled_extended: MavSysStatusSensorExtended::empty(),
+                onboard_control_sensors_health_extended: MavSysStatusSensorExtended::empty(),
                 ..SYS_STATUS_DATA::default()
             }),
             MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {

@@ -19,8 +19,8 @@ use mavlink::MavlinkVersion;
 use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType,
     HEARTBEAT_DATA, MISSION_CURRENT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage,
-    MavModeFlag, MavParamType, MavResult, MavState, MavType, PARAM_VALUE_DATA, SYS_STATUS_DATA,
-    VFR_HUD_DATA,
+    MavModeFlag, MavParamType, MavResult, MavState, MavSysStatusSensorExtended, MavType,
+    PARAM_VALUE_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 use mavlora::{Duration, Instant};
@@ -365,6 +365,11 @@ impl ArduPilotFc {
                 voltage_battery: 12_600 - (t.as_secs_f64() * 1.5) as u16,
                 battery_remaining: 85,
                 load: 250,
+                // The generated Default of a bitflags field is its first flag, not empty: the
+                // extended sensor sets must be said to be empty.
+                onboard_control_sensors_present_extended: MavSysStatusSensorExtended::empty(),
+                onboard_control_sensors_enabled_extended: MavSysStatusSensorExtended::empty(),
+                onboard_control_sensors_health_extended: MavSysStatusSensorExtended::empty(),
                 ..SYS_STATUS_DATA::default()
             }),
             24 => MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {

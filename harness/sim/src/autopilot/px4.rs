@@ -13,7 +13,8 @@ use mavlora::Instant;
 use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType,
     HEARTBEAT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionType,
-    MavModeFlag, MavResult, MavState, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
+    MavModeFlag, MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA,
+    VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 
@@ -502,6 +503,11 @@ impl Px4Fc {
                 voltage_battery: 15_800 - (secs * 2.0) as u16,
                 battery_remaining: 80,
                 load: 400,
+                // The generated Default of a bitflags field is its first flag, not empty: the
+                // extended sensor sets must be said to be empty.
+                onboard_control_sensors_present_extended: MavSysStatusSensorExtended::empty(),
+                onboard_control_sensors_enabled_extended: MavSysStatusSensorExtended::empty(),
+                onboard_control_sensors_health_extended: MavSysStatusSensorExtended::empty(),
                 ..SYS_STATUS_DATA::default()
             }),
             24 => MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {

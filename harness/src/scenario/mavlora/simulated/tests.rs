@@ -218,7 +218,11 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
     );
 }
 
-/// The bursty loss the mission scenario configures averages 10 %, as the radio counts it.
+/// The bursty loss the mission scenario configures averages 10 % of the time, as the radio
+/// counts it per packet. Fades step in time, so a packet is lost when a fade overlaps any of
+/// its airtime: at most 0.1 + 0.9 · (1 − e^(−T/9 s)) for a packet of airtime T with 1 s fades
+/// 10 % of the time (mean good spell 9 s): 0.139 for LoRa SF7's longest packet (~0.4 s), plus
+/// 0.03 for sampling over a few hundred packets.
 #[test]
 fn mission_radios_lose_ten_percent_on_average() {
     let radios = Radios::paper_defaults();
@@ -226,7 +230,7 @@ fn mission_radios_lose_ten_percent_on_average() {
         let u = mission::upload(&radios, &radios.seeded(setup), true, None).unwrap();
         for (dir, loss) in [("down", u.loss.0), ("up", u.loss.1)] {
             assert!(
-                (0.06..=0.14).contains(&loss),
+                (0.06..=0.17).contains(&loss),
                 "{key} {dir}: measured loss {loss}"
             );
         }
@@ -446,9 +450,25 @@ fn flat_names_are_the_ones_readers_know() {
             format!("mavlora.{v}.msgs_per_s"),
         ]);
     }
+    // The ArduPilot-like autopilot's rows (dimension autopilot = ardupilot; px4 stays out of
+    // the names), with the position rate and lag where the radio filters.
+    for v in ["wired", "limit", "limit_filter", "compact"] {
+        expected.extend([
+            format!("mavlora.ardupilot.{v}.bytes_per_s"),
+            format!("mavlora.ardupilot.{v}.msgs_per_s"),
+        ]);
+        if matches!(v, "limit_filter" | "compact") {
+            expected.extend([
+                format!("mavlora.ardupilot.{v}.position_hz"),
+                format!("mavlora.ardupilot.{v}.position_lag_p99_s"),
+            ]);
+        }
+    }
     for r in ["lora_sf7", "sik_64k"] {
         for what in [
-            "mission_upload_s",
+            "0_5s.mission_upload_s",
+            "1_5s.mission_upload_s",
+            "mission_mismatch_on_accept",
             "mission_bytes_on_air",
             "mission_efficiency",
             "naive.mission_upload_s",
