@@ -469,7 +469,10 @@ fn tcp_clients_that_never_read_block_nobody_and_a_ninth_is_refused() {
         Some(total - 1),
         "reading client got {got} frames:\n{log}"
     );
-    assert!(last_delay < Duration::from_secs(2), "{last_delay:?}");
+    // "Promptly" as an invariant, not a speed target: a loop blocked by the stalled
+    // clients (the bug: up to 200 ms per stalled client per send) would need minutes for
+    // 250,000 frames; 10 s leaves room for a loaded host (2.1-2.8 s seen under load).
+    assert!(last_delay < Duration::from_secs(10), "{last_delay:?}");
     assert!(
         command_latency.is_some_and(|t| t < Duration::from_secs(1)),
         "command during the TCP stall: {command_latency:?}\n{log}"
