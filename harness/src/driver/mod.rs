@@ -12,3 +12,4 @@ pub mod pty;
 pub mod radio_emulator;
 pub mod receiver;
 pub mod status;
+pub mod tx_probe;

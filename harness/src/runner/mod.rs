@@ -23,9 +23,9 @@ use crate::record::{
     ToolIdentity, now_rfc3339, sha256_file,
 };
 use crate::report::{self, ReportPaths};
-use crate::rigfile::{BoardSetup, DeviceSetup, Mode, RigFile};
+use crate::rigfile::{BoardSetup, DeviceKind, DeviceSetup, Mode, RigFile};
 use crate::scenario::PhaseContext;
-use crate::scenario::multirx::{self, ModeLimits, Scenario, SessionMeasurements};
+use crate::scenario::multirx::{self, ModeLimits, Scenario, SessionFigures, SessionMeasurements};
 use crate::strategy::firmware::{self, FirmwareImage};
 use crate::strategy::multirx::MultirxSession;
 
@@ -372,7 +372,11 @@ fn mode_limits(rig: &RigFile, mode: Mode) -> Result<ModeLimits> {
         .as_ref()
         .and_then(|m| m.config(mode))
         .with_context(|| format!("no MultiRX config for mode {mode}"))?;
-    Ok(ModeLimits::new(mode, &loaded.config))
+    let device = rig
+        .multirx
+        .as_ref()
+        .map_or(DeviceKind::Emulated, |m| m.device.kind());
+    Ok(ModeLimits::new(mode, &loaded.config, device))
 }
 
 fn scenario_trial(
@@ -599,14 +603,17 @@ fn whole_run_trial(
         // which the scenario dimension tells apart.
         let [gap, fc_gap, losses] = multirx::session_specs(&limits, None)
             .map(|spec| Selector::like(&spec).has(Dimension::Scenario));
-        let (gaps, fc_gaps, losses) = ran.with_phases(|ran| {
+        let hold = multirx::host_hold_spec(&limits, None)
+            .map(|spec| Selector::like(&spec).has(Dimension::Scenario));
+        let (gaps, fc_gaps, losses, holds) = ran.with_phases(|ran| {
             let values = |selector: &Selector| -> Vec<f64> {
                 ran.iter()
                     .flat_map(|p| p.select(selector))
                     .filter_map(|m| m.value)
                     .collect()
             };
-            (values(&gap), values(&fc_gap), values(&losses))
+            let holds = hold.as_ref().map(values);
+            (values(&gap), values(&fc_gap), values(&losses), holds)
         });
         let count = gaps.len();
         if count == 0 {
@@ -617,9 +624,12 @@ fn whole_run_trial(
             let worst = |v: Vec<f64>| v.into_iter().fold(0.0, f64::max);
             whole.record(
                 &mut ctx,
-                worst(gaps),
-                worst(fc_gaps),
-                losses.into_iter().fold(0.0, |sum, v| sum + v),
+                &SessionFigures {
+                    output_gap_ms: worst(gaps),
+                    fc_gap_ms: worst(fc_gaps),
+                    rc_losses: losses.into_iter().fold(0.0, |sum, v| sum + v),
+                    host_hold_ms: holds.map(worst),
+                },
             );
             let (measurements, log, _) = ctx.into_parts();
             let mut r = PhaseRecord::ran(&name, started, 0.0, measurements, None);

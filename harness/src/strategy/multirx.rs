@@ -17,6 +17,7 @@ use crate::driver::program::MULTIRX_EMU;
 use crate::driver::pty::{PtyLink, PtyPair};
 use crate::driver::receiver::{Loss, ReceiverFixture, ReceiverSpec};
 use crate::driver::status::StatusMonitor;
+use crate::driver::tx_probe;
 use crate::px4::{FcFrame, Px4RcInput, RcReport};
 use crate::rigfile::{DeviceSetup, Mode, PortSpec, RigFile};
 use crate::strategy::boot_check;
@@ -334,33 +335,17 @@ impl MultirxSession {
         )
     }
 
-    /// Longest interval between frames leaving the device, from its TX probe,
-    /// over the window the last [`Self::px4_report`] judged; `None` without a
-    /// probe (a board: there the flight-controller side is all we see).
-    pub fn device_max_gap(&self) -> Result<Option<Duration>> {
+    /// The device's cadence from its TX probe (device time: see
+    /// [`tx_probe`]), over the window the last [`Self::px4_report`] judged;
+    /// `None` without a probe (a board: there the flight-controller side is
+    /// all we see).
+    pub fn device_cadence(&self) -> Result<Option<tx_probe::Cadence>> {
         let Some(path) = &self.tx_log else {
             return Ok(None);
         };
         let until = self.judged_until.lock().unwrap().unwrap_or_else(Mono::now);
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        let mut last = self.started;
-        let mut max = Duration::ZERO;
-        for (i, line) in text.lines().enumerate() {
-            let secs: f64 = line.parse().with_context(|| {
-                format!("{}:{}: not a timestamp: {line:?}", path.display(), i + 1)
-            })?;
-            let t = Mono::from_secs_f64(secs);
-            if t < self.started {
-                continue;
-            }
-            if t > until {
-                break;
-            }
-            max = max.max(t.since(last));
-            last = t;
-        }
-        Ok(Some(max.max(until.since(last))))
+        let lines = tx_probe::read(path)?;
+        Ok(Some(tx_probe::cadence(&lines, self.started, until)))
     }
 
     /// PX4's view of the whole session so far.

@@ -1,5 +1,5 @@
 //! The emulated device's loop: the same engine as the firmware, with host
-//! threads standing in for UART interrupts and `std::time::Instant` for the timer.
+//! threads standing in for UART interrupts and a [`DeviceClock`] for the timer.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
@@ -8,6 +8,7 @@ use std::time::Instant as HostInstant;
 use multirx_core::boot::{BootReport, ImageKind, ResetCause, build_id};
 use multirx_core::{Config, Instant, Multiplexer};
 
+use crate::clock::DeviceClock;
 use crate::ports::{Input, Output, Source};
 use crate::tap::TxTap;
 
@@ -26,6 +27,8 @@ pub struct RunStats {
     /// Longest interval between two frames handed to the output port, as the
     /// device itself timed it: separates our cadence from transport jitter.
     pub max_gap: std::time::Duration,
+    /// How long the host held the device clock in all ([`DeviceClock`]).
+    pub held: std::time::Duration,
     pub frames_dropped: u64,
     pub status_lines: u64,
     /// Why the run ended early: the flight-controller port is gone for good.
@@ -33,7 +36,10 @@ pub struct RunStats {
 }
 
 pub struct Device {
-    epoch: HostInstant,
+    clock: DeviceClock,
+    /// The last input's device time: bytes that arrived during a hold map to
+    /// before it, and must not take a receiver's clock backwards.
+    last_input: Instant,
     mux: Multiplexer,
     fc: Output,
     status: Option<Output>,
@@ -49,7 +55,6 @@ pub struct Device {
 
 impl Device {
     pub fn new(config: Config, fc: Output, status: Option<Output>, tap: Option<TxTap>) -> Self {
-        let epoch = HostInstant::now();
         let config_hash = config.identity_hash();
         let boot = BootReport {
             at: Instant::ZERO,
@@ -61,7 +66,8 @@ impl Device {
         Device {
             boot,
             next_boot_line: None,
-            epoch,
+            clock: DeviceClock::new(),
+            last_input: Instant::ZERO,
             mux: Multiplexer::new(config, Instant::ZERO),
             fc,
             status,
@@ -72,11 +78,11 @@ impl Device {
     }
 
     fn to_core(&self, t: HostInstant) -> Instant {
-        Instant::from_micros(t.saturating_duration_since(self.epoch).as_micros() as u64)
+        self.clock.device(t)
     }
 
     fn to_host(&self, t: Instant) -> HostInstant {
-        self.epoch + std::time::Duration::from(t.since_epoch())
+        self.clock.host(t)
     }
 
     /// Runs until `stop` is set or the flight-controller port is gone for good
@@ -89,6 +95,7 @@ impl Device {
                 fc_gone = Some(why);
                 break;
             }
+            self.clock.ran();
             let due = self.mux.poll_timeout().expect("the output never stops");
             let deadline = self.to_host(due);
             let wait = deadline
@@ -105,20 +112,33 @@ impl Device {
                 self.service();
                 continue;
             }
-            match inputs.recv_timeout(wait - SPIN) {
-                Ok(input) => self.handle_input(input),
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => {
-                    // No reader left: keep the output going all the same,
-                    // as the board would with every receiver unplugged.
-                    std::thread::sleep(wait - SPIN);
+            let slept = HostInstant::now();
+            let asked = slept + (wait - SPIN);
+            let input = inputs.recv_timeout(wait - SPIN);
+            if let Err(RecvTimeoutError::Disconnected) = input {
+                // No reader left: keep the output going all the same,
+                // as the board would with every receiver unplugged.
+                std::thread::sleep(asked.saturating_duration_since(HostInstant::now()));
+            }
+            match input {
+                Ok(input) => {
+                    // Woken by input: runnable from when it came (already
+                    // queued: from when we asked for it).
+                    let came = match &input {
+                        Input::Bytes { at, .. } => (*at).clamp(slept, asked),
+                        _ => asked,
+                    };
+                    self.clock.woke(came);
+                    self.handle_input(input);
                 }
+                Err(_) => self.clock.woke(asked),
             }
             self.service();
         }
         RunStats {
             frames_out: self.fc.written,
             max_gap: self.max_gap,
+            held: self.clock.held(),
             frames_dropped: self.fc.dropped,
             status_lines: self.status.as_ref().map_or(0, |s| s.written),
             fc_gone,
@@ -137,7 +157,8 @@ impl Device {
     fn handle_input(&mut self, input: Input) {
         match input {
             Input::Bytes { source, at, bytes } => {
-                let at = self.to_core(at);
+                let at = self.to_core(at).max(self.last_input);
+                self.last_input = at;
                 match source {
                     Source::Receiver(rx) => self.mux.handle_receiver_bytes(at, rx, &bytes),
                     Source::Ifs => self.mux.handle_ifs_bytes(at, &bytes),
@@ -173,9 +194,15 @@ impl Device {
             }
             self.last_frame_at = Some(now);
             if let Some(tap) = &mut self.tap {
-                tap.frame_sent();
+                // Up to this instant: a hold since the loop's last accounting
+                // (in the engine's work just now) is the host's too.
+                self.clock.ran();
+                tap.frame_sent(self.clock.held());
             }
             self.fc.send(&frame);
+            // A write that blocked is the device's own delay: account for it
+            // alone, so it does not take a hold before or after with it.
+            self.clock.ran();
             if self.next_boot_line.is_none() {
                 self.boot.first_frame = self.to_core(now).since_epoch();
                 self.next_boot_line = Some(now);

@@ -9,6 +9,7 @@
 //! Exit codes: 0 after SIGINT/SIGTERM, 1 on a startup error (bad config, a
 //! port that cannot be opened), 2 on bad command-line usage.
 
+mod clock;
 mod device;
 mod ports;
 mod tap;
@@ -128,6 +129,7 @@ fn run(args: Args) -> Result<()> {
         frames_out = stats.frames_out,
         frames_dropped = stats.frames_dropped,
         max_gap_ms = stats.max_gap.as_secs_f64() * 1000.0,
+        host_held_ms = stats.held.as_secs_f64() * 1000.0,
         status_lines = stats.status_lines,
         "stopped"
     );

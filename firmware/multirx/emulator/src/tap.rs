@@ -1,6 +1,7 @@
 //! A probe on the emulated board's TX pin: when each frame for the flight
-//! controller was handed to the port, as CLOCK_MONOTONIC seconds, one line per
-//! frame. A logic analyser gives the same on real hardware; the rig reads it to
+//! controller was handed to the port, as CLOCK_MONOTONIC seconds, and how long
+//! the host had held the device clock so far (seconds), one line per frame:
+//! `12.345678901 0.012345678`. A logic analyser gives the same on real hardware; the rig reads it to
 //! judge the device's own cadence apart from the serial transport's latency.
 
 use std::fs::File;
@@ -21,11 +22,18 @@ impl TxTap {
     }
 
     /// Notes a frame leaving now. A write error stops the tap, never the device.
-    pub fn frame_sent(&mut self) {
+    pub fn frame_sent(&mut self, held: std::time::Duration) {
         let Some(file) = &mut self.file else { return };
         let ts = rustix::time::clock_gettime(rustix::time::ClockId::Monotonic);
         // Unbuffered: the rig may read the file while the device runs.
-        if let Err(e) = writeln!(file, "{}.{:09}", ts.tv_sec, ts.tv_nsec) {
+        if let Err(e) = writeln!(
+            file,
+            "{}.{:09} {}.{:09}",
+            ts.tv_sec,
+            ts.tv_nsec,
+            held.as_secs(),
+            held.subsec_nanos()
+        ) {
             tracing::warn!(error = %e, "TX tap stopped");
             self.file = None;
         }

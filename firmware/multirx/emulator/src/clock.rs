@@ -1,0 +1,167 @@
+//! The emulated board's clock.
+//!
+//! A board's timer interrupt is never late; a host thread is, whenever the
+//! host does not run it: a loaded machine, or a virtual machine whose vCPU is
+//! descheduled (a busy loop at SCHED_FIFO on an idle 2-vCPU CI VM sees holes
+//! of 10-40 ms, several a second, whatever the program). So the engine runs on
+//! a device clock that stands still while the host holds the device:
+//!
+//! - while the loop runs (spinning or working), the time it was runnable but
+//!   not run: host time minus the thread's CPU time, which on Linux excludes
+//!   both preemption and a hypervisor's steal. A stretch in which the thread
+//!   blocked of its own accord (a voluntary context switch: a write to a full
+//!   port, say) is the device's own delay and is never held;
+//! - while it sleeps, how long it took to run once it could have: past the
+//!   wake-up it asked for, or past the input that woke it.
+//!
+//! Nothing the device decides is excused: an engine that skips a frame or a
+//! loop that blocks still shows as a gap in device time. The TX probe writes
+//! the total held with each frame, so the rig judges the cadence in device
+//! time and reports the host's holes apart.
+
+use std::time::{Duration, Instant as HostInstant};
+
+use multirx_core::Instant;
+
+/// Host time to device time and back, with the host's holds taken out.
+#[derive(Debug)]
+pub struct DeviceClock {
+    epoch: HostInstant,
+    held: Duration,
+    mark: Mark,
+}
+
+/// Where the last accounting left off.
+#[derive(Debug, Clone, Copy)]
+struct Mark {
+    host: HostInstant,
+    cpu: Duration,
+    voluntary_switches: i64,
+}
+
+impl Mark {
+    fn now() -> Mark {
+        let cpu = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
+        Mark {
+            host: HostInstant::now(),
+            cpu: Duration::new(cpu.tv_sec as u64, cpu.tv_nsec as u32),
+            voluntary_switches: voluntary_switches(),
+        }
+    }
+}
+
+/// Context switches the calling thread made of its own accord (it blocked).
+fn voluntary_switches() -> i64 {
+    let mut usage = std::mem::MaybeUninit::<libc::rusage>::zeroed();
+    // SAFETY: getrusage writes a whole `rusage` into the buffer it is given;
+    // RUSAGE_THREAD is valid on Linux, the only host the emulator runs on.
+    let rc = unsafe { libc::getrusage(libc::RUSAGE_THREAD, usage.as_mut_ptr()) };
+    if rc != 0 {
+        // Cannot tell: count it as blocking, so nothing is held.
+        return i64::MAX;
+    }
+    // SAFETY: initialised by the successful call above.
+    unsafe { usage.assume_init() }.ru_nvcsw
+}
+
+impl DeviceClock {
+    /// Device time zero is now; call from the thread that runs the device.
+    pub fn new() -> DeviceClock {
+        let mark = Mark::now();
+        DeviceClock {
+            epoch: mark.host,
+            held: Duration::ZERO,
+            mark,
+        }
+    }
+
+    /// The loop ran since the last accounting: holds what the host took.
+    pub fn ran(&mut self) {
+        let now = Mark::now();
+        let blocked = now.voluntary_switches != self.mark.voluntary_switches
+            || now.voluntary_switches == i64::MAX;
+        if !blocked {
+            let host = now.host.saturating_duration_since(self.mark.host);
+            self.held += host.saturating_sub(now.cpu.saturating_sub(self.mark.cpu));
+        }
+        self.mark = now;
+    }
+
+    /// The loop slept since the last accounting and could have run again
+    /// from `ready` (the wake-up it asked for, or the input that woke it):
+    /// holds how long it took.
+    pub fn woke(&mut self, ready: HostInstant) {
+        let now = Mark::now();
+        self.held += now.host.saturating_duration_since(ready);
+        self.mark = now;
+    }
+
+    /// Total time held so far.
+    pub fn held(&self) -> Duration {
+        self.held
+    }
+
+    /// Device time at host time `t`.
+    pub fn device(&self, t: HostInstant) -> Instant {
+        let since = t
+            .saturating_duration_since(self.epoch)
+            .saturating_sub(self.held);
+        Instant::from_micros(since.as_micros() as u64)
+    }
+
+    /// Host time at which device time `t` comes, as things stand.
+    pub fn host(&self, t: Instant) -> HostInstant {
+        self.epoch + self.held + Duration::from(t.since_epoch())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_thread_that_blocks_of_its_own_accord_is_not_held() {
+        let mut clock = DeviceClock::new();
+        // A blocking read: a voluntary switch, the device's own delay.
+        let (_tx, rx) = std::sync::mpsc::channel::<()>();
+        let _ = rx.recv_timeout(Duration::from_millis(30));
+        clock.ran();
+        assert_eq!(clock.held(), Duration::ZERO);
+    }
+
+    #[test]
+    fn a_late_wake_up_is_held_and_moves_device_time() {
+        let mut clock = DeviceClock::new();
+        let asked = HostInstant::now();
+        std::thread::sleep(Duration::from_millis(20));
+        clock.woke(asked);
+        assert!(
+            clock.held() >= Duration::from_millis(20),
+            "{:?}",
+            clock.held()
+        );
+        let now = HostInstant::now();
+        let device = Duration::from(clock.device(now).since_epoch());
+        assert!(device < Duration::from_millis(5), "{device:?}");
+        // And back: host time of a device time comes later by what was held.
+        assert!(clock.host(Instant::from_micros(0)) >= clock.epoch + clock.held());
+    }
+
+    #[test]
+    fn busy_work_is_device_time() {
+        let mut clock = DeviceClock::new();
+        let start = HostInstant::now();
+        while start.elapsed() < Duration::from_millis(20) {
+            std::hint::spin_loop();
+        }
+        clock.ran();
+        let device = Duration::from(clock.device(HostInstant::now()).since_epoch());
+        // On a quiet host nearly all of it; a loaded one may hold some, but
+        // device time never runs ahead of host time.
+        assert!(
+            device <= start.elapsed() + Duration::from_millis(1),
+            "{device:?}"
+        );
+        assert!(clock.held() <= start.elapsed());
+    }
+}
