@@ -10,7 +10,7 @@ use mavlink::MavlinkVersion;
 use serialport::{SerialPort as _, TTYPort};
 
 use mavlora::dialect::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavType};
-use mavlora::wire::{Frame, Sender};
+use mavlora::wire::{Frame, FrameReader, Sender};
 
 /// A pty pair whose descriptors are not inherited: serialport opens them without
 /// close-on-exec, so a router spawned by a test running alongside would hold this pair's
@@ -173,7 +173,11 @@ fn router_never_attaches_to_an_unrelated_pty_that_reuses_the_radios_number() {
     let mut buf = [0u8; 512];
     while udp.recv_from(&mut buf).is_ok() {}
     // Invariant: for 3 s, nothing the stranger writes reaches the ground and the router
-    // writes nothing into the stranger's pty.
+    // writes nothing into the stranger's pty. The stranger speaks as system 77, so its
+    // frames are told apart from what the router itself tells the ground (its link
+    // reports: RADIO_STATUS and the like).
+    const STRANGER: u8 = 77;
+    let mut stranger_sender = Sender::new(STRANGER, 1, MavlinkVersion::V2);
     let (mut to_ground, mut into_stranger) = (0, 0);
     let reused = stranger.is_some();
     if let Some((mut m, _s)) = stranger {
@@ -181,12 +185,18 @@ fn router_never_attaches_to_an_unrelated_pty_that_reuses_the_radios_number() {
         let deadline = Instant::now() + Duration::from_secs(3);
         while Instant::now() < deadline {
             let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
-            let _ = m.write_all(sender.frame(&hb).as_bytes());
+            let _ = m.write_all(stranger_sender.frame(&hb).as_bytes());
             if let Ok(n) = m.read(&mut buf) {
                 into_stranger += n;
             }
-            if udp.recv_from(&mut buf).is_ok() {
-                to_ground += 1;
+            if let Ok((n, _)) = udp.recv_from(&mut buf) {
+                let mut reader = FrameReader::new();
+                reader.push(&buf[..n]);
+                while let Some(received) = reader.next_frame() {
+                    if received.frame.system_id() == STRANGER {
+                        to_ground += 1;
+                    }
+                }
             }
         }
     }

@@ -82,6 +82,12 @@ fn free_udp_port() -> u16 {
 
 #[test]
 fn pymavlink_ground_station_is_told_of_an_uplink_loss_and_its_end() {
+    // The radio link is signed, as every shipped config has it.
+    let dir = std::env::temp_dir().join(format!("mavlora-linkmon-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let key = dir.join("radio.key");
+    std::fs::write(&key, "5c".repeat(32)).unwrap();
+    std::fs::set_permissions(&key, std::os::unix::fs::PermissionsExt::from_mode(0o600)).unwrap();
     let mut fc = Guard(
         Some(
             Command::new("python3")
@@ -126,6 +132,8 @@ fn pymavlink_ground_station_is_told_of_an_uplink_loss_and_its_end() {
                 .args(["--radio", &b_slave.name().unwrap()])
                 .args(["--udp", &format!("127.0.0.1:{udp_port}")])
                 .args(["--udp-bind", "127.0.0.1:0", "--link-quality-period", "1"])
+                .arg("--key")
+                .arg(&key)
                 .spawn()
                 .unwrap(),
         ),
@@ -138,6 +146,8 @@ fn pymavlink_ground_station_is_told_of_an_uplink_loss_and_its_end() {
                 .arg("--profile")
                 .arg(root().join("firmware/mavlora/profiles/px4-normal.toml"))
                 .args(["--link-quality-period", "1"])
+                .arg("--key")
+                .arg(&key)
                 .spawn()
                 .unwrap(),
         ),
@@ -218,4 +228,5 @@ fn pymavlink_ground_station_is_told_of_an_uplink_loss_and_its_end() {
     assert!(uplink.windows(2).all(|w| w[0].1 != w[1].1), "{texts:?}");
     assert!(uplink.iter().all(|(t, _)| *t >= cut_at - 1.0), "{texts:?}");
     drop(fc);
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -124,7 +124,13 @@ fn parameter_stream_is_paced_to_the_ground_not_dropped() {
         ..stubborn()
     };
     let mut w = world("ardupilot-mavlink1.toml", false, ap);
-    w.run_until(secs(150.0));
+    // Paced, not a speed target: until the bridge has handed all 300 to the radio (130 s
+    // at the stream's floor share, 1/8 of 683 B/s, for 37 B frames; link monitoring and
+    // commands share the same budget), then 10 s for the radio to deliver the last.
+    let sent = |w: &World<ArduPilotFc>| w.bridge().unwrap().stats().scheduler.sent_param_frames;
+    w.run_until_or(secs(300.0), |w| sent(w) >= 300);
+    let until = w.now + Duration::from_secs(10);
+    w.run_until(until);
     // The bridge hands every one to the radio, none dropped from its queues.
     let s = w.bridge().unwrap().stats().scheduler;
     assert_eq!((s.sent_param_frames, s.dropped_param), (300, 0), "{s:?}");
