@@ -37,6 +37,10 @@ pub struct RunStats {
 
 pub struct Device {
     clock: DeviceClock,
+    /// Whether the loop did anything since the clock's last accounting
+    /// (handled input, wrote a frame, an event or the boot line), or only
+    /// polled: see [`DeviceClock::idled`].
+    worked: bool,
     /// The last input's device time: bytes that arrived during a hold map to
     /// before it, and must not take a receiver's clock backwards.
     last_input: Instant,
@@ -67,6 +71,7 @@ impl Device {
             boot,
             next_boot_line: None,
             clock: DeviceClock::new(),
+            worked: true,
             last_input: Instant::ZERO,
             mux: Multiplexer::new(config, Instant::ZERO),
             fc,
@@ -95,7 +100,7 @@ impl Device {
                 fc_gone = Some(why);
                 break;
             }
-            self.clock.ran();
+            self.account();
             let due = self.mux.poll_timeout().expect("the output never stops");
             let deadline = self.to_host(due);
             let wait = deadline
@@ -145,16 +150,29 @@ impl Device {
         }
     }
 
+    /// Brings the device clock up to now: a hold in the pass so far must be
+    /// out of the time the engine is about to be given.
+    fn account(&mut self) {
+        if std::mem::take(&mut self.worked) {
+            self.clock.ran();
+        } else {
+            self.clock.idled();
+        }
+    }
+
     /// Handles due deadlines and sends what they produced.
     fn service(&mut self) {
+        self.account();
         let now = self.to_core(HostInstant::now());
         if self.mux.poll_timeout().is_some_and(|due| now >= due) {
+            self.worked = true;
             self.mux.handle_timeout(now);
         }
         self.flush();
     }
 
     fn handle_input(&mut self, input: Input) {
+        self.worked = true;
         match input {
             Input::Bytes { source, at, bytes } => {
                 let at = self.to_core(at).max(self.last_input);
@@ -178,11 +196,14 @@ impl Device {
             return;
         };
         self.next_boot_line = Some(due + BOOT_LINE_EVERY);
+        self.worked = true;
         self.boot.at = self.to_core(now);
         let line = format!("{}\n", self.boot);
         tracing::debug!(boot = line.trim_end(), "boot line");
         if let Some(status) = &mut self.status {
+            self.clock.ran();
             status.send(line.as_bytes());
+            self.clock.handed_off();
         }
     }
 
@@ -193,16 +214,14 @@ impl Device {
                 self.max_gap = self.max_gap.max(now - last);
             }
             self.last_frame_at = Some(now);
+            // Up to this instant: a hold in the engine's work just now is
+            // the host's too.
+            self.clock.ran();
             if let Some(tap) = &mut self.tap {
-                // Up to this instant: a hold since the loop's last accounting
-                // (in the engine's work just now) is the host's too.
-                self.clock.ran();
                 tap.frame_sent(self.clock.held());
             }
             self.fc.send(&frame);
-            // A write that blocked is the device's own delay: account for it
-            // alone, so it does not take a hold before or after with it.
-            self.clock.ran();
+            self.clock.handed_off();
             if self.next_boot_line.is_none() {
                 self.boot.first_frame = self.to_core(now).since_epoch();
                 self.next_boot_line = Some(now);
@@ -210,9 +229,13 @@ impl Device {
         }
         self.boot_line();
         while let Some(event) = self.mux.poll_event() {
+            self.worked = true;
             tracing::debug!(%event, "status");
             if let Some(status) = &mut self.status {
-                status.send(format!("{event}\n").as_bytes());
+                let line = format!("{event}\n");
+                self.clock.ran();
+                status.send(line.as_bytes());
+                self.clock.handed_off();
             }
         }
     }
