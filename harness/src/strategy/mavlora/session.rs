@@ -107,6 +107,9 @@ impl MavloraSession {
             if options.compact {
                 command.arg("--compact");
             }
+            if let Some(period) = options.link_quality_period {
+                command.args(["--link-quality-period", &period.to_string()]);
+            }
             bridge = Some(Process::spawn(
                 "mavlora-bridge",
                 command,
@@ -125,6 +128,9 @@ impl MavloraSession {
                 .arg("--signing-state")
                 .arg(dir.join("router.signing-state"))
                 .env("NO_COLOR", "1");
+            if let Some(period) = options.link_quality_period {
+                command.args(["--link-quality-period", &period.to_string()]);
+            }
             router = Some(Process::spawn(
                 "mavlora-router",
                 command,
