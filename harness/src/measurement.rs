@@ -247,6 +247,10 @@ pub enum Dimension {
     /// A radio, by preset (`lora_sf7`) or by the rig file's name for it
     /// (`lora_sf7_bursty`), `-` written `_`.
     Radio,
+    /// The flight controller behind the bridge: [`PX4`] (the default, out of the flat name)
+    /// or `ardupilot` (the ArduPilot-like one: MAVLink 1, stream groups, ardupilotmega
+    /// messages).
+    Autopilot,
     /// How MavLora is set up: Table II's `wired`, `limit`, `limit_filter`,
     /// `compact`; a mission's [`RELAY`] or `naive`.
     Variant,
@@ -254,6 +258,9 @@ pub enum Dimension {
     /// (`b_handover`, `ifs_override`) or it is named for its scenario
     /// (`blind_drone`); otherwise the phase says which scenario it is.
     Scenario,
+    /// A ground station's mission timeout per step (`0_5s`, `1_5s`): SDKs wait 0.5 s, the
+    /// MAVLink spec 1.5 s.
+    GroundTimeout,
 }
 
 impl Dimension {
@@ -265,8 +272,10 @@ impl Dimension {
             Dimension::Mode => "mode",
             Dimension::Transport => "transport",
             Dimension::Radio => "radio",
+            Dimension::Autopilot => "autopilot",
             Dimension::Variant => "variant",
             Dimension::Scenario => "scenario",
+            Dimension::GroundTimeout => "ground_timeout",
         }
     }
 }
@@ -282,6 +291,9 @@ pub const PTY: &str = "pty";
 /// [`Dimension::Transport`] of the virtual-clock reproductions. They were
 /// named before the pty runs existed, so it stays out of the flat name.
 pub const SIMULATED: &str = "simulated";
+/// [`Dimension::Autopilot`] of the PX4-like flight controller, the one every measurement
+/// was taken with before the dimension existed: out of the flat name.
+pub const PX4: &str = "px4";
 /// [`Dimension::Variant`] of MavLora as designed (bridge and router relaying);
 /// out of the flat name, which names only the naive comparison.
 pub const RELAY: &str = "relay";
@@ -317,7 +329,7 @@ impl Dimensions {
 /// The one place names are made. Three values stay out, so that names read as
 /// they did before measurements had dimensions: the device when an artifact
 /// stands in its place (`firmware.scan.flash_bytes`), `transport` =
-/// [`SIMULATED`] and `variant` = [`RELAY`].
+/// [`SIMULATED`], `autopilot` = [`PX4`] and `variant` = [`RELAY`].
 pub fn flat_name(dimensions: &Dimensions, base: &str) -> String {
     let mut name = String::new();
     for (dim, value) in dimensions.iter() {
@@ -325,6 +337,7 @@ pub fn flat_name(dimensions: &Dimensions, base: &str) -> String {
             Dimension::Device => dimensions.get(Dimension::Artifact).is_some(),
             Dimension::Transport => value == SIMULATED,
             Dimension::Variant => value == RELAY,
+            Dimension::Autopilot => value == PX4,
             _ => false,
         };
         if !unnamed {

@@ -39,6 +39,7 @@ fn free_port() -> u16 {
 /// Starts the router on `radio`, its UDP bound to `udp_port`, sending to `gcs`, plus `extra`.
 fn router(dir: &Path, radio: &TTYPort, udp_port: u16, gcs: &UdpSocket, extra: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .arg("--radio")
         .arg(radio.name().unwrap())
         .args(["--udp", &gcs.local_addr().unwrap().to_string()])
@@ -203,6 +204,7 @@ fn radio_that_stops_reading_gets_traffic_again_and_every_byte_is_counted() {
     radio.set_timeout(Duration::from_millis(300)).unwrap();
     let log = dir.join("bridge.log");
     let bridge = Command::new(env!("CARGO_BIN_EXE_mavlora-bridge"))
+        .arg("--unsigned")
         .arg("--fc")
         .arg(fc_slave.name().unwrap())
         .arg("--radio")

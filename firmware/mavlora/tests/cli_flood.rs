@@ -44,6 +44,7 @@ fn udp_flood_keeps_router_memory_bounded_and_commands_flowing() {
         .port();
     let log = dir.join("router.log");
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .arg("--radio")
         .arg(radio_slave.name().unwrap())
         .args(["--udp", &gcs.local_addr().unwrap().to_string()])

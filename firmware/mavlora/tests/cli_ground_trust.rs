@@ -85,9 +85,12 @@ fn scenario(name: &str, intruder_addr: &str, ground_key: Option<[u8; 32]>) {
     if let Some(hex) = &key_hex {
         let path = dir.join("ground.key");
         std::fs::write(&path, hex).unwrap();
+        std::fs::set_permissions(&path, std::os::unix::fs::PermissionsExt::from_mode(0o600))
+            .unwrap();
         key_args = vec!["--ground-key".to_owned(), path.display().to_string()];
     }
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .args(&key_args)
         .arg("--radio")
         .arg(slave.name().unwrap())

@@ -10,7 +10,7 @@ use mavlink::MavlinkVersion;
 use serialport::{SerialPort as _, TTYPort};
 
 use mavlora::dialect::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavType};
-use mavlora::wire::{Frame, Sender};
+use mavlora::wire::{Frame, FrameReader, Sender};
 
 /// A pty pair whose descriptors are not inherited: serialport opens them without
 /// close-on-exec, so a router spawned by a test running alongside would hold this pair's
@@ -57,6 +57,7 @@ fn router_reopens_a_radio_that_disappears_and_returns() {
         .unwrap();
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .arg("--radio")
         .arg(&link)
         .args(["--udp", &udp.local_addr().unwrap().to_string()])
@@ -104,6 +105,7 @@ fn config_file_with_an_unknown_key_is_an_error_naming_the_file() {
     let config = dir.join("router.toml");
     std::fs::write(&config, "radio = \"/dev/null\"\nradoi_baud = 57600\n").unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .arg("--config")
         .arg(&config)
         .output()
@@ -118,6 +120,7 @@ fn config_file_with_an_unknown_key_is_an_error_naming_the_file() {
     );
     // a bad flag is a usage error
     let usage = Command::new(env!("CARGO_BIN_EXE_mavlora-bridge"))
+        .arg("--unsigned")
         .arg("--no-such-flag")
         .output()
         .unwrap();
@@ -139,6 +142,7 @@ fn router_never_attaches_to_an_unrelated_pty_that_reuses_the_radios_number() {
     let node = slave.name().unwrap();
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .args(["--radio", &node])
         .args(["--udp", &udp.local_addr().unwrap().to_string()])
         .args(["--udp-bind", "127.0.0.1:0", "--status-interval", "0.5"])
@@ -169,7 +173,11 @@ fn router_never_attaches_to_an_unrelated_pty_that_reuses_the_radios_number() {
     let mut buf = [0u8; 512];
     while udp.recv_from(&mut buf).is_ok() {}
     // Invariant: for 3 s, nothing the stranger writes reaches the ground and the router
-    // writes nothing into the stranger's pty.
+    // writes nothing into the stranger's pty. The stranger speaks as system 77, so its
+    // frames are told apart from what the router itself tells the ground (its link
+    // reports: RADIO_STATUS and the like).
+    const STRANGER: u8 = 77;
+    let mut stranger_sender = Sender::new(STRANGER, 1, MavlinkVersion::V2);
     let (mut to_ground, mut into_stranger) = (0, 0);
     let reused = stranger.is_some();
     if let Some((mut m, _s)) = stranger {
@@ -177,12 +185,18 @@ fn router_never_attaches_to_an_unrelated_pty_that_reuses_the_radios_number() {
         let deadline = Instant::now() + Duration::from_secs(3);
         while Instant::now() < deadline {
             let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
-            let _ = m.write_all(sender.frame(&hb).as_bytes());
+            let _ = m.write_all(stranger_sender.frame(&hb).as_bytes());
             if let Ok(n) = m.read(&mut buf) {
                 into_stranger += n;
             }
-            if udp.recv_from(&mut buf).is_ok() {
-                to_ground += 1;
+            if let Ok((n, _)) = udp.recv_from(&mut buf) {
+                let mut reader = FrameReader::new();
+                reader.push(&buf[..n]);
+                while let Some(received) = reader.next_frame() {
+                    if received.frame.system_id() == STRANGER {
+                        to_ground += 1;
+                    }
+                }
             }
         }
     }
@@ -223,6 +237,7 @@ fn router_waits_for_a_radio_named_by_an_absent_usb_serial_number() {
     std::fs::create_dir_all(&dir).unwrap();
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .args(["--radio", "usb-serial:NO-SUCH-RADIO-7"])
         .args(["--udp-bind", "127.0.0.1:0"])
         .env("RUST_LOG", "info")
@@ -244,7 +259,13 @@ fn router_waits_for_a_radio_named_by_an_absent_usb_serial_number() {
     assert!(status.success(), "{status:?}");
     // An empty serial number is bad usage, named by the port it was given for.
     let out = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
-        .args(["--radio", "usb-serial:", "--udp-bind", "127.0.0.1:0"])
+        .args([
+            "--unsigned",
+            "--radio",
+            "usb-serial:",
+            "--udp-bind",
+            "127.0.0.1:0",
+        ])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);

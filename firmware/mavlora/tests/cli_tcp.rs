@@ -55,6 +55,7 @@ fn tcp_ground_station_talks_to_the_vehicle_through_the_router() {
     let udp_sink = UdpSocket::bind("127.0.0.1:0").unwrap();
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
     let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
         .arg("--radio")
         .arg(slave.name().unwrap())
         .args(["--udp", &udp_sink.local_addr().unwrap().to_string()])

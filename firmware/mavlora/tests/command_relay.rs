@@ -42,6 +42,16 @@ const IDS: [MavCmd; 2] = [
     MavCmd::MAV_CMD_DO_DIGICAM_CONTROL,
 ];
 
+/// The `result_param2` of the autopilot's n-th execution of a command id (negative and
+/// positive: the relay's tag must give back both).
+fn result_param2(n: usize) -> i32 {
+    if n.is_multiple_of(2) {
+        n as i32 * 1000
+    } else {
+        -(n as i32)
+    }
+}
+
 /// One command the ground sends: which id, which parameter, when (ms after the previous one
 /// of the same id was answered or given up; `eager`: ms after the previous one was sent,
 /// without waiting for its ack, as DO_SET_MODE 4 then 5 200 ms later).
@@ -215,6 +225,10 @@ fn run(plan: &[Planned], loss: f64, burst_at_ms: u64, burst_ms: u64, seed: u64) 
                 let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                     command: c.command,
                     result: RESULTS[*n % RESULTS.len()],
+                    // the autopilot's own extension values, which the ground must get as sent
+                    result_param2: result_param2(*n),
+                    target_system: 255,
+                    target_component: 190,
                     ..Default::default()
                 });
                 *n += 1;
@@ -236,6 +250,12 @@ fn run(plan: &[Planned], loss: f64, burst_at_ms: u64, burst_ms: u64, seed: u64) 
             // from a later execution than the previous ack's, and the executions missing
             // before it are of commands the ground gave up on (lost on the way up).
             let e = RESULTS.iter().position(|&r| r == ack.result);
+            if e.is_none_or(|e| ack.result_param2 != result_param2(e))
+                || (ack.target_system, ack.target_component) != (255, 190)
+            {
+                out.misattributed
+                    .push(format!("ack not as the autopilot sent it: {ack:?}"));
+            }
             let gave_up = out.gave_up.get(&(IDS[k] as u16)).copied().unwrap_or(0);
             let ran = executions.get(&(IDS[k] as u16)).copied().unwrap_or(0);
             match waiting[k].pop_front() {

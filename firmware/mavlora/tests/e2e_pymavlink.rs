@@ -133,6 +133,8 @@ fn pymavlink_telemetry_and_fifty_item_mission_through_bridge_and_router() {
     // the radio link is signed end to end; the flight controller and ground station are not
     let key = dir.join("radio.key");
     std::fs::write(&key, "2a".repeat(32)).unwrap();
+    // a key others may read is refused
+    std::fs::set_permissions(&key, std::os::unix::fs::PermissionsExt::from_mode(0o600)).unwrap();
 
     let mut fc = Guard(
         Some(
@@ -297,8 +299,11 @@ fn pymavlink_telemetry_and_fifty_item_mission_through_bridge_and_router() {
     assert!(frames > 100, "{frames} frames in the tlog");
     let signed = radio.seen[0].load(Ordering::Relaxed);
     let unsigned = radio.seen[1].load(Ordering::Relaxed);
+    // Every frame on the radio is signed; not vacuously: at least the mission's 50 items
+    // crossed it (the bridge's telemetry is compact and paced, so the count of the rest
+    // follows the budget, not the test).
     assert!(
-        signed > 100 && unsigned == 0,
+        signed >= 50 && unsigned == 0,
         "radio frames signed {signed}, unsigned {unsigned}"
     );
     let _ = std::fs::remove_dir_all(&dir);

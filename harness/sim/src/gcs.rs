@@ -1,5 +1,6 @@
 //! A ground station as the MAVLink mission protocol specifies it: heartbeats at 1 Hz, upload
-//! with a 1500 ms timeout and up to 5 retries of the last message sent.
+//! with a per-step timeout (1500 ms by default, the spec's; SDKs often use 0.5 s) and a few
+//! retries of the last message sent (5 by default; see [`GcsMock::with_mission_timeouts`]).
 
 use mavlora::Duration;
 use std::collections::VecDeque;
@@ -10,7 +11,7 @@ use mavlora::Instant;
 use mavlora::dialect::{
     COMMAND_LONG_DATA, HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA,
     MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA,
-    MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionResult, MavType,
+    MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionResult, MavMissionType, MavType,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender};
 
@@ -25,6 +26,7 @@ struct Download {
 
 #[derive(Debug)]
 struct Upload {
+    mission_type: MavMissionType,
     items: Vec<MISSION_ITEM_INT_DATA>,
     /// `None`: MISSION_COUNT was the last thing sent.
     last: Option<u16>,
@@ -47,6 +49,11 @@ pub struct CommandPlan {
     pub retry: Duration,
     /// Copies sent at most before the command counts as failed.
     pub attempts: u32,
+    /// A mix instead of the alternation: `DO_CHANGE_SPEED` with a new speed each time (same
+    /// id, new parameters) and `DO_SET_MODE`, every third addressed to component 0 (all)
+    /// instead of 1, and each carrying its serial number in `param7` (unused by both), so the
+    /// autopilot's log tells which command ran how often.
+    pub mix: bool,
 }
 
 impl Default for CommandPlan {
@@ -57,6 +64,7 @@ impl Default for CommandPlan {
             period: Duration::from_secs(2),
             retry: Duration::from_millis(1500),
             attempts: 5,
+            mix: false,
         }
     }
 }
@@ -79,6 +87,7 @@ pub struct CommandStats {
 #[derive(Debug)]
 struct Pending {
     command: MavCmd,
+    msg: COMMAND_LONG_DATA,
     first_sent: Instant,
     last_sent: Instant,
     copies: u32,
@@ -102,6 +111,11 @@ pub struct GcsMock {
     upload: Option<Upload>,
     download: Option<Download>,
     timeout: Duration,
+    retries: u32,
+    /// The last plan it started uploading, by type (what the vehicle should end up with).
+    pub last_upload: Option<(MavMissionType, Vec<MISSION_ITEM_INT_DATA>)>,
+    /// Uploads it cancelled itself.
+    pub cancels: u64,
     /// Result of the last upload or clear, once finished.
     pub result: Option<(MavMissionResult, Instant)>,
     /// The last mission downloaded completely.
@@ -110,6 +124,9 @@ pub struct GcsMock {
     pub items_sent: u64,
     /// Messages of each id received.
     pub received: std::collections::BTreeMap<u32, u64>,
+    /// Each `GLOBAL_POSITION_INT` received: when, and its `time_boot_ms` (the autopilot's
+    /// clock, which in the world starts with the world's): the position lag is the difference.
+    pub positions: Vec<(Instant, u32)>,
     commands: Option<Commands>,
 }
 
@@ -124,12 +141,24 @@ impl GcsMock {
             upload: None,
             download: None,
             timeout: Duration::from_millis(1500),
+            retries: 5,
+            last_upload: None,
+            cancels: 0,
             result: None,
             downloaded: None,
             items_sent: 0,
             received: Default::default(),
+            positions: Vec::new(),
             commands: None,
         }
+    }
+
+    /// The same ground station with the mission protocol's per-step `timeout` and `retries`
+    /// (the spec: 1.5 s and 5; SDKs: 0.5 s and 3).
+    pub fn with_mission_timeouts(mut self, timeout: Duration, retries: u32) -> Self {
+        self.timeout = timeout;
+        self.retries = retries;
+        self
     }
 
     /// Starts sending commands at `now` (see [`CommandPlan`]).
@@ -157,23 +186,38 @@ impl GcsMock {
             .unwrap_or_default()
     }
 
-    fn command_copy(&mut self, command: MavCmd, confirmation: u8) {
-        let (param1, param2, param3) = match command {
-            // base mode: custom mode enabled; PX4 main mode AUTO (4), sub mode MISSION (4)
-            MavCmd::MAV_CMD_DO_SET_MODE => (1.0, 4.0, 4.0),
-            // ground speed, 10 m/s, no throttle change
-            _ => (1.0, 10.0, -1.0),
+    /// The `serial`-th command of the plan (see [`CommandPlan`]).
+    pub fn planned_command(serial: u64, mix: bool) -> COMMAND_LONG_DATA {
+        let set_mode = if mix {
+            serial % 3 == 1
+        } else {
+            serial.is_multiple_of(2)
         };
-        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        let (command, param1, param2, param3) = if set_mode {
+            // base mode: custom mode enabled; PX4 main mode AUTO (4), sub mode MISSION (4)
+            (MavCmd::MAV_CMD_DO_SET_MODE, 1.0, 4.0, 4.0)
+        } else if mix {
+            // ground speed, 8 to 12 m/s: same id, new parameters
+            (
+                MavCmd::MAV_CMD_DO_CHANGE_SPEED,
+                1.0,
+                8.0 + (serial % 5) as f32,
+                -1.0,
+            )
+        } else {
+            // ground speed, 10 m/s, no throttle change
+            (MavCmd::MAV_CMD_DO_CHANGE_SPEED, 1.0, 10.0, -1.0)
+        };
+        COMMAND_LONG_DATA {
             param1,
             param2,
             param3,
+            param7: if mix { serial as f32 } else { 0.0 },
             command,
             target_system: 1,
-            target_component: 1,
-            confirmation,
+            target_component: if mix && serial % 3 == 2 { 0 } else { 1 },
             ..COMMAND_LONG_DATA::default()
-        }));
+        }
     }
 
     fn commands_tick(&mut self, now: Instant) {
@@ -189,27 +233,27 @@ impl GcsMock {
                     p.copies += 1;
                     p.last_sent = now;
                     c.stats.copies += 1;
-                    copy = Some((p.command, (p.copies - 1) as u8));
+                    copy = Some(COMMAND_LONG_DATA {
+                        confirmation: (p.copies - 1) as u8,
+                        ..p.msg.clone()
+                    });
                 }
             }
         } else if now >= c.next_at {
-            let command = if c.stats.started % 2 == 0 {
-                MavCmd::MAV_CMD_DO_SET_MODE
-            } else {
-                MavCmd::MAV_CMD_DO_CHANGE_SPEED
-            };
+            let msg = Self::planned_command(c.stats.started, c.plan.mix);
             c.stats.started += 1;
             c.stats.copies += 1;
             c.pending = Some(Pending {
-                command,
+                command: msg.command,
+                msg: msg.clone(),
                 first_sent: now,
                 last_sent: now,
                 copies: 1,
             });
-            copy = Some((command, 0));
+            copy = Some(msg);
         }
-        if let Some((command, confirmation)) = copy {
-            self.command_copy(command, confirmation);
+        if let Some(msg) = copy {
+            self.send(&MavMessage::COMMAND_LONG(msg));
         }
     }
 
@@ -253,10 +297,27 @@ impl GcsMock {
             .collect()
     }
 
-    /// Starts uploading `items` at `now`.
+    /// Starts uploading `items` as the mission at `now`.
     pub fn upload(&mut self, items: Vec<MISSION_ITEM_INT_DATA>, now: Instant) {
+        self.upload_typed(MavMissionType::MAV_MISSION_TYPE_MISSION, items, now);
+    }
+
+    /// Starts uploading `items` as a plan of `mission_type` at `now` (an upload in progress
+    /// is replaced: a new `MISSION_COUNT` restarts the transfer).
+    pub fn upload_typed(
+        &mut self,
+        mission_type: MavMissionType,
+        items: Vec<MISSION_ITEM_INT_DATA>,
+        now: Instant,
+    ) {
         let count = items.len() as u16;
+        let items: Vec<_> = items
+            .into_iter()
+            .map(|i| MISSION_ITEM_INT_DATA { mission_type, ..i })
+            .collect();
+        self.last_upload = Some((mission_type, items.clone()));
         self.upload = Some(Upload {
+            mission_type,
             items,
             last: None,
             at: now,
@@ -267,8 +328,31 @@ impl GcsMock {
             count,
             target_system: 1,
             target_component: 1,
+            mission_type,
             ..Default::default()
         }));
+    }
+
+    /// Cancels the upload in progress (the protocol's cancel: a `MISSION_ACK` with
+    /// `MAV_MISSION_OPERATION_CANCELLED`). Returns whether one was in progress.
+    pub fn cancel(&mut self) -> bool {
+        let Some(up) = self.upload.take() else {
+            return false;
+        };
+        self.cancels += 1;
+        self.send(&MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+            target_system: 1,
+            target_component: 1,
+            mavtype: MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
+            mission_type: up.mission_type,
+            ..Default::default()
+        }));
+        true
+    }
+
+    /// Whether an upload is in progress.
+    pub fn uploading(&self) -> bool {
+        self.upload.is_some()
     }
 
     /// Starts downloading the vehicle's mission at `now`.
@@ -358,6 +442,9 @@ impl GcsMock {
     }
 
     fn handle(&mut self, msg: MavMessage, now: Instant) {
+        if let MavMessage::GLOBAL_POSITION_INT(p) = &msg {
+            self.positions.push((now, p.time_boot_ms));
+        }
         if let MavMessage::COMMAND_ACK(a) = &msg {
             self.command_ack(a.command, now);
             return;
@@ -371,7 +458,9 @@ impl GcsMock {
         }
         let Some(up) = &mut self.upload else { return };
         match msg {
-            MavMessage::MISSION_REQUEST_INT(r) if r.target_system == 255 => {
+            MavMessage::MISSION_REQUEST_INT(r)
+                if r.target_system == 255 && r.mission_type == up.mission_type =>
+            {
                 let Some(item) = up.items.get(usize::from(r.seq)).cloned() else {
                     return;
                 };
@@ -383,7 +472,9 @@ impl GcsMock {
                 self.items_sent += 1;
                 self.send(&MavMessage::MISSION_ITEM_INT(item));
             }
-            MavMessage::MISSION_ACK(a) if a.target_system == 255 => {
+            MavMessage::MISSION_ACK(a)
+                if a.target_system == 255 && a.mission_type == up.mission_type =>
+            {
                 self.upload = None;
                 self.result = Some((a.mavtype, now));
             }
@@ -442,7 +533,7 @@ impl GcsMock {
         if now < up.at + self.timeout {
             return;
         }
-        if up.retries >= 5 {
+        if up.retries >= self.retries {
             self.upload = None;
             self.result = Some((MavMissionResult::MAV_MISSION_OPERATION_CANCELLED, now));
             return;
@@ -454,6 +545,7 @@ impl GcsMock {
                 count: up.items.len() as u16,
                 target_system: 1,
                 target_component: 1,
+                mission_type: up.mission_type,
                 ..Default::default()
             }),
             Some(seq) => {

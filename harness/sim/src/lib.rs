@@ -29,7 +29,8 @@ mod rng;
 mod world;
 
 pub use autopilot::{
-    Autopilot, Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec,
+    ArduPilotConfig, ArduPilotFc, Autopilot, Executed, Flight, Kinematics, MissionStore,
+    MissionStoreStats, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec,
 };
 pub use budget::{direction_capacity, scheduler_for};
 pub use gcs::{CommandPlan, CommandStats, GcsMock};

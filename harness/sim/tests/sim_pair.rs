@@ -8,6 +8,7 @@ use mavlora::bridge::BridgeConfig;
 use mavlora::compact::CompactConfig;
 use mavlora::dialect::MavMissionResult;
 use mavlora::filter::Profile;
+use mavlora::quality::LinkQualityConfig;
 use mavlora::router::RouterConfig;
 use mavlora::schedule::SchedulerConfig;
 use mavlora::{Duration, Instant};
@@ -74,13 +75,12 @@ fn fifty_item_mission_completes_under_ten_percent_loss() {
         let (b, r) = (w.bridge().unwrap(), w.router().unwrap());
         let m = b.stats().mission;
         println!(
-            "seed {seed}: {:.1} s, radio requests {} + {} retries, duplicate items at bridge {}, \
-             suppressed at router {}, srtt {:?}, rto {:?}, fc item requests {}",
+            "seed {seed}: {:.1} s, radio repair requests {}, duplicate items at bridge {}, \
+             repaired by the router {}, srtt {:?}, rto {:?}, fc item requests {}",
             at.saturating_duration_since(secs(5)).as_secs_f64(),
             m.radio_requests,
-            m.radio_retries,
             m.radio_duplicate_items,
-            r.stats().mission_duplicates,
+            r.stats().mission.items_repaired,
             b.mission_rtt().srtt(),
             b.mission_rtt().rto(),
             w.fc.stats().item_requests,
@@ -172,8 +172,13 @@ fn compact_telemetry_stays_under_50_bytes_per_second() {
         let p = Profile::parse(profile_text, "inline").unwrap();
         let mut b = BridgeConfig::new(p, wide);
         b.compact = compact.then(CompactConfig::default);
+        // Link monitoring as on the LoRa channel compact is for: the wire's nominal
+        // 100 kB/s would buy a report every 0.5 s (as in the Table II scenario).
+        b.quality = LinkQualityConfig::default();
+        let mut r = RouterConfig::new(wide);
+        r.quality = LinkQualityConfig::default();
         let fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, 3);
-        let w = World::new(fc, Some((b, RouterConfig::new(wide))), None).unwrap();
+        let w = World::new(fc, Some((b, r)), None).unwrap();
         steady_rate(w)
     };
     let read = |name: &str| std::fs::read_to_string(format!("{PROFILES}{name}")).unwrap();
@@ -219,6 +224,7 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
         key: SigningKey([42; 32]),
         link_id,
         epoch: 3_000_000_000,
+        state: Default::default(),
     };
     let mut b = BridgeConfig::new(profile("px4-compact.toml"), budget());
     b.compact = Some(CompactConfig::default());
@@ -254,7 +260,9 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
     let router = w.router().unwrap().stats().signing;
     println!("bridge signing {s:?}, router signing {router:?}");
     assert!(s.unsigned >= 1 && s.replayed >= 1, "{s:?}");
-    assert!(s.accepted > 50 && router.accepted > 50);
+    // Signed frames flow both ways (the streamed upload sends no request per item, so the
+    // router hears fewer frames than the bridge).
+    assert!(s.accepted > 50 && router.accepted > 20, "{s:?} {router:?}");
     assert_eq!(s.bad_signature, 0);
 }
 

@@ -25,6 +25,8 @@ pub fn simulated_radios(section: &MavloraSection) -> Radios {
             .map(|n| (n.name.replace('-', "_"), n.setup.clone()))
             .collect(),
         c2: r.c2.setup.clone(),
+        // Not a rig-file role yet: issue 9's target radio (SiK 64k, 10 % loss each way).
+        c2_target: Radios::paper_defaults().c2_target,
         sweep: r.sweep.iter().map(|n| n.setup.clone()).collect(),
         blind_drone: r.blind_drone.setup.clone(),
         duty: r.duty.setup.clone(),

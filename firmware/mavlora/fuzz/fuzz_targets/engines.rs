@@ -49,17 +49,27 @@ fn signing(link_id: u8) -> SigningConfig {
         key: key(),
         link_id,
         epoch: 1_000_000,
+        state: Default::default(),
     }
 }
 
 /// Every frame on the radio must verify with the key (an independent signer per sender, so
 /// replay tracking does not cross the two directions).
-fn assert_signed(checker: &mut mavlora::signing::LinkSigner, bytes: &[u8], now: Instant, who: &str) {
+fn assert_signed(
+    checker: &mut mavlora::signing::LinkSigner,
+    bytes: &[u8],
+    now: Instant,
+    who: &str,
+) {
     let mut reader = FrameReader::new();
     reader.push(bytes);
     reader.finish();
     while let Some(rx) = reader.next_frame() {
-        assert_eq!(rx.integrity, Integrity::Checked, "{who} sent a damaged frame");
+        assert_eq!(
+            rx.integrity,
+            Integrity::Checked,
+            "{who} sent a damaged frame"
+        );
         assert!(
             checker.verify(&rx.frame, now).is_ok(),
             "{who} put an unsigned or badly signed frame on the radio: {:02x?}",
@@ -78,10 +88,8 @@ fuzz_target!(|data: &[u8]| {
     rconf.signing = Some(signing(2));
     let mut bridge = Bridge::new(bconf, start).expect("bridge");
     let mut router = Router::new(rconf, start).expect("router");
-    let (mut bridge_budget, mut router_budget) = (
-        Budget { start, sent: 0 },
-        Budget { start, sent: 0 },
-    );
+    let (mut bridge_budget, mut router_budget) =
+        (Budget { start, sent: 0 }, Budget { start, sent: 0 });
     let mut check_bridge = signing(9).signer();
     let mut check_router = signing(9).signer();
     let mut now = start;

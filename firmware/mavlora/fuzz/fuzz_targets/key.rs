@@ -1,16 +1,26 @@
-//! Signing key files: any bytes either give a key, and then the same key whatever trailing
-//! whitespace follows, or are refused; never a panic.
+//! Signing key files: any bytes either give a key (exactly 64 hex digits, optionally one line
+//! end) that prints back as the same hex, or are refused with an error; never a panic.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 use mavlora::signing::SigningKey;
 
 fuzz_target!(|data: &[u8]| {
-    if let Some(key) = SigningKey::parse(data) {
-        let mut padded = data.to_vec();
-        padded.extend_from_slice(b"\n");
-        if let Some(again) = SigningKey::parse(&padded) {
-            assert_eq!(again, key, "a trailing newline changed the key");
+    match SigningKey::parse(data) {
+        Ok(key) => {
+            let hex = key.to_hex();
+            assert_eq!(hex.len(), 64);
+            assert!(
+                data[..64].eq_ignore_ascii_case(hex.as_bytes()),
+                "key is not the file's hex"
+            );
+            assert!(
+                SigningKey::parse(hex.as_bytes()).ok() == Some(key),
+                "hex does not round-trip"
+            );
+        }
+        Err(e) => {
+            let _ = e.to_string();
         }
     }
 });

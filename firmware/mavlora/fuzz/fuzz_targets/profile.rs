@@ -18,7 +18,10 @@ fuzz_target!(|data: &[u8]| {
         }
         Err(e) => {
             let message = e.to_string();
-            assert!(message.contains("fuzz.toml"), "error without its origin: {message}");
+            assert!(
+                message.contains("fuzz.toml"),
+                "error without its origin: {message}"
+            );
         }
     }
 });

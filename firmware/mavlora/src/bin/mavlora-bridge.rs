@@ -81,10 +81,10 @@ fn run(o: Options) -> Result<()> {
     if let Some(id) = o.system_id {
         config.system_id = id;
     }
-    if let Some(period) = o.shared.link_quality_period() {
-        config.quality.period = period;
-    }
-    config.signing = o.shared.signing(1)?;
+    let mut signing = o.shared.signing(1, "bridge")?;
+    config.signing = signing.config.clone();
+    let signing_label = signing.label();
+    config.quality = o.shared.link_quality(config.signing.is_some());
     let status_every = o.shared.status_every();
 
     let inbox = Inbox::new(INBOX_BYTES);
@@ -106,7 +106,13 @@ fn run(o: Options) -> Result<()> {
     let clock = Clock::start();
     let compact = config.compact.is_some();
     let mut bridge = Bridge::new(config, clock.now())?;
-    info!(rate, burst, compact, "bridge running");
+    info!(
+        rate,
+        burst,
+        compact,
+        signing = signing_label,
+        "bridge running"
+    );
     let mut next_status = clock.now() + status_every;
     loop {
         let now = clock.now();
@@ -140,19 +146,27 @@ fn run(o: Options) -> Result<()> {
         while let Some(f) = bridge.poll_radio_transmit(now, usize::MAX) {
             radio.write(f.as_bytes());
         }
+        if let Some(file) = &mut signing.state_file {
+            file.tick(now, || bridge.signing_state(now));
+        }
         if now >= next_status {
-            status(&bridge, &fc, &radio, &inbox);
+            status(signing_label, &bridge, &fc, &radio, &inbox);
             next_status = now + status_every;
         }
     }
     stop.store(true, Ordering::Relaxed);
+    if let Some(file) = &signing.state_file
+        && let Some(state) = bridge.signing_state(clock.now())
+    {
+        file.save(&state)?;
+    }
     fc.stop();
     radio.stop();
-    status(&bridge, &fc, &radio, &inbox);
+    status(signing_label, &bridge, &fc, &radio, &inbox);
     Ok(())
 }
 
-fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink, inbox: &Inbox) {
+fn status(signing: &str, bridge: &Bridge, fc: &SerialLink, radio: &SerialLink, inbox: &Inbox) {
     let s = bridge.stats();
     let peer_loss = bridge.quality().peer().and_then(|p| p.loss_ratio);
     let (f, r, inbox) = (fc.counters(), radio.counters(), inbox.stats());
@@ -189,6 +203,9 @@ fn status(bridge: &Bridge, fc: &SerialLink, radio: &SerialLink, inbox: &Inbox) {
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,
+        rejected_stale = s.signing.stale,
+        radio_tx_unsigned = s.signing.sent_unsigned,
+        signing = %signing,
         inbox_dropped = inbox.dropped_items,
         inbox_peak_bytes = inbox.peak_bytes,
         peer_loss = ?peer_loss,

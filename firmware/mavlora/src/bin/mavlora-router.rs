@@ -16,8 +16,9 @@ use serde::Deserialize;
 use tracing::{info, warn};
 
 use mavlora::io::{
-    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, Seconds, SerialEvent, SerialLink,
-    TcpEndpoint, Tlog, UdpEndpoint, UsageError, frame_gap, on_signal, signing_epoch_now,
+    Clock, Event, INBOX_BYTES, Inbox, Percent, PopError, RadioOptions, Seconds, SerialEvent,
+    SerialLink, TcpEndpoint, Tlog, UdpEndpoint, UsageError, frame_gap, on_signal,
+    signing_epoch_now,
 };
 use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
 use mavlora::signing::{SigningConfig, SigningKey};
@@ -44,7 +45,7 @@ struct Options {
     /// [default: 255].
     #[arg(long, value_delimiter = ',')]
     allow_sysid: Option<Vec<u8>>,
-    /// MAVLink 2 signing key file for the ground side (64 hex characters or 32 bytes; not
+    /// MAVLink 2 signing key file for the ground side (64 hex characters, mode 600; not
     /// the radio's --key): frames from ground stations must be signed with it, frames to
     /// them are signed with it.
     #[arg(long)]
@@ -65,6 +66,13 @@ struct Options {
     /// Seconds between ground heartbeats sent over the radio, 0.1..=86400 [default: 5].
     #[arg(long)]
     gcs_heartbeat_period: Option<Seconds>,
+    /// Uplink or downlink loss (percent) at which the ground station is told the link is
+    /// degraded (STATUSTEXT) [default: 20].
+    #[arg(long)]
+    link_degraded: Option<Percent>,
+    /// Loss (percent) below which a degraded link is announced restored [default: 10].
+    #[arg(long)]
+    link_restored: Option<Percent>,
 }
 
 fn main() -> ExitCode {
@@ -78,10 +86,27 @@ fn run(o: Options) -> Result<()> {
     if let Some(p) = o.gcs_heartbeat_period {
         config.gcs_heartbeat_period = p.into();
     }
-    if let Some(period) = o.shared.link_quality_period() {
-        config.quality.period = period;
+    let mut signing = o.shared.signing(2, "router")?;
+    config.signing = signing.config.clone();
+    let signing_label = signing.label();
+    config.quality = o.shared.link_quality(config.signing.is_some());
+    if let Some(p) = o.link_degraded {
+        config.monitor.degraded = p.fraction();
     }
-    config.signing = o.shared.signing(2)?;
+    if let Some(p) = o.link_restored {
+        config.monitor.restored = p.fraction();
+    }
+    if config.monitor.restored > config.monitor.degraded {
+        return Err(UsageError::option(
+            "link_restored",
+            format!(
+                "{} % is above the degraded threshold ({} %)",
+                100.0 * config.monitor.restored,
+                100.0 * config.monitor.degraded
+            ),
+        )
+        .into());
+    }
     if let Some(allow) = o.allow {
         config.ground.allow = allow;
     }
@@ -100,6 +125,7 @@ fn run(o: Options) -> Result<()> {
                 .with_context(|| format!("ground key {}", path.display()))?,
             link_id: 3,
             epoch: signing_epoch_now(),
+            state: Default::default(),
         });
         info!(key = %path.display(), "ground signing on");
     }
@@ -137,7 +163,7 @@ fn run(o: Options) -> Result<()> {
     )?;
     let clock = Clock::start();
     let mut router = Router::new(config, clock.now())?;
-    info!(rate, burst, "router running");
+    info!(rate, burst, signing = signing_label, "router running");
     let mut next_status = clock.now() + status_every;
     let record = |tlog: &mut Option<Tlog>, bytes: &[u8]| {
         if let Some(t) = tlog
@@ -196,17 +222,25 @@ fn run(o: Options) -> Result<()> {
         while let Some(f) = router.poll_radio_transmit(now, usize::MAX) {
             radio.write(f.as_bytes());
         }
+        if let Some(file) = &mut signing.state_file {
+            file.tick(now, || router.signing_state(now));
+        }
         if now >= next_status {
-            status(&router, &radio, &udp, tcp.as_ref(), &inbox);
+            status(signing_label, &router, &radio, &udp, tcp.as_ref(), &inbox);
             next_status = now + status_every;
         }
     }
     stop.store(true, Ordering::Relaxed);
+    if let Some(file) = &signing.state_file
+        && let Some(state) = router.signing_state(clock.now())
+    {
+        file.save(&state)?;
+    }
     radio.stop();
     if let Some(t) = &mut tlog {
         t.flush().context("flushing tlog")?;
     }
-    status(&router, &radio, &udp, tcp.as_ref(), &inbox);
+    status(signing_label, &router, &radio, &udp, tcp.as_ref(), &inbox);
     Ok(())
 }
 
@@ -218,6 +252,7 @@ fn report(from: SocketAddr, input: &GroundInput) {
 }
 
 fn status(
+    signing: &str,
     router: &Router,
     radio: &SerialLink,
     udp: &UdpEndpoint,
@@ -256,7 +291,9 @@ fn status(
         inbox_peak_bytes = inbox.peak_bytes,
         expanded = s.expanded_frames,
         heartbeats_thinned = s.filter.rate_limited,
-        mission_duplicates = s.mission_duplicates,
+        missions_accepted = s.mission.accepted,
+        missions_failed = s.mission.failed,
+        mission_repairs = s.mission.items_repaired,
         command_resends = s.commands.retransmissions,
         command_ground_retries_dropped = s.commands.ground_duplicates,
         commands_queued = s.commands.queued,
@@ -266,6 +303,9 @@ fn status(
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,
+        rejected_stale = s.signing.stale,
+        radio_tx_unsigned = s.signing.sent_unsigned,
+        signing = %signing,
         peer_loss = ?peer_loss,
         "status"
     );

@@ -49,7 +49,7 @@ impl BridgeConfig {
         Self {
             profile,
             scheduler,
-            quality: LinkQualityConfig::default(),
+            quality: LinkQualityConfig::for_budget(scheduler.rate_bytes_per_s, false),
             compact: None,
             mission: MissionConfig::default(),
             signing: None,

@@ -13,14 +13,15 @@ use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
 use crate::dialect::{MavCmd, MavMessage, MavResult, MavType};
 use crate::filter::{
-    FilterStats, RadioFilter, Verdict, request_data_stream_requests, set_message_interval_requests,
+    FilterStats, RadioFilter, Unlisted, Verdict, request_data_stream_requests,
+    set_message_interval_requests,
 };
 use crate::mission::{MissionRelay, MissionStats};
 use crate::quality::LinkQuality;
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
 use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, ids};
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, ids, to_v1};
 
 /// Counters of one bridge, for the status line and tests.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -63,6 +64,12 @@ pub struct BridgeStats {
     pub link_quality_sent: u64,
     /// `LINK_QUALITY` reports received from the radio.
     pub link_quality_received: u64,
+    /// Radio frames turned into MAVLink 1 for a MAVLink 1 flight controller.
+    pub to_fc_downgraded: u64,
+    /// Radio frames a MAVLink 1 flight controller could not be given (ids above 255).
+    pub to_fc_not_v1: u64,
+    /// Telemetry frames the profile does not name, dropped (`unlisted = "drop"`).
+    pub unlisted_dropped: u64,
 }
 
 #[derive(Debug)]
@@ -160,6 +167,16 @@ impl Bridge {
         }
     }
 
+    /// Whether radio frames are signed.
+    pub fn radio_signed(&self) -> bool {
+        self.radio_leg.signed()
+    }
+
+    /// The radio signer's state to store at `now` (`None`: signing off).
+    pub fn signing_state(&self, now: Instant) -> Option<crate::signing::SigningState> {
+        self.radio_leg.signing_state(now)
+    }
+
     /// The link-quality engine (the peer's latest report, its state).
     pub fn quality(&self) -> &LinkQuality {
         &self.quality
@@ -231,6 +248,7 @@ impl Bridge {
                 info!("flight controller rebooted, configuring stream rates again");
                 self.stats.fc_reboots += 1;
                 self.start_config(now);
+                self.mission.fc_rebooted(now);
             }
             None => {}
         }
@@ -246,8 +264,8 @@ impl Bridge {
                     return;
                 }
             }
-            // COMMAND_ACK has no target in our dialect (extension fields are not generated):
-            // acks for SET_MESSAGE_INTERVAL are ours while we wait for some.
+            // Many autopilots leave COMMAND_ACK's target (an extension field) at 0: acks
+            // for SET_MESSAGE_INTERVAL are ours while we wait for some.
             if let MavMessage::COMMAND_ACK(ack) = msg
                 && ack.command == MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL
                 && self.config_state.acks < self.config_state.expected_acks
@@ -255,9 +273,16 @@ impl Bridge {
                 self.config_ack(ack.result, now);
                 return;
             }
-            if id == ids::COMMAND_ACK {
-                self.commands
-                    .ack(frame.system_id(), frame.component_id(), &frame, msg);
+            if id == ids::COMMAND_ACK
+                && let Some(tagged) =
+                    self.commands
+                        .ack(frame.system_id(), frame.component_id(), &frame, msg)
+            {
+                // The ack of a command from the radio, tagged with the command it answers.
+                if self.filter.check(&tagged, now) == Verdict::Pass {
+                    self.scheduler.push(tagged, Class::of(id), now);
+                }
+                return;
             }
             if let Some(compactor) = &mut self.compactor
                 && self.watch.is_fc(&frame)
@@ -272,8 +297,24 @@ impl Bridge {
             self.stats.held_before_fc += 1;
             return;
         }
-        if self.filter.check(&frame, now) == Verdict::Pass {
-            self.scheduler.push(frame, Class::of(id), now);
+        if self.filter.check(&frame, now) != Verdict::Pass {
+            return;
+        }
+        // Telemetry the profile does not name only gets what the named leaves, or nothing.
+        let class = match Class::of(id) {
+            Class::Periodic if !self.filter.profile().names(id) => {
+                if self.filter.profile().unlisted() == Unlisted::Drop {
+                    self.stats.unlisted_dropped += 1;
+                    return;
+                }
+                Class::Unlisted
+            }
+            class => class,
+        };
+        // a MAVLink 1 autopilot's frames go as MAVLink 2 (so they can be signed): the budget
+        // counts the bytes that are sent
+        if let Some(frame) = self.radio_leg.admit(frame) {
+            self.scheduler.push(frame, class, now);
         }
     }
 
@@ -385,6 +426,7 @@ impl Bridge {
         while let Some(rx) = self.radio_reader.next_frame() {
             self.radio_frame(rx.frame, now);
         }
+        self.quality.observe(now, self.radio_reader.stats());
     }
 
     fn radio_frame(&mut self, frame: OwnedFrame, now: Instant) {
@@ -399,7 +441,7 @@ impl Bridge {
                 self.stats.link_quality_received += 1;
                 return;
             }
-            ids::HEARTBEAT | ids::MISSION_COUNT | ids::MISSION_ITEM_INT => {
+            ids::HEARTBEAT | ids::MISSION_COUNT | ids::MISSION_ITEM_INT | ids::MISSION_ACK => {
                 let Ok(msg) = frame.decode::<MavMessage>() else {
                     self.forward_to_fc(frame);
                     return;
@@ -410,7 +452,8 @@ impl Bridge {
                     self.gcs_heartbeat.heard(&frame, hb.clone(), now);
                 }
                 let from = (frame.system_id(), frame.component_id());
-                // Uploads addressed to this vehicle are relayed; others pass through.
+                // Uploads addressed to this vehicle are relayed (and the router's cancel of
+                // one); others pass through.
                 let for_vehicle = msg.target_system_id() == Some(self.radio_sender.system());
                 if id != ids::HEARTBEAT && for_vehicle && self.mission.handle_radio(now, from, &msg)
                 {
@@ -435,8 +478,21 @@ impl Bridge {
         self.forward_to_fc(frame);
     }
 
+    /// Queues a radio frame for the flight controller, in MAVLink 1 if that is what it
+    /// speaks (the radio carries only MAVLink 2); what MAVLink 1 cannot carry (ids above
+    /// 255) is dropped and counted.
     fn forward_to_fc(&mut self, frame: OwnedFrame) {
-        self.to_fc.push_back(frame);
+        if self.watch.version() != Some(MavlinkVersion::V1) {
+            self.to_fc.push_back(frame);
+            return;
+        }
+        match to_v1(frame) {
+            Some(v1) => {
+                self.stats.to_fc_downgraded += 1;
+                self.to_fc.push_back(v1);
+            }
+            None => self.stats.to_fc_not_v1 += 1,
+        }
     }
 
     /// Does what is due at `now`: link-quality reports, compact telemetry, regenerated ground
@@ -513,6 +569,7 @@ impl Bridge {
         loop {
             let frame = self.scheduler.poll_transmit(now, room)?;
             if let Some(frame) = self.radio_leg.outgoing(frame, now) {
+                self.quality.sent_frame(now);
                 return Some(frame);
             }
         }

@@ -189,8 +189,9 @@ fn radio_traffic_reaches_the_fc_and_link_quality_goes_both_ways() {
     let fc = to_fc(&mut b, ms(20));
     assert_eq!(fc.len(), 1, "the command, not the report: {fc:?}");
     assert!(b.quality().peer().is_some());
-    // our own report leaves every period (5 s by default)
-    let out = to_radio(&mut b, ms(5000));
+    // our own report leaves every period (from the radio budget)
+    let period = config().quality.period;
+    let out = to_radio(&mut b, Instant::ZERO + period);
     assert!(out.iter().any(|f| f.message_id() == ids::LINK_QUALITY));
     let mut r = FrameReader::new();
     r.push(out[0].as_bytes());

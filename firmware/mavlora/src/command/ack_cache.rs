@@ -2,6 +2,7 @@
 
 use crate::time::Duration;
 
+use super::ack_tag::tag_ack;
 use super::{CommandId, confirmation, split_confirmation, with_confirmation};
 use crate::dialect::{MavMessage, MavResult};
 use crate::time::Instant;
@@ -119,13 +120,21 @@ impl AckCache {
 
     /// A `COMMAND_ACK` from the flight controller's (`system`, `component`) on its way to
     /// the radio: cached for the latest unanswered command it can answer (`IN_PROGRESS` is
-    /// replaced by the final ack).
-    pub fn ack(&mut self, system: u8, component: u8, frame: &OwnedFrame, msg: &MavMessage) {
+    /// replaced by the final ack). Returns the frame to send on the radio in its place: the
+    /// ack tagged with that command's generation ([`tag_ack`]); `None`: send it as it is
+    /// (it answers no command from the radio, or cannot be tagged).
+    pub fn ack(
+        &mut self,
+        system: u8,
+        component: u8,
+        frame: &OwnedFrame,
+        msg: &MavMessage,
+    ) -> Option<OwnedFrame> {
         let MavMessage::COMMAND_ACK(ack) = msg else {
-            return;
+            return None;
         };
         let command = ack.command as u32;
-        if let Some(e) = self
+        let e = self
             .entries
             .iter_mut()
             .filter(|e| e.id.answered_by(system, component, command))
@@ -137,10 +146,13 @@ impl AckCache {
                     )
                 })
             })
-            .max_by_key(|e| e.forwarded)
-        {
-            e.ack = Some(frame.clone());
-        }
+            .max_by_key(|e| e.forwarded)?;
+        // COMMAND_INT carries no generation: its acks stay as they are.
+        let radio = (!e.id.is_int())
+            .then(|| tag_ack(frame, ack, e.generation))
+            .flatten();
+        e.ack = Some(radio.clone().unwrap_or_else(|| frame.clone()));
+        radio
     }
 
     fn expire(&mut self, now: Instant) {
@@ -204,10 +216,12 @@ mod tests {
         let (f2, m2) = command(&mut gcs, 1, 4.0);
         assert_eq!(c.command(&f2, &m2, t0 + MS(300)), CacheVerdict::Drop);
         let (af, am) = ack(&mut fc);
-        c.ack(1, 1, &af, &am);
+        let radio = c
+            .ack(1, 1, &af, &am)
+            .expect("answers a command from the radio");
         // the ack was lost on the radio: the next copy gets it again, not a second execution
         match c.command(&f2, &m2, t0 + MS(1200)) {
-            CacheVerdict::Replay(a) => assert_eq!(a.as_bytes(), af.as_bytes()),
+            CacheVerdict::Replay(a) => assert_eq!(a.as_bytes(), radio.as_bytes()),
             other => panic!("{other:?}"),
         }
         // a different command with the same id is new
@@ -295,5 +309,28 @@ mod tests {
             forwarded_confirmation(c.command(&f2, &m2, t0 + MS(7100))),
             1
         );
+    }
+
+    #[test]
+    fn acks_on_the_radio_name_the_generation_they_answer() {
+        use crate::command::ack_tag::untag_ack;
+        let mut c = AckCache::new(ACK_HOLD, MS(1000));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        let t0 = Instant::from_millis(0);
+        let (af, am) = ack(&mut fc);
+        // an ack that answers nothing from the radio goes as the autopilot sent it
+        assert!(c.ack(1, 1, &af, &am).is_none());
+        for (k, generation) in [0u8, 1, 31].into_iter().enumerate() {
+            let (f, m) = command(&mut gcs, radio_confirmation(generation, 0), 1.0);
+            c.command(&f, &m, t0 + MS(3000 * k as u64));
+            let radio = c.ack(1, 1, &af, &am).expect("tagged");
+            let MavMessage::COMMAND_ACK(a) = radio.decode::<MavMessage>().unwrap() else {
+                panic!()
+            };
+            let (g, plain, _) = untag_ack(&radio, &a).expect("tag");
+            assert_eq!(g, generation);
+            assert_eq!(plain.as_bytes(), af.as_bytes());
+        }
     }
 }

@@ -29,13 +29,21 @@
 //!
 //! # Acks
 //!
-//! `COMMAND_ACK` carries only the command id (and our generated dialect no extension
-//! fields), so the router keeps at most one command per (target system, command id) on the
-//! radio: a newer one with the same id waits until the older one is acknowledged or given
-//! up, and after an older one that was sent more than once, until its late copies' acks can
-//! no longer arrive (one maximum timeout after its last send); acks arriving then are
-//! swallowed (counted), never given to the newer one. The ground thus sees the acks of two
-//! commands with the same id in the order it sent them, each answering its own.
+//! `COMMAND_ACK` carries only the command id, so the bridge tags each ack it sends on the
+//! radio with the generation of the command it answers (in `result_param2`, see
+//! [`ack_tag`]) and the router matches it to exactly that command, restoring the
+//! autopilot's `result_param2` (and MAVLink version) before the ground sees it. The router
+//! keeps at most one command per (target system, command id) on the radio, so the vehicle
+//! runs them in the order the ground sent them; a newer one with the same id goes as soon as
+//! the older one is acknowledged: a late copy's ack names the older generation and is
+//! swallowed (counted), never given to the newer one.
+//!
+//! An untagged ack (`COMMAND_INT`, which has no confirmation to carry a generation, or an
+//! autopilot's `result_param2` too large to share with the tag) cannot be told apart so:
+//! after such an older command that was sent more than once, the newer one waits until its
+//! late copies' acks can no longer arrive (one maximum timeout after its last send). The
+//! ground thus sees the acks of two commands with the same id in the order it sent them,
+//! each answering its own.
 //!
 //! The choice when the ground moves on: an older command whose ground station stopped
 //! retrying it (1.4 s after its last copy) while a newer one with
@@ -53,6 +61,7 @@
 //! radio's latency) after it first arrived, so no copy can outlive its entry.
 
 mod ack_cache;
+pub mod ack_tag;
 mod retransmit;
 
 use crate::time::Duration;
@@ -117,6 +126,11 @@ impl CommandId {
             }),
             _ => None,
         }
+    }
+
+    /// Whether it is a `COMMAND_INT` (no confirmation: its acks go untagged).
+    pub fn is_int(&self) -> bool {
+        self.int.is_some()
     }
 
     /// The (target system, command id) an ack names: one command per slot on the radio.

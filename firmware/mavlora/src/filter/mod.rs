@@ -7,5 +7,5 @@ mod profile;
 mod stream_rate;
 
 pub use limiter::{FilterStats, RadioFilter, Verdict};
-pub use profile::{DATA_STREAMS, MessageRule, Profile, ProfileError, RadioRule};
+pub use profile::{DATA_STREAMS, MessageRule, Profile, ProfileError, RadioRule, Unlisted};
 pub use stream_rate::{request_data_stream_requests, set_message_interval_requests};

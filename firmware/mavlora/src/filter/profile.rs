@@ -5,6 +5,7 @@
 //! ```toml
 //! [defaults]
 //! radio = "pass"            # for messages not listed
+//! unlisted = "share"        # telemetry not listed: "share" what the listed leave, or "drop"
 //!
 //! [messages.GLOBAL_POSITION_INT]   # a name from the dialect, or a numeric id: [messages.33]
 //! stream_hz = 3             # SET_MESSAGE_INTERVAL to the flight controller; 0 stops the stream
@@ -49,10 +50,24 @@ pub struct MessageRule {
     pub stream_hz: Option<f64>,
 }
 
+/// What happens on the radio to periodic telemetry the profile does not list (an autopilot
+/// that ignores the stream configuration, or sends messages nobody expected). Commands,
+/// mission and parameter traffic are not telemetry and are not affected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Unlisted {
+    /// Sent only with the budget the listed messages leave (the default).
+    #[default]
+    Share,
+    /// Never sent (compact profiles: every byte is accounted for).
+    Drop,
+}
+
 /// A loaded profile.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Profile {
     default_radio: RadioRule,
+    unlisted: Unlisted,
     rules: BTreeMap<u32, MessageRule>,
     data_streams: Vec<(MavDataStream, u16)>,
 }
@@ -178,6 +193,8 @@ struct ProfileFile {
 #[serde(deny_unknown_fields)]
 struct DefaultsFile {
     radio: Option<Spanned<RadioValue>>,
+    #[serde(default)]
+    unlisted: Unlisted,
 }
 
 #[derive(Deserialize)]
@@ -214,6 +231,10 @@ impl Profile {
         })?;
         let line_of = |span: std::ops::Range<usize>| text[..span.start].matches('\n').count() + 1;
 
+        let unlisted = file
+            .defaults
+            .as_ref()
+            .map_or(Unlisted::Share, |d| d.unlisted);
         let default_radio = match file.defaults.and_then(|d| d.radio) {
             None => RadioRule::Pass,
             Some(value) => radio_rule(&value, "defaults", origin, line_of(value.span()))?,
@@ -276,6 +297,7 @@ impl Profile {
         data_streams.sort_by_key(|&(id, _)| id as u32);
         Ok(Self {
             default_radio,
+            unlisted,
             rules,
             data_streams,
         })
@@ -294,6 +316,19 @@ impl Profile {
     /// Radio treatment of messages the profile does not list.
     pub fn default_radio(&self) -> RadioRule {
         self.default_radio
+    }
+
+    /// Whether the profile names message `id` for the radio (listed, and not dropped): named
+    /// telemetry gets its rate before anything unnamed.
+    pub fn names(&self, id: u32) -> bool {
+        self.rules
+            .get(&id)
+            .is_some_and(|r| r.radio != RadioRule::Drop)
+    }
+
+    /// What happens to periodic telemetry the profile does not name.
+    pub fn unlisted(&self) -> Unlisted {
+        self.unlisted
     }
 
     /// The listed messages, by id.
@@ -407,6 +442,21 @@ radio = 0.5
             ),
             "{err}"
         );
+    }
+
+    #[test]
+    fn unlisted_telemetry_shares_by_default_and_can_be_dropped() {
+        let p = Profile::parse(SAMPLE, "sample").unwrap();
+        assert_eq!(p.unlisted(), Unlisted::Share);
+        assert!(p.names(33) && p.names(0) && !p.names(105));
+        let p = Profile::parse(
+            "[defaults]\nunlisted = \"drop\"\n[messages.33]\nradio = 3\n",
+            "p",
+        )
+        .unwrap();
+        assert_eq!(p.unlisted(), Unlisted::Drop);
+        let err = Profile::parse("[defaults]\n\nunlisted = \"keep\"\n", "p.toml").unwrap_err();
+        assert!(err.to_string().contains("line 3"), "{err}");
     }
 
     #[test]

@@ -7,15 +7,19 @@ mod framing;
 mod options;
 mod queue;
 mod serial;
+mod signing_state;
 mod tcp;
 mod tlog;
 mod udp;
 
 pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
 pub use framing::{DatagramFramer, FramingCounters};
-pub use options::{RadioOptions, Seconds, SecondsError, UsageError, main};
+pub use options::{
+    Percent, PercentError, RadioOptions, RadioSigning, Seconds, SecondsError, UsageError, main,
+};
 pub use queue::{Lane, PopError, Queue, QueueStats};
 pub use serial::{SerialCounters, SerialEvent, SerialLink, frame_gap};
+pub use signing_state::{SAVE_EVERY, SigningStateFile};
 pub use tcp::{DEFAULT_MAX_CLIENTS, TcpCounters, TcpEndpoint};
 pub use tlog::Tlog;
 pub use udp::UdpEndpoint;
@@ -59,7 +63,7 @@ impl Inbox {
             Event::Serial(_, SerialEvent::Bytes(b)) => (b.len(), Lane::Bulk),
             Event::Udp(f, _) | Event::Tcp(f, _) => {
                 let lane = match crate::wire::Frame::new_checked(f.as_slice()) {
-                    Ok(f) if Class::of(f.message_id()) == Class::Priority => Lane::Priority,
+                    Ok(f) if Class::of(f.message_id()).is_protocol() => Lane::Priority,
                     _ => Lane::Bulk,
                 };
                 (f.len(), lane)

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 
-use super::{run_main, signing_from_key_file};
+use super::{SigningStateFile, run_main, signing_from_key_file};
 use crate::schedule::SchedulerConfig;
 use crate::signing::SigningConfig;
 
@@ -36,16 +36,43 @@ pub struct RadioOptions {
     /// Radio burst in bytes [default: 600].
     #[arg(long)]
     pub burst: Option<u32>,
-    /// Seconds between LINK_QUALITY reports, 0.1..=86400 [default: 5].
+    /// Longest time between LINK_QUALITY reports (the keep-alive; reports go early when the
+    /// loss changes or the peer goes quiet), 0.1..=86400 s [default: 0.4 % of --rate:
+    /// 8.8 s at 683 B/s, 13.5 s signed].
     #[arg(long)]
     pub link_quality_period: Option<Seconds>,
     /// Seconds between status lines, 0.1..=86400 [default: 5].
     #[arg(long)]
     pub status_interval: Option<Seconds>,
-    /// MAVLink 2 signing key file (64 hex characters or 32 bytes) for the radio link: our
+    /// MAVLink 2 signing key file for the radio link (64 hex characters, mode 600): our
     /// radio frames are signed, unsigned or replayed ones from the radio are dropped.
+    /// Required unless --unsigned.
     #[arg(long)]
     pub key: Option<PathBuf>,
+    /// Run the radio leg without signing (bench and lab only: anyone on the channel can
+    /// command the drone). Shown on every status line as `signing="OFF"`.
+    #[arg(long, num_args = 0, default_missing_value = "true")]
+    pub unsigned: Option<bool>,
+    /// Signing state file: the last timestamp and the streams accepted, so a restart neither
+    /// reuses timestamps nor accepts frames captured before it [default: <key>.<role>-state].
+    #[arg(long)]
+    pub signing_state: Option<PathBuf>,
+}
+
+/// The radio link's signing as the options set it up.
+#[derive(Debug)]
+pub struct RadioSigning {
+    /// Signing settings, `None` with `--unsigned`.
+    pub config: Option<SigningConfig>,
+    /// Where the state is stored, `None` with `--unsigned`.
+    pub state_file: Option<SigningStateFile>,
+}
+
+impl RadioSigning {
+    /// For the status line: `on` or `OFF`.
+    pub fn label(&self) -> &'static str {
+        if self.config.is_some() { "on" } else { "OFF" }
+    }
 }
 
 impl RadioOptions {
@@ -90,6 +117,22 @@ impl RadioOptions {
         Ok(SchedulerConfig::for_radio(self.rate(), self.burst()))
     }
 
+    /// Link-quality settings for this side's radio budget (signed reports are longer), with
+    /// `--link-quality-period` as the keep-alive when given.
+    pub fn link_quality(&self, signed: bool) -> crate::quality::LinkQualityConfig {
+        let mut q = crate::quality::LinkQualityConfig::for_budget(self.rate(), signed);
+        if let Some(period) = self.link_quality_period() {
+            q = crate::quality::LinkQualityConfig {
+                period,
+                window: Duration::from_secs(4).max(period * 2),
+                quiet_after: (period * 3) / 2 + Duration::from_millis(500),
+                peer_timeout: (period * 5) / 2 + Duration::from_secs(5),
+                ..q
+            };
+        }
+        q
+    }
+
     /// Time between `LINK_QUALITY` reports, when given (the engine has its default).
     pub fn link_quality_period(&self) -> Option<Duration> {
         self.link_quality_period.map(Duration::from)
@@ -101,12 +144,56 @@ impl RadioOptions {
             .map_or(Duration::from_secs(5), Duration::from)
     }
 
-    /// Radio link signing with the key file, when given, as link `link_id`.
-    pub fn signing(&self, link_id: u8) -> anyhow::Result<Option<SigningConfig>> {
-        self.key
-            .as_deref()
-            .map(|path| signing_from_key_file(path, link_id))
-            .transpose()
+    /// Radio link signing as link `link_id`: with the key file and the state file (default
+    /// `<key>.<role>-state`), which is read, locked and written once at once (so a state
+    /// path that cannot be written fails now, not at the first save). No key is a usage
+    /// error unless `--unsigned` says so.
+    pub fn signing(&self, link_id: u8, role: &str) -> anyhow::Result<RadioSigning> {
+        let unsigned = self.unsigned.unwrap_or(false);
+        let key = match (&self.key, unsigned) {
+            (Some(_), true) => {
+                return Err(UsageError::option(
+                    "unsigned",
+                    "given together with --key / `key`: choose one",
+                )
+                .into());
+            }
+            (None, true) => {
+                if self.signing_state.is_some() {
+                    return Err(
+                        UsageError::option("signing_state", "has no use with --unsigned").into(),
+                    );
+                }
+                tracing::warn!(
+                    "radio link NOT signed (--unsigned): anyone on the radio channel can inject and replay frames"
+                );
+                return Ok(RadioSigning {
+                    config: None,
+                    state_file: None,
+                });
+            }
+            (None, false) => {
+                return Err(UsageError::option(
+                    "key",
+                    "the radio link is signed: give a key file (--key / `key`), or \
+                     --unsigned / `unsigned = true` to run it without signing",
+                )
+                .into());
+            }
+            (Some(key), false) => key,
+        };
+        let path = self
+            .signing_state
+            .clone()
+            .unwrap_or_else(|| SigningStateFile::default_path(key, role));
+        let (file, state) = SigningStateFile::open(path)?;
+        let config = signing_from_key_file(key, link_id, state)?;
+        file.save(&config.signer().state(crate::time::Instant::ZERO))?;
+        tracing::info!(state = %file.path().display(), "signing state");
+        Ok(RadioSigning {
+            config: Some(config),
+            state_file: Some(file),
+        })
     }
 }
 
@@ -154,6 +241,44 @@ impl std::str::FromStr for Seconds {
 impl From<Seconds> for Duration {
     fn from(s: Seconds) -> Self {
         s.0
+    }
+}
+
+/// A loss threshold in percent: a finite number in 0..=100, checked where it is read.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(try_from = "f64")]
+pub struct Percent(f64);
+
+impl Percent {
+    /// As a fraction, 0..=1.
+    pub fn fraction(self) -> f64 {
+        self.0 / 100.0
+    }
+}
+
+/// A percentage out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0} is not a percentage in 0..=100")]
+pub struct PercentError(String);
+
+impl TryFrom<f64> for Percent {
+    type Error = PercentError;
+
+    fn try_from(p: f64) -> Result<Self, Self::Error> {
+        if (0.0..=100.0).contains(&p) {
+            Ok(Self(p))
+        } else {
+            Err(PercentError(p.to_string()))
+        }
+    }
+}
+
+impl std::str::FromStr for Percent {
+    type Err = PercentError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let value: f64 = s.trim().parse().map_err(|_| PercentError(s.to_owned()))?;
+        Self::try_from(value)
     }
 }
 

@@ -144,7 +144,7 @@ impl SerialLink {
             .offered
             .fetch_add(bytes.len() as u64, Ordering::Relaxed);
         let lane = match Frame::new_checked(bytes).map(|f| Class::of(f.message_id())) {
-            Ok(Class::Priority) => Lane::Priority,
+            Ok(class) if class.is_protocol() => Lane::Priority,
             _ => Lane::Bulk,
         };
         self.out.push(bytes.to_vec(), bytes.len(), lane)

@@ -148,7 +148,7 @@ impl TcpEndpoint {
     /// its oldest periodic frames first (counted).
     pub fn send(&self, bytes: &[u8]) {
         let lane = match Frame::new_checked(bytes).map(|f| Class::of(f.message_id())) {
-            Ok(Class::Priority) => Lane::Priority,
+            Ok(class) if class.is_protocol() => Lane::Priority,
             _ => Lane::Bulk,
         };
         for c in self.shared.clients().iter() {

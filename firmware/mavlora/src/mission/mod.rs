@@ -1,21 +1,24 @@
-//! The mission relay (the paper's fix for PX4 issue #11078): the ground uploads to the bridge
-//! over the radio with timeouts that follow the radio's measured round-trip time, then the
-//! bridge uploads to the flight controller over the wire with the standard protocol, whose
-//! 250 ms item retries are harmless there.
+//! Mission uploads over a slow radio (the paper's fix for PX4 issue #11078), faithful to any
+//! ground station: the ground's transfer ends at the router, so its timeouts (0.5 s in many
+//! SDKs) never meet the radio; the radio leg streams the plan and repairs losses
+//! selectively; the bridge uploads to the flight controller with the standard protocol; the
+//! ground hears ACCEPTED only when the autopilot accepted exactly the plan it sent.
 //!
+//! - [`MissionTerminator`] (router): ground leg and radio sender.
+//! - [`MissionRelay`] (bridge): radio receiver and wire leg.
+//! - [`plan`]: the transfer id (`opaque_id`) that ties an ack to one plan.
 //! - [`RttEstimator`]: RFC 6298 round-trip estimate and retransmission timeout.
-//! - [`MissionRelay`]: the bridge's two legs (radio: receiver; wire: sender).
-//! - [`DuplicateSuppressor`]: the router's filter for a ground station's own retransmissions
-//!   of mission frames it already forwarded within one radio round trip.
 //!
-//! Only `MISSION_ITEM_INT` uploads of the default mission type are relayed (our generated
-//! dialect has no MAVLink 2 extension fields, so `mission_type` is not carried). Downloads,
-//! `MISSION_CLEAR_ALL` and legacy `MISSION_ITEM` pass through unchanged.
+//! `mission_type` (mission, fence, rally) is carried on every message of both legs: an upload
+//! of one type never touches another. One upload at a time: a new `MISSION_COUNT` of any type
+//! replaces the transfer in progress. Downloads (`MISSION_REQUEST_LIST`), `MISSION_CLEAR_ALL`
+//! and partial writes pass through unchanged, end to end.
 
-mod dedup;
+pub mod plan;
 mod relay;
 mod rtt;
+mod terminator;
 
-pub use dedup::DuplicateSuppressor;
 pub use relay::{MissionConfig, MissionRelay, MissionStats};
 pub use rtt::{MARGIN, RttEstimator};
+pub use terminator::{MissionTerminator, TerminatorConfig, TerminatorStats};

@@ -1,14 +1,33 @@
-//! The bridge's mission relay: receiver on the radio leg, sender on the wire leg.
+//! The bridge's mission relay: receiver of the router's item stream on the radio leg,
+//! sender with the standard protocol on the wire leg (the flight controller).
+//!
+//! Radio leg (router → bridge), our own use of standard messages:
+//! - `MISSION_COUNT{count, mission_type, opaque_id = transfer id}` opens a transfer; the
+//!   router streams every item behind it without waiting for requests.
+//! - A gap in the item sequence (the radio keeps order) is a loss: the bridge at once sends
+//!   `MISSION_REQUEST_INT` for each missing item (selective repair); the items the tail of
+//!   the stream lost are requested when nothing arrived for one retransmission timeout.
+//! - All items in: their CRC must match the transfer id (no item of another plan mixed in),
+//!   else all are requested again. Then the wire leg runs.
+//! - The same `MISSION_COUNT` again is the router's status poll: missing items are requested,
+//!   "all here, the autopilot is busy" is `MISSION_REQUEST_INT{seq = count}`, a finished
+//!   transfer repeats its `MISSION_ACK{opaque_id}`.
+//! - `MISSION_ACK{error, opaque_id}` from the router: the ground cancelled.
+//!
+//! Wire leg: `MISSION_COUNT` to the autopilot, items on its requests (its 250 ms repeats are
+//! harmless on a wire), its `MISSION_ACK` goes to the router with the transfer id. An
+//! autopilot reboot mid-upload restarts the wire leg from `MISSION_COUNT`.
 
 use crate::time::Duration;
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 
 use tracing::{debug, info, warn};
 
+use super::plan::{plan_hash, plan_part};
 use super::rtt::RttEstimator;
 use crate::dialect::{
     MISSION_ACK_DATA, MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA,
-    MavMessage, MavMissionResult,
+    MavMessage, MavMissionResult, MavMissionType,
 };
 use crate::time::Instant;
 
@@ -21,8 +40,10 @@ pub struct MissionConfig {
     pub min_rto: Duration,
     /// Upper bound of the radio timeout after backoff.
     pub max_rto: Duration,
-    /// Requests sent for one item over the radio before the upload is abandoned.
+    /// Repair rounds without any progress before the transfer is abandoned.
     pub radio_attempts: u32,
+    /// Items requested at most per repair round (bounds one burst of requests).
+    pub repair_batch: usize,
     /// Wire leg timeout (MAVLink mission protocol default: 1500 ms).
     pub wire_timeout: Duration,
     /// Wire leg attempts per step (protocol: up to 5 retries).
@@ -36,6 +57,8 @@ impl Default for MissionConfig {
             min_rto: Duration::from_millis(300),
             max_rto: Duration::from_secs(8),
             radio_attempts: 10,
+            // 8 requests (~140 bytes) fit a LoRa modem's 256-byte buffer beside telemetry.
+            repair_batch: 8,
             wire_timeout: Duration::from_millis(1500),
             wire_attempts: 6,
         }
@@ -45,41 +68,57 @@ impl Default for MissionConfig {
 /// Counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct MissionStats {
-    /// Item requests sent over the radio, first attempts.
+    /// Transfers opened by the router.
+    pub transfers: u64,
+    /// Item requests sent over the radio (repairs; a loss-free transfer sends none).
     pub radio_requests: u64,
-    /// Item requests sent again after a timeout.
-    pub radio_retries: u64,
     /// Items received over the radio.
     pub radio_items: u64,
-    /// Items received that we already had (the ground retried too early).
+    /// Items received that we already had.
     pub radio_duplicate_items: u64,
+    /// Assembled plans whose CRC did not match the transfer id (all items requested again).
+    pub plan_mismatches: u64,
     /// Items sent to the flight controller (its retries included).
     pub wire_items: u64,
+    /// Wire uploads restarted because the flight controller rebooted.
+    pub wire_restarts: u64,
     /// Uploads the flight controller accepted.
     pub completed: u64,
     /// Uploads that failed on either leg.
     pub failed: u64,
+    /// Transfers the ground cancelled.
+    pub cancelled: u64,
 }
 
 #[derive(Debug)]
 enum Radio {
     Idle,
     Receiving {
-        ground: (u8, u8),
-        items: Vec<MISSION_ITEM_INT_DATA>,
-        count: u16,
-        sent_at: Instant,
-        attempts: u32,
+        router: (u8, u8),
+        id: u32,
+        mission_type: MavMissionType,
+        slots: Vec<Option<MISSION_ITEM_INT_DATA>>,
+        /// One past the highest seq received: a later seq means the ones between were lost.
+        horizon: u16,
+        /// Repair requests in flight: seq → (sent at, sends).
+        requested: BTreeMap<u16, (Instant, u32)>,
+        /// Last item or poll received, or repair sent.
+        heard: Instant,
+        /// Repair rounds since the last progress.
+        rounds: u32,
     },
-    /// All items in, the wire leg runs; the ground waits for our ack.
+    /// All items in, the wire leg runs.
     Forwarding {
-        ground: (u8, u8),
+        router: (u8, u8),
+        id: u32,
+        mission_type: MavMissionType,
         count: u16,
     },
-    /// Finished: a retried last item from the ground means our ack was lost.
+    /// Finished: a poll gets the same ack again.
     Done {
-        ground: (u8, u8),
-        count: u16,
+        router: (u8, u8),
+        id: u32,
+        mission_type: MavMissionType,
         result: MavMissionResult,
     },
 }
@@ -88,6 +127,7 @@ enum Radio {
 enum Wire {
     Idle,
     Sending {
+        mission_type: MavMissionType,
         items: Vec<MISSION_ITEM_INT_DATA>,
         /// Last step sent: `None` for MISSION_COUNT, else the item seq.
         last: Option<u16>,
@@ -110,8 +150,14 @@ pub struct MissionRelay {
     wire: Wire,
     to_radio: VecDeque<MavMessage>,
     to_fc: VecDeque<MavMessage>,
+    /// Items that arrived with no transfer open (its `MISSION_COUNT` was lost): kept for
+    /// the next transfer, whose CRC check rejects them if they belong to another plan.
+    orphans: BTreeMap<u16, MISSION_ITEM_INT_DATA>,
     stats: MissionStats,
 }
+
+/// Orphan items kept at most.
+const MAX_ORPHANS: usize = 1024;
 
 impl MissionRelay {
     /// An idle relay.
@@ -123,6 +169,7 @@ impl MissionRelay {
             wire: Wire::Idle,
             to_radio: VecDeque::new(),
             to_fc: VecDeque::new(),
+            orphans: BTreeMap::new(),
             stats: MissionStats::default(),
         }
     }
@@ -137,128 +184,284 @@ impl MissionRelay {
         &self.rtt
     }
 
-    /// A message from the radio sent by `from` (system, component). Returns whether the relay
-    /// took it (else the caller forwards it to the flight controller).
+    /// A message from the radio sent by `from` (system, component), addressed to this
+    /// vehicle. Returns whether the relay took it (else the caller forwards it to the flight
+    /// controller).
     pub fn handle_radio(&mut self, now: Instant, from: (u8, u8), msg: &MavMessage) -> bool {
         match msg {
             MavMessage::MISSION_COUNT(c) => {
-                if let Radio::Receiving { ground, count, .. } = &self.radio
-                    && *ground == from
-                    && *count == c.count
-                {
-                    debug!("ground repeated MISSION_COUNT, our request is on its way");
-                    return true;
-                }
-                info!(count = c.count, "mission upload from the ground");
-                self.radio = Radio::Receiving {
-                    ground: from,
-                    items: Vec::with_capacity(c.count.into()),
-                    count: c.count,
-                    sent_at: now,
-                    attempts: 0,
-                };
-                self.wire = Wire::Idle;
-                self.advance_radio(now);
+                self.radio_count(now, from, c);
                 true
             }
             MavMessage::MISSION_ITEM_INT(item) => {
-                self.radio_item(from, item, now);
+                self.radio_item(now, item);
                 true
             }
+            MavMessage::MISSION_ACK(a) => self.radio_cancel(a),
             _ => false,
         }
     }
 
-    fn radio_item(&mut self, from: (u8, u8), item: &MISSION_ITEM_INT_DATA, now: Instant) {
+    fn radio_count(&mut self, now: Instant, from: (u8, u8), c: &MISSION_COUNT_DATA) {
         match &mut self.radio {
-            Radio::Receiving {
-                ground,
-                items,
-                sent_at,
-                attempts,
-                ..
-            } if *ground == from => {
-                let next = items.len() as u16;
-                if item.seq != next {
-                    if item.seq < next {
-                        self.stats.radio_duplicate_items += 1;
-                    }
-                    let overdue = now.saturating_duration_since(*sent_at)
-                        >= self.rtt.srtt().unwrap_or(self.rtt.rto());
-                    if item.seq + 1 == next && overdue {
-                        // The ground repeats the item we already have although our request
-                        // for the next one had time to arrive: it was lost. Ask again now
-                        // rather than at our own timeout (which may have backed off beyond the
-                        // ground's patience). A repeat arriving sooner is an echo of an
-                        // earlier double send; answering it would double every later item.
-                        *sent_at = now;
-                        *attempts += 1;
-                        self.stats.radio_retries += 1;
-                        self.to_radio.push_back(request(from, next));
-                    }
-                    return;
-                }
-                self.stats.radio_items += 1;
-                if *attempts == 1 {
-                    // Karn's rule: only unambiguous round trips are samples.
-                    self.rtt.sample(now.saturating_duration_since(*sent_at));
-                }
-                items.push(item.clone());
-                self.advance_radio(now);
+            Radio::Receiving { id, heard, .. } if *id == c.opaque_id => {
+                debug!(id = c.opaque_id, "router polls the transfer");
+                *heard = now;
+                self.repair(now, true);
+                return;
+            }
+            Radio::Forwarding {
+                id,
+                router,
+                count,
+                mission_type,
+            } if *id == c.opaque_id => {
+                // All items are here; the autopilot is still taking them.
+                let busy = request(*router, *count, *mission_type);
+                self.to_radio.push_back(busy);
+                return;
             }
             Radio::Done {
-                ground,
-                count,
+                id,
+                router,
+                mission_type,
                 result,
-            } if *ground == from && item.seq + 1 == *count => {
-                self.stats.radio_duplicate_items += 1;
-                let ack = ack(*ground, *result);
-                self.to_radio.push_back(ack);
+            } if *id == c.opaque_id => {
+                let again = ack(*router, *result, *mission_type, *id);
+                self.to_radio.push_back(again);
+                return;
             }
-            _ => self.stats.radio_duplicate_items += 1,
+            _ => {}
         }
+        info!(
+            count = c.count,
+            mission_type = ?c.mission_type,
+            id = c.opaque_id,
+            "mission transfer from the router"
+        );
+        self.stats.transfers += 1;
+        self.abort_wire();
+        let mut slots = vec![None; usize::from(c.count)];
+        let mut horizon = 0;
+        for (seq, item) in std::mem::take(&mut self.orphans) {
+            if let Some(slot) = slots.get_mut(usize::from(seq))
+                && item.mission_type == c.mission_type
+            {
+                *slot = Some(item);
+                horizon = seq + 1;
+            }
+        }
+        self.radio = Radio::Receiving {
+            router: from,
+            id: c.opaque_id,
+            mission_type: c.mission_type,
+            slots,
+            horizon,
+            requested: BTreeMap::new(),
+            heard: now,
+            rounds: 0,
+        };
+        // Orphans below the horizon that are missing were lost: ask for them now.
+        self.repair(now, false);
+        self.check_complete(now);
     }
 
-    /// Requests the next item, or hands the full mission to the wire leg.
-    fn advance_radio(&mut self, now: Instant) {
+    fn radio_item(&mut self, now: Instant, item: &MISSION_ITEM_INT_DATA) {
         let Radio::Receiving {
-            ground,
-            items,
-            count,
-            sent_at,
-            attempts,
+            slots,
+            horizon,
+            requested,
+            heard,
+            rounds,
+            ..
+        } = &mut self.radio
+        else {
+            if matches!(self.radio, Radio::Forwarding { .. }) || self.orphans.len() >= MAX_ORPHANS {
+                self.stats.radio_duplicate_items += 1;
+            } else {
+                // Perhaps a new transfer whose count was lost: keep it for that count.
+                self.orphans.insert(item.seq, item.clone());
+            }
+            return;
+        };
+        let seq = item.seq;
+        let Some(slot) = slots.get_mut(usize::from(seq)) else {
+            return;
+        };
+        *heard = now;
+        if slot.is_some() {
+            self.stats.radio_duplicate_items += 1;
+            return;
+        }
+        *slot = Some(item.clone());
+        *rounds = 0;
+        self.stats.radio_items += 1;
+        if let Some((at, sends)) = requested.remove(&seq)
+            && sends == 1
+        {
+            // Karn's rule: only unambiguous round trips are samples.
+            self.rtt.sample(now.saturating_duration_since(at));
+        }
+        let gap = seq > *horizon;
+        *horizon = (*horizon).max(seq + 1);
+        if gap {
+            // The radio keeps order: what the stream skipped was lost.
+            self.repair(now, false);
+        }
+        self.check_complete(now);
+    }
+
+    /// Requests missing items not asked for within one RTO: below the horizon (known lost),
+    /// or with `all` every missing one (a poll or our timeout: the tail may be lost too).
+    // Indexing: the loop also builds `requested` entries keyed by the same seq.
+    #[allow(clippy::needless_range_loop)]
+    fn repair(&mut self, now: Instant, all: bool) {
+        let rto = self.rtt.rto();
+        let Radio::Receiving {
+            router,
+            mission_type,
+            slots,
+            horizon,
+            requested,
+            ..
         } = &mut self.radio
         else {
             return;
         };
-        if items.len() < usize::from(*count) {
-            *sent_at = now;
-            *attempts = 1;
+        let limit = if all {
+            slots.len()
+        } else {
+            usize::from(*horizon)
+        };
+        let mut sent = 0;
+        for seq in 0..limit {
+            if sent >= self.config.repair_batch {
+                break;
+            }
+            if slots[seq].is_some() {
+                continue;
+            }
+            let seq = seq as u16;
+            let entry = requested.entry(seq).or_insert((now, 0));
+            // A request younger than one timeout may still be answered: asking again
+            // would only put a second copy on the air.
+            if entry.1 > 0 && now.saturating_duration_since(entry.0) < rto {
+                continue;
+            }
+            *entry = (now, entry.1 + 1);
+            sent += 1;
             self.stats.radio_requests += 1;
             self.to_radio
-                .push_back(request(*ground, items.len() as u16));
+                .push_back(request(*router, seq, *mission_type));
+        }
+    }
+
+    fn check_complete(&mut self, now: Instant) {
+        let Radio::Receiving {
+            router,
+            id,
+            mission_type,
+            slots,
+            horizon,
+            requested,
+            ..
+        } = &mut self.radio
+        else {
+            return;
+        };
+        if slots.iter().any(Option::is_none) {
             return;
         }
-        let (ground, count) = (*ground, *count);
-        let items = std::mem::take(items);
+        let items: Vec<_> = slots.iter().flatten().cloned().collect();
+        if *id != 0 && plan_hash(*mission_type, &items) & 0x00FF_FFFF != plan_part(*id) {
+            warn!(
+                id = *id,
+                "assembled plan does not match the transfer id, asking again"
+            );
+            self.stats.plan_mismatches += 1;
+            slots.iter_mut().for_each(|s| *s = None);
+            *horizon = 0;
+            requested.clear();
+            self.repair(now, true);
+            return;
+        }
+        let (router, id, mission_type) = (*router, *id, *mission_type);
+        let count = items.len() as u16;
         info!(
             count,
             "mission received over the radio, uploading to the flight controller"
         );
-        self.radio = Radio::Forwarding { ground, count };
-        self.to_fc
-            .push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                count,
-                target_system: 0,
-                target_component: 0,
-                ..Default::default()
-            }));
+        self.radio = Radio::Forwarding {
+            router,
+            id,
+            mission_type,
+            count,
+        };
+        self.to_fc.push_back(count_msg(count, mission_type));
         self.wire = Wire::Sending {
+            mission_type,
             items,
             last: None,
             at: now,
             attempts: 1,
         };
+    }
+
+    /// The router's cancel (the ground cancelled): returns whether it was for us.
+    fn radio_cancel(&mut self, a: &MISSION_ACK_DATA) -> bool {
+        let current = match &self.radio {
+            Radio::Receiving { id, .. } | Radio::Forwarding { id, .. } | Radio::Done { id, .. } => {
+                *id
+            }
+            Radio::Idle => return a.opaque_id != 0,
+        };
+        if a.opaque_id == 0 {
+            return false;
+        }
+        if a.opaque_id == current
+            && a.mavtype != MavMissionResult::MAV_MISSION_ACCEPTED
+            && !matches!(self.radio, Radio::Done { .. })
+        {
+            info!(id = current, "the ground cancelled the mission transfer");
+            self.stats.cancelled += 1;
+            self.abort_wire();
+            self.radio = Radio::Idle;
+        }
+        true
+    }
+
+    /// Stops a wire upload in progress, telling the autopilot (the protocol's cancel).
+    fn abort_wire(&mut self) {
+        if let Wire::Sending { mission_type, .. } = &self.wire {
+            let cancel = MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+                mavtype: MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
+                mission_type: *mission_type,
+                ..Default::default()
+            });
+            self.to_fc.push_back(cancel);
+        }
+        self.wire = Wire::Idle;
+    }
+
+    /// The flight controller rebooted: an upload to it starts again from `MISSION_COUNT`
+    /// (what it had received is gone).
+    pub fn fc_rebooted(&mut self, now: Instant) {
+        if let Wire::Sending {
+            mission_type,
+            items,
+            last,
+            at,
+            attempts,
+        } = &mut self.wire
+        {
+            info!("flight controller rebooted mid-upload, starting the upload again");
+            self.stats.wire_restarts += 1;
+            *last = None;
+            *at = now;
+            *attempts = 1;
+            let count = count_msg(items.len() as u16, *mission_type);
+            self.to_fc.push_back(count);
+        }
     }
 
     /// A mission message the flight controller addressed to the bridge. Returns whether the
@@ -267,6 +470,7 @@ impl MissionRelay {
     #[allow(deprecated)]
     pub fn handle_fc(&mut self, now: Instant, msg: &MavMessage) -> bool {
         let Wire::Sending {
+            mission_type,
             items,
             last,
             at,
@@ -276,9 +480,9 @@ impl MissionRelay {
             return false;
         };
         let seq = match msg {
-            MavMessage::MISSION_REQUEST_INT(r) => r.seq,
-            MavMessage::MISSION_REQUEST(r) => r.seq,
-            MavMessage::MISSION_ACK(a) => {
+            MavMessage::MISSION_REQUEST_INT(r) if r.mission_type == *mission_type => r.seq,
+            MavMessage::MISSION_REQUEST(r) if r.mission_type == *mission_type => r.seq,
+            MavMessage::MISSION_ACK(a) if a.mission_type == *mission_type => {
                 let result = a.mavtype;
                 self.wire = Wire::Idle;
                 self.finish(result);
@@ -302,7 +506,13 @@ impl MissionRelay {
     }
 
     fn finish(&mut self, result: MavMissionResult) {
-        let Radio::Forwarding { ground, count } = self.radio else {
+        let Radio::Forwarding {
+            router,
+            id,
+            mission_type,
+            count,
+        } = self.radio
+        else {
             return;
         };
         if result == MavMissionResult::MAV_MISSION_ACCEPTED {
@@ -312,10 +522,12 @@ impl MissionRelay {
             self.stats.failed += 1;
             warn!(?result, "flight controller refused the mission");
         }
-        self.to_radio.push_back(ack(ground, result));
+        self.to_radio
+            .push_back(ack(router, result, mission_type, id));
         self.radio = Radio::Done {
-            ground,
-            count,
+            router,
+            id,
+            mission_type,
             result,
         };
     }
@@ -323,7 +535,7 @@ impl MissionRelay {
     /// When a timeout is due.
     pub fn poll_timeout(&self) -> Option<Instant> {
         let radio = match &self.radio {
-            Radio::Receiving { sent_at, .. } => Some(*sent_at + self.rtt.rto()),
+            Radio::Receiving { heard, .. } => Some(*heard + self.rtt.rto()),
             _ => None,
         };
         let wire = match &self.wire {
@@ -336,33 +548,37 @@ impl MissionRelay {
     /// Retries or gives up whatever timed out at `now`.
     pub fn handle_timeout(&mut self, now: Instant) {
         if let Radio::Receiving {
-            ground,
-            items,
-            sent_at,
-            attempts,
+            router,
+            id,
+            mission_type,
+            heard,
+            rounds,
             ..
         } = &mut self.radio
-            && now >= *sent_at + self.rtt.rto()
+            && now >= *heard + self.rtt.rto()
         {
-            let ground = *ground;
-            if *attempts >= self.config.radio_attempts {
-                warn!(seq = items.len(), "mission upload over the radio abandoned");
+            if *rounds >= self.config.radio_attempts {
+                warn!(id = *id, "mission transfer over the radio abandoned");
                 self.stats.failed += 1;
-                self.to_radio.push_back(ack(
-                    ground,
+                let give_up = ack(
+                    *router,
                     MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
-                ));
+                    *mission_type,
+                    *id,
+                );
+                self.to_radio.push_back(give_up);
                 self.radio = Radio::Idle;
             } else {
-                *attempts += 1;
-                *sent_at = now;
+                *rounds += 1;
+                *heard = now;
+                debug!(rto = ?self.rtt.rto(), "no item for one timeout, repairing");
+                // Repair first: the requests it repeats are one (un-backed-off) timeout old.
+                self.repair(now, true);
                 self.rtt.backoff();
-                self.stats.radio_retries += 1;
-                debug!(seq = items.len(), rto = ?self.rtt.rto(), "item request timed out, again");
-                self.to_radio.push_back(request(ground, items.len() as u16));
             }
         }
         if let Wire::Sending {
+            mission_type,
             items,
             last,
             at,
@@ -377,22 +593,14 @@ impl MissionRelay {
             }
             *attempts += 1;
             *at = now;
-            match last {
-                None => self
-                    .to_fc
-                    .push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                        count: items.len() as u16,
-                        target_system: 0,
-                        target_component: 0,
-                        ..Default::default()
-                    })),
-                Some(seq) => {
-                    if let Some(item) = items.get(usize::from(*seq)) {
-                        self.to_fc
-                            .push_back(MavMessage::MISSION_ITEM_INT(item.clone()));
-                    }
-                }
-            }
+            let again = match last {
+                None => Some(count_msg(items.len() as u16, *mission_type)),
+                Some(seq) => items
+                    .get(usize::from(*seq))
+                    .cloned()
+                    .map(MavMessage::MISSION_ITEM_INT),
+            };
+            self.to_fc.extend(again);
         }
     }
 
@@ -408,184 +616,50 @@ impl MissionRelay {
         match &mut msg {
             MavMessage::MISSION_COUNT(m) => (m.target_system, m.target_component) = fc,
             MavMessage::MISSION_ITEM_INT(m) => (m.target_system, m.target_component) = fc,
+            MavMessage::MISSION_ACK(m) => (m.target_system, m.target_component) = fc,
             _ => {}
         }
         Some(msg)
     }
 }
 
-fn request(ground: (u8, u8), seq: u16) -> MavMessage {
-    MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
-        seq,
-        target_system: ground.0,
-        target_component: ground.1,
+fn count_msg(count: u16, mission_type: MavMissionType) -> MavMessage {
+    MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+        count,
+        mission_type,
         ..Default::default()
     })
 }
 
-fn ack(ground: (u8, u8), result: MavMissionResult) -> MavMessage {
+// `..Default::default()` although every field is set today: the dialect may grow.
+#[allow(clippy::needless_update)]
+pub(super) fn request(to: (u8, u8), seq: u16, mission_type: MavMissionType) -> MavMessage {
+    MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
+        seq,
+        target_system: to.0,
+        target_component: to.1,
+        mission_type,
+        ..Default::default()
+    })
+}
+
+#[allow(clippy::needless_update)]
+pub(super) fn ack(
+    to: (u8, u8),
+    result: MavMissionResult,
+    mission_type: MavMissionType,
+    opaque_id: u32,
+) -> MavMessage {
     MavMessage::MISSION_ACK(MISSION_ACK_DATA {
-        target_system: ground.0,
-        target_component: ground.1,
+        target_system: to.0,
+        target_component: to.1,
         mavtype: result,
+        mission_type,
+        opaque_id,
         ..Default::default()
     })
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::dialect::{MISSION_ACK_DATA, MavMissionResult};
-
-    const GROUND: (u8, u8) = (255, 190);
-
-    fn ms(n: u64) -> Instant {
-        Instant::from_millis(n)
-    }
-
-    fn count(n: u16) -> MavMessage {
-        MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-            count: n,
-            target_system: 1,
-            target_component: 1,
-            ..Default::default()
-        })
-    }
-
-    fn item(seq: u16) -> MavMessage {
-        MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
-            seq,
-            x: i32::from(seq),
-            ..Default::default()
-        })
-    }
-
-    fn radio_out(r: &mut MissionRelay) -> Vec<MavMessage> {
-        std::iter::from_fn(|| r.poll_radio()).collect()
-    }
-
-    fn requested(msgs: &[MavMessage]) -> Vec<u16> {
-        msgs.iter()
-            .filter_map(|m| match m {
-                MavMessage::MISSION_REQUEST_INT(r) => Some(r.seq),
-                _ => None,
-            })
-            .collect()
-    }
-
-    #[test]
-    fn timeout_follows_the_measured_round_trip() {
-        let mut r = MissionRelay::new(MissionConfig::default());
-        assert!(r.handle_radio(ms(0), GROUND, &count(20)));
-        let mut t = 0;
-        for seq in 0..20 {
-            assert_eq!(requested(&radio_out(&mut r)), vec![seq]);
-            t += 400;
-            r.handle_radio(ms(t), GROUND, &item(seq));
-        }
-        let rto = r.rtt().rto();
-        assert!(
-            rto >= Duration::from_millis(400) && rto < Duration::from_millis(700),
-            "{rto:?}"
-        );
-        assert_eq!(r.stats().radio_retries, 0);
-    }
-
-    #[test]
-    fn lost_request_is_retried_after_the_timeout_only() {
-        let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(ms(0), GROUND, &count(2));
-        assert_eq!(requested(&radio_out(&mut r)), vec![0]);
-        let due = r.poll_timeout().unwrap();
-        assert_eq!(due, ms(1500), "initial RTO");
-        r.handle_timeout(ms(1499));
-        assert!(radio_out(&mut r).is_empty());
-        r.handle_timeout(due);
-        assert_eq!(requested(&radio_out(&mut r)), vec![0]);
-        assert_eq!(r.stats().radio_retries, 1);
-    }
-
-    #[test]
-    fn repeated_item_from_the_ground_gets_the_next_request_at_once() {
-        let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(ms(0), GROUND, &count(3));
-        radio_out(&mut r);
-        r.handle_radio(ms(300), GROUND, &item(0));
-        assert_eq!(requested(&radio_out(&mut r)), vec![1]);
-        // our request for 1 was lost; the ground repeats item 0
-        r.handle_radio(ms(1800), GROUND, &item(0));
-        assert_eq!(requested(&radio_out(&mut r)), vec![1]);
-        assert_eq!(r.stats().radio_duplicate_items, 1);
-    }
-
-    #[test]
-    fn full_upload_reaches_the_fc_and_its_ack_the_ground_and_a_lost_ack_is_resent() {
-        let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(ms(0), GROUND, &count(2));
-        r.handle_radio(ms(100), GROUND, &item(0));
-        r.handle_radio(ms(200), GROUND, &item(1));
-        radio_out(&mut r);
-        let fc: Vec<_> = std::iter::from_fn(|| r.poll_fc((1, 1))).collect();
-        assert!(
-            matches!(&fc[..], [MavMessage::MISSION_COUNT(c)] if c.count == 2 && c.target_system == 1)
-        );
-        for seq in [0, 0, 1] {
-            // the FC's 250 ms repeat of request 0 is answered too: harmless on the wire
-            let req = MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
-                seq,
-                target_system: 1,
-                target_component: 191,
-                ..Default::default()
-            });
-            assert!(r.handle_fc(ms(300), &req));
-        }
-        let items: Vec<_> = std::iter::from_fn(|| r.poll_fc((1, 1))).collect();
-        assert_eq!(items.len(), 3);
-        let ack = MavMessage::MISSION_ACK(MISSION_ACK_DATA {
-            target_system: 1,
-            target_component: 191,
-            mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
-            ..Default::default()
-        });
-        assert!(r.handle_fc(ms(400), &ack));
-        let to_ground = radio_out(&mut r);
-        assert!(matches!(&to_ground[..], [MavMessage::MISSION_ACK(a)]
-            if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED && a.target_system == 255));
-        // the ack was lost: the ground repeats its last item, the ack goes again
-        r.handle_radio(ms(2000), GROUND, &item(1));
-        assert!(matches!(
-            &radio_out(&mut r)[..],
-            [MavMessage::MISSION_ACK(_)]
-        ));
-        assert_eq!(r.stats().completed, 1);
-    }
-
-    #[test]
-    fn silent_fc_and_silent_ground_end_in_an_error_ack() {
-        let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(ms(0), GROUND, &count(0));
-        let mut now = ms(0);
-        while let Some(t) = r.poll_timeout() {
-            now = t;
-            r.handle_timeout(now);
-        }
-        let counts = std::iter::from_fn(|| r.poll_fc((1, 1))).count();
-        assert_eq!(counts, 6, "COUNT sent wire_attempts times");
-        assert!(
-            matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
-            if a.mavtype == MavMissionResult::MAV_MISSION_ERROR)
-        );
-        assert_eq!(now, ms(6 * 1500));
-
-        let mut r = MissionRelay::new(MissionConfig::default());
-        r.handle_radio(ms(0), GROUND, &count(5));
-        while let Some(t) = r.poll_timeout() {
-            r.handle_timeout(t);
-        }
-        let out = radio_out(&mut r);
-        assert_eq!(requested(&out).len(), 10, "radio_attempts requests");
-        assert!(matches!(out.last(), Some(MavMessage::MISSION_ACK(a))
-            if a.mavtype == MavMissionResult::MAV_MISSION_OPERATION_CANCELLED));
-        assert_eq!(r.stats().failed, 1);
-    }
-}
+#[path = "relay_tests.rs"]
+mod tests;

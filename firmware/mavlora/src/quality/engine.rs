@@ -1,21 +1,47 @@
-//! The link-quality engine: reports what this side hears (`LINK_QUALITY`, periodically) and keeps what
-//! the other side reports hearing. The paper's reason: a drone's own RF noise can blind its
+//! The link-quality engine: reports what this side hears (`LINK_QUALITY`) and keeps what the
+//! other side reports hearing. The paper's reason: a drone's own RF noise can blind its
 //! receiver while the ground still hears the drone, so the ground must be told.
+//!
+//! Reports are event-driven (issue 12): one goes out early when our loss estimate moved by
+//! [`LinkQualityConfig::change`] since the last one, or when the peer went quiet; otherwise
+//! one per [`LinkQualityConfig::period`] (the steady cost). The side that sends the reports
+//! also counts its own radio frames ([`LinkQuality::sent_frame`]), so a report that says "I
+//! received nothing" while we sent is read as a deaf peer at once.
 
-use crate::time::Duration;
+use std::collections::VecDeque;
 
 use tracing::debug;
 
 use super::rssi::RssiScale;
-use crate::dialect::{LINK_QUALITY_DATA, MavMessage};
-use crate::time::Instant;
+use super::window::LossWindow;
+use crate::dialect::{LINK_QUALITY_DATA, MavMessage, RADIO_STATUS_DATA};
+use crate::time::{Duration, Instant};
 use crate::wire::{Frame, ReaderStats, ids};
+
+/// A `LINK_QUALITY` frame on the radio: MAVLink 2, 12-byte payload, unsigned / signed.
+pub const REPORT_BYTES: u32 = 24;
+/// The same, signed (13-byte trailer).
+pub const REPORT_BYTES_SIGNED: u32 = 37;
+/// Share of a side's radio budget its steady reports may use: 3 B/s of LoRa SF7's 683 B/s
+/// (issue 12's limit, ≈ 0.44 %), rounded down.
+pub const MONITOR_SHARE: f64 = 0.004;
 
 /// Settings of a [`LinkQuality`] engine.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LinkQualityConfig {
-    /// Time between our reports. Each costs a 24-byte MAVLink 2 frame on the radio.
+    /// Longest time between our reports (the keep-alive): the steady cost is one report
+    /// frame per period.
     pub period: Duration,
+    /// Shortest time between our reports: event-driven reports never come faster.
+    pub min_interval: Duration,
+    /// Our loss estimate moving by at least this much (0..=1) since our last report sends
+    /// the next one early.
+    pub change: f64,
+    /// Span of the loss estimates (ours and the peer's).
+    pub window: Duration,
+    /// Nothing heard from the peer for this long: it has gone quiet and one report goes
+    /// out early (once per quiet spell).
+    pub quiet_after: Duration,
     /// A peer report older than this counts as missing.
     pub peer_timeout: Duration,
     /// How to read `RADIO_STATUS` from the local radio; `None` ignores it.
@@ -23,12 +49,32 @@ pub struct LinkQualityConfig {
 }
 
 impl Default for LinkQualityConfig {
-    /// A report every 5 s (~5 B/s: a 1 s period would spend a third of a 68 B/s LoRa duty
-    /// cycle budget on it), peer missing after three silent periods, SiK radio.
+    /// For a LoRa SF7 channel's 683 B/s, unsigned: see [`LinkQualityConfig::for_budget`].
     fn default() -> Self {
+        Self::for_budget(683, false)
+    }
+}
+
+impl LinkQualityConfig {
+    /// Settings for a side that may send `rate` bytes/s on the radio: the keep-alive period
+    /// spends [`MONITOR_SHARE`] of it (0.5 s … 30 s), so a slow LoRa channel gets a report
+    /// every ~9 s (13.5 s signed) and a 64 kbit/s SiK link one or two a second; the peer is
+    /// quiet after 1.5 periods without a frame and missing after 2.5 periods plus 5 s.
+    pub fn for_budget(rate_bytes_per_s: u32, signed: bool) -> Self {
+        let bytes = if signed {
+            REPORT_BYTES_SIGNED
+        } else {
+            REPORT_BYTES
+        };
+        let secs = f64::from(bytes) / (MONITOR_SHARE * f64::from(rate_bytes_per_s.max(1)));
+        let period = Duration::from_secs_f64(secs.clamp(0.5, 30.0));
         Self {
-            period: Duration::from_secs(5),
-            peer_timeout: Duration::from_secs(15),
+            period,
+            min_interval: Duration::from_millis(500),
+            change: 0.1,
+            window: Duration::from_secs(4).max(period * 2),
+            quiet_after: (period * 3) / 2 + Duration::from_millis(500),
+            peer_timeout: (period * 5) / 2 + Duration::from_secs(5),
             radio_status: Some(RssiScale::Sik),
         }
     }
@@ -45,6 +91,10 @@ pub struct PeerReport {
     /// the differences of its wrapping counters; `None` for its first report or when no
     /// frames were counted in between.
     pub loss_ratio: Option<f64>,
+    /// Frames we sent (counted with [`LinkQuality::sent_frame`]) between the arrival of the
+    /// last report that counted new frames and one second before this one's, while the peer
+    /// received none since: a deaf peer when at least two.
+    pub unheard: u32,
 }
 
 /// What we know about how the peer hears us.
@@ -65,19 +115,48 @@ pub enum PeerState {
     },
 }
 
+/// A frame sent this long before a report arrived may still have been in flight when the
+/// peer made it: not counted against the report.
+const IN_FLIGHT: Duration = Duration::from_secs(1);
+
+/// How often the early conditions (loss moved, peer quiet) are looked at.
+pub const TICK: Duration = Duration::from_millis(200);
+
 /// Sans-IO link-quality engine for one radio link.
 ///
-/// Feed it every frame read from the radio ([`handle_frame`](Self::handle_frame)); at
-/// [`poll_timeout`](Self::poll_timeout) call [`handle_timeout`](Self::handle_timeout) with the
-/// radio reader's counters, then send what [`poll_report`](Self::poll_report) returns.
+/// Feed it every frame read from the radio ([`handle_frame`](Self::handle_frame)) and the
+/// radio reader's counters after each read ([`observe`](Self::observe)); count what leaves
+/// on the radio ([`sent_frame`](Self::sent_frame)); at [`poll_timeout`](Self::poll_timeout)
+/// call [`handle_timeout`](Self::handle_timeout), then send what
+/// [`poll_report`](Self::poll_report) returns.
 #[derive(Debug)]
 pub struct LinkQuality {
     config: LinkQualityConfig,
     started: Instant,
-    next_report: Instant,
+    last_report: Option<Instant>,
+    /// Our loss estimate at our last report.
+    reported_loss: f64,
     rssi: Option<i8>,
     remote_rssi: Option<i8>,
+    local_radio: Option<RADIO_STATUS_DATA>,
     peer: Option<PeerReport>,
+    /// The peer's counters, unwrapped, over the window.
+    peer_window: LossWindow,
+    peer_totals: (u64, u64),
+    /// Our reader's counters over the window.
+    own_window: LossWindow,
+    /// Latest reader counters seen.
+    stats: ReaderStats,
+    /// When we last heard a frame from the peer.
+    heard: Option<Instant>,
+    /// A quiet spell was reported already.
+    quiet_reported: bool,
+    /// When our radio frames left, recent ones.
+    sent: VecDeque<Instant>,
+    /// When the last peer report that counted new frames of ours arrived.
+    progress_at: Option<Instant>,
+    /// When the early conditions were last looked at.
+    checked_at: Option<Instant>,
     /// Our report, made at its time and waiting for [`poll_report`](Self::poll_report).
     due: Option<LINK_QUALITY_DATA>,
 }
@@ -88,12 +167,28 @@ impl LinkQuality {
         Self {
             config,
             started: now,
-            next_report: now + config.period,
+            last_report: None,
+            reported_loss: 0.0,
             rssi: None,
             remote_rssi: None,
+            local_radio: None,
             peer: None,
+            peer_window: LossWindow::new(config.window),
+            peer_totals: (0, 0),
+            own_window: LossWindow::new(config.window),
+            stats: ReaderStats::default(),
+            heard: None,
+            quiet_reported: false,
+            sent: VecDeque::new(),
+            progress_at: None,
+            checked_at: None,
             due: None,
         }
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &LinkQualityConfig {
+        &self.config
     }
 
     /// Sets signal strengths from a source other than `RADIO_STATUS` (e.g. a LoRa modem's
@@ -108,10 +203,12 @@ impl LinkQuality {
     pub fn handle_frame<T: AsRef<[u8]>>(&mut self, now: Instant, frame: &Frame<T>) {
         match frame.message_id() {
             ids::LINK_QUALITY => {
+                self.heard(now);
                 if let Ok(MavMessage::LINK_QUALITY(report)) = frame.decode::<MavMessage>() {
                     self.peer_report(report, now);
                 }
             }
+            // Injected by the local radio: not the peer.
             ids::RADIO_STATUS => {
                 let Some(scale) = self.config.radio_status else {
                     return;
@@ -119,21 +216,75 @@ impl LinkQuality {
                 if let Ok(MavMessage::RADIO_STATUS(status)) = frame.decode::<MavMessage>() {
                     self.rssi = scale.to_dbm(status.rssi);
                     self.remote_rssi = scale.to_dbm(status.remrssi);
+                    self.local_radio = Some(status);
                 }
             }
-            _ => {}
+            _ => self.heard(now),
+        }
+    }
+
+    fn heard(&mut self, now: Instant) {
+        self.heard = Some(now);
+        self.quiet_reported = false;
+    }
+
+    /// The radio reader's counters at `now` (call after each read): our loss estimate, and
+    /// an early report when it moved.
+    pub fn observe(&mut self, now: Instant, stats: &ReaderStats) {
+        self.own_window.push(now, stats.frames(), stats.lost);
+        self.stats = stats.clone();
+    }
+
+    /// One of our frames left on the radio at `now`.
+    pub fn sent_frame(&mut self, now: Instant) {
+        self.sent.push_back(now);
+        let keep = self.config.peer_timeout + IN_FLIGHT;
+        while self
+            .sent
+            .front()
+            .is_some_and(|t| now.saturating_duration_since(*t) > keep)
+        {
+            self.sent.pop_front();
         }
     }
 
     fn peer_report(&mut self, report: LINK_QUALITY_DATA, now: Instant) {
-        let loss_ratio = self.peer.as_ref().and_then(|prev| {
-            let lost = report.rx_lost.wrapping_sub(prev.report.rx_lost);
-            let received = report.rx_packets.wrapping_sub(prev.report.rx_packets);
+        let prev = self.peer.as_ref();
+        let deltas = prev.map(|p| {
+            (
+                report.rx_packets.wrapping_sub(p.report.rx_packets),
+                report.rx_lost.wrapping_sub(p.report.rx_lost),
+            )
+        });
+        let loss_ratio = deltas.and_then(|(received, lost)| {
             let total = u32::from(lost) + u32::from(received);
             (total > 0).then(|| f64::from(lost) / f64::from(total))
         });
+        // Ours sent since the last report that counted progress, old enough to have
+        // arrived: reports of "nothing new" add up (each alone may span less than the
+        // in-flight allowance).
+        let unheard = match deltas {
+            Some((0, _)) => {
+                let from = self.progress_at.unwrap_or(now);
+                self.sent
+                    .iter()
+                    .filter(|t| **t >= from && **t + IN_FLIGHT <= now)
+                    .count() as u32
+            }
+            _ => {
+                self.progress_at = Some(now);
+                0
+            }
+        };
+        if let Some((received, lost)) = deltas {
+            self.peer_totals.0 += u64::from(received);
+            self.peer_totals.1 += u64::from(lost);
+        }
+        self.peer_window
+            .push(now, self.peer_totals.0, self.peer_totals.1);
         debug!(
             ?loss_ratio,
+            unheard,
             rx = report.rx_packets,
             "peer link-quality report"
         );
@@ -141,28 +292,100 @@ impl LinkQuality {
             report,
             received_at: now,
             loss_ratio,
+            unheard,
         });
     }
 
-    /// When the next report is due (always `Some`: reports never stop).
-    pub fn poll_timeout(&self) -> Option<Instant> {
-        Some(self.next_report)
+    /// Our loss estimate over the window, as of `now`.
+    pub fn own_loss(&self, now: Instant) -> Option<f64> {
+        self.own_window.estimate(now)
     }
 
-    /// Makes our report if one is due at `now`, from the radio reader's counters (cumulative,
-    /// truncated to 16 bits as the message defines); [`poll_report`](Self::poll_report)
-    /// hands it out.
-    pub fn handle_timeout(&mut self, now: Instant, stats: &ReaderStats) {
-        if now < self.next_report {
-            return;
+    /// The peer's loss estimate (of our frames) over the window, as of `now`: 1 when its
+    /// latest report says it received none of at least two frames we sent.
+    pub fn peer_loss(&self, now: Instant) -> Option<f64> {
+        let p = self.peer.as_ref()?;
+        if p.unheard >= 2 {
+            return Some(1.0);
         }
-        // Keep the cadence, but do not fire a burst of reports after a stall.
-        let next = self.next_report + self.config.period;
-        self.next_report = if next <= now {
-            now + self.config.period
+        self.peer_window.estimate(now)
+    }
+
+    /// When we last heard the peer.
+    pub fn last_heard(&self) -> Option<Instant> {
+        self.heard
+    }
+
+    /// Whether nothing was heard from the peer for [`LinkQualityConfig::quiet_after`].
+    pub fn peer_quiet(&self, now: Instant) -> bool {
+        let since = self.heard.unwrap_or(self.started);
+        now.saturating_duration_since(since) >= self.config.quiet_after
+    }
+
+    /// The local radio's latest `RADIO_STATUS`, if it sends one.
+    pub fn local_radio(&self) -> Option<&RADIO_STATUS_DATA> {
+        self.local_radio.as_ref()
+    }
+
+    /// Our RSSI and the remote RSSI our radio reports, dBm.
+    pub fn rssi(&self) -> (Option<i8>, Option<i8>) {
+        (self.rssi, self.remote_rssi)
+    }
+
+    /// The counters of the radio reader as last observed.
+    pub fn reader_stats(&self) -> &ReaderStats {
+        &self.stats
+    }
+
+    fn keepalive_at(&self) -> Instant {
+        self.last_report.unwrap_or(self.started) + self.config.period
+    }
+
+    fn early_ok_at(&self) -> Instant {
+        self.last_report
+            .map_or(self.started, |t| t + self.config.min_interval)
+    }
+
+    /// Why a report should go early at `now`, if it should.
+    fn early(&self, now: Instant) -> Option<&'static str> {
+        let quiet = self.heard.unwrap_or(self.started) + self.config.quiet_after;
+        if !self.quiet_reported && self.heard.is_some() && now >= quiet {
+            return Some("peer quiet");
+        }
+        let loss = self.own_loss(now).unwrap_or(0.0);
+        ((loss - self.reported_loss).abs() >= self.config.change).then_some("loss changed")
+    }
+
+    /// When the engine next wants [`handle_timeout`](Self::handle_timeout): the keep-alive,
+    /// or the next look at the early conditions ([`TICK`] after the last, not before the
+    /// shortest interval allows a report).
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        let look = self.checked_at.map_or(self.started, |t| t + TICK);
+        Some(self.keepalive_at().min(look.max(self.early_ok_at())))
+    }
+
+    /// Makes our report if one is due at `now` (the keep-alive, or early: our loss estimate
+    /// moved, the peer went quiet), from the radio reader's counters (cumulative, truncated
+    /// to 16 bits as the message defines); [`poll_report`](Self::poll_report) hands it out.
+    pub fn handle_timeout(&mut self, now: Instant, stats: &ReaderStats) {
+        self.observe(now, stats);
+        self.checked_at = Some(now);
+        let why = if now >= self.keepalive_at() {
+            Some("period")
+        } else if now >= self.early_ok_at() {
+            self.early(now)
         } else {
-            next
+            None
         };
+        let Some(why) = why else {
+            return;
+        };
+        if self.peer_quiet(now) && self.heard.is_some() {
+            self.quiet_reported = true;
+        }
+        self.last_report = Some(now);
+        self.reported_loss = self.own_loss(now).unwrap_or(0.0);
+        debug!(why, loss = self.reported_loss, "link-quality report");
         let unknown = |v: Option<i8>| v.unwrap_or(i8::MAX);
         self.due = Some(LINK_QUALITY_DATA {
             time_boot_ms: now.saturating_duration_since(self.started).as_millis() as u32,

@@ -23,6 +23,18 @@ impl RssiScale {
     }
 }
 
+impl RssiScale {
+    /// The raw value for `dbm` (`None`: 255, unknown), for a `RADIO_STATUS` we make.
+    pub fn from_dbm(self, dbm: Option<i8>) -> u8 {
+        let Some(dbm) = dbm else {
+            return u8::MAX;
+        };
+        match self {
+            Self::Sik => ((f64::from(dbm) + 127.0) * 1.9).round().clamp(0.0, 254.0) as u8,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -33,5 +45,8 @@ mod tests {
         assert_eq!(RssiScale::Sik.to_dbm(95), Some(-77)); // 95 / 1.9 = 50
         assert_eq!(RssiScale::Sik.to_dbm(254), Some(7));
         assert_eq!(RssiScale::Sik.to_dbm(255), None);
+        assert_eq!(RssiScale::Sik.from_dbm(Some(-77)), 95);
+        assert_eq!(RssiScale::Sik.from_dbm(Some(100)), 254);
+        assert_eq!(RssiScale::Sik.from_dbm(None), 255);
     }
 }

@@ -7,16 +7,19 @@ use std::net::{IpAddr, Ipv4Addr};
 use mavlink::{MavHeader, MavlinkVersion};
 
 use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
+use crate::command::ack_tag::untag_ack;
 use crate::command::{Admission, CommandRetransmitter, RetransmitStats};
 use crate::compact::Expander;
 use crate::dialect::MavMessage;
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
-use crate::mission::DuplicateSuppressor;
-use crate::quality::{LinkQuality, LinkQualityConfig};
+use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
+use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, encode, ids, known};
+use crate::wire::{
+    FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, encode, ids, known, to_v1,
+};
 
 /// Router settings.
 #[derive(Debug, Clone)]
@@ -25,6 +28,8 @@ pub struct RouterConfig {
     pub scheduler: SchedulerConfig,
     /// Link-quality reports.
     pub quality: LinkQualityConfig,
+    /// What the ground station is told about the link (`RADIO_STATUS`, `STATUSTEXT`).
+    pub monitor: MonitorConfig,
     /// Our system id (reports we originate).
     pub system_id: u8,
     /// Our component id.
@@ -34,14 +39,17 @@ pub struct RouterConfig {
     /// At most one ground heartbeat per sender per this period goes over the radio; the
     /// bridge regenerates them at 1 Hz for the flight controller.
     pub gcs_heartbeat_period: Duration,
-    /// Initial radio round trip for the mission duplicate suppressor.
-    pub initial_rtt: Duration,
+    /// Mission uploads: the ground's transfer ends here (keep-alive, radio polls).
+    pub mission: TerminatorConfig,
     /// First timeout before a command is resent over the radio; later ones follow the
     /// measured command round trip.
     pub command_initial_rto: Duration,
     /// Sends of one command over the radio, the first included; 1 turns retransmission off.
     /// The default, 8, outlasts a ground station's 5 tries 1.5 s apart.
     pub command_attempts: u32,
+    /// A second copy of each command this long after its first, before any timeout (see
+    /// [`CommandRetransmitter::with_early_copy`]); `None`: only timeouts resend.
+    pub command_early_copy: Option<Duration>,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
     /// Who on the ground may reach the vehicle (addresses, system ids, command budget).
@@ -57,14 +65,16 @@ impl RouterConfig {
     pub fn new(scheduler: SchedulerConfig) -> Self {
         Self {
             scheduler,
-            quality: LinkQualityConfig::default(),
+            quality: LinkQualityConfig::for_budget(scheduler.rate_bytes_per_s, false),
+            monitor: MonitorConfig::default(),
             system_id: 255,
             component_id: 191,
             autopilot_component: 1,
             gcs_heartbeat_period: Duration::from_secs(5),
-            initial_rtt: Duration::from_millis(1500),
+            mission: TerminatorConfig::default(),
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,
+            command_early_copy: Some(Duration::from_millis(120)),
             signing: None,
             ground: GroundPolicy::default(),
             ground_signing: None,
@@ -91,12 +101,21 @@ pub struct RouterStats {
     pub to_gcs_frames: u64,
     /// Bytes sent to the ground station.
     pub to_gcs_bytes: u64,
-    /// Ground mission retransmissions dropped within one radio round trip.
-    pub mission_duplicates: u64,
+    /// Radio frames a MAVLink 1 ground station could not be given (ids above 255).
+    pub to_gcs_not_v1: u64,
+    /// Mission uploads terminated here: started, accepted, failed, repairs, keep-alives.
+    pub mission: TerminatorStats,
     /// The command relay's resends and dropped ground retries.
     pub commands: RetransmitStats,
     /// `LINK_QUALITY` reports sent to the radio.
     pub link_quality_sent: u64,
+    /// `STATUSTEXT` link announcements sent to the ground.
+    pub link_notices: u64,
+    /// `RADIO_STATUS` sent to the ground.
+    pub radio_status_sent: u64,
+    /// `LINK_QUALITY` frames from the ground, dropped: only the router speaks for the
+    /// ground end of the link.
+    pub ground_link_quality_dropped: u64,
     /// Radio link signing (all zero when signing is off).
     pub signing: SigningStats,
     /// What the ground-side gate rejected.
@@ -112,18 +131,23 @@ pub struct Router {
     radio_reader: FrameReader,
     gcs_reader: FrameReader,
     quality: LinkQuality,
+    monitor: LinkMonitor,
+    /// The vehicle's system id, from its link-quality reports (or its first frame).
+    vehicle: Option<u8>,
     scheduler: LinkScheduler,
     heartbeat_filter: RadioFilter,
     expander: Expander,
-    dedup: DuplicateSuppressor,
+    mission: MissionTerminator,
     commands: CommandRetransmitter,
     sender: Sender,
     /// Streams towards the ground station that we renumber, by (system, component).
     resequenced: HashMap<(u8, u8), u8>,
     to_gcs: VecDeque<OwnedFrame>,
-    /// Renumbers what leaves on the radio (thinned heartbeats must not read as loss).
     /// Renumbers and signs what leaves on the radio, verifies what arrives.
     radio_leg: RadioLeg,
+    /// The version the ground station speaks (its last accepted frame's); MAVLink 2 until
+    /// it said otherwise.
+    ground_version: MavlinkVersion,
     /// Verifies what the ground sends and signs what it gets, with the ground key.
     ground_signer: Option<LinkSigner>,
     /// When each (source, reason) rejection was last reported.
@@ -144,32 +168,53 @@ impl Router {
             radio_reader: FrameReader::new(),
             gcs_reader: FrameReader::new(),
             quality: LinkQuality::new(config.quality, now),
+            monitor: LinkMonitor::new(config.monitor),
+            vehicle: None,
             scheduler: LinkScheduler::new(config.scheduler, now)?,
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
-            dedup: DuplicateSuppressor::new(
-                config.initial_rtt,
-                Duration::from_millis(300),
-                Duration::from_secs(8),
-            ),
+            mission: MissionTerminator::new(TerminatorConfig {
+                pace_bytes_per_s: config
+                    .mission
+                    .pace_bytes_per_s
+                    .or(Some(config.scheduler.rate_bytes_per_s)),
+                ..config.mission
+            }),
             // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
             // congestion, so doubling the timeout past it only adds latency.
-            commands: CommandRetransmitter::new(
-                config.command_initial_rto,
-                Duration::from_millis(200),
-                Duration::from_millis(1500),
-                config.command_attempts,
-            )
-            .with_source_limit(config.ground.commands_in_flight),
+            commands: {
+                let c = CommandRetransmitter::new(
+                    config.command_initial_rto,
+                    Duration::from_millis(200),
+                    Duration::from_millis(1500),
+                    config.command_attempts,
+                )
+                .with_source_limit(config.ground.commands_in_flight);
+                match config.command_early_copy {
+                    Some(d) => c.with_early_copy(d),
+                    None => c,
+                }
+            },
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
             radio_leg: RadioLeg::new(config.signing.as_ref()),
+            ground_version: MavlinkVersion::V2,
             reported: HashMap::new(),
             ground_signer: config.ground_signing.as_ref().map(SigningConfig::signer),
             stats: RouterStats::default(),
             config,
         })
+    }
+
+    /// Whether radio frames are signed.
+    pub fn radio_signed(&self) -> bool {
+        self.radio_leg.signed()
+    }
+
+    /// The radio signer's state to store at `now` (`None`: signing off).
+    pub fn signing_state(&self, now: Instant) -> Option<crate::signing::SigningState> {
+        self.radio_leg.signing_state(now)
     }
 
     /// Counters as of now.
@@ -179,7 +224,7 @@ impl Router {
             gcs_reader: self.gcs_reader.stats().clone(),
             filter: self.heartbeat_filter.stats(),
             scheduler: self.scheduler.stats(),
-            mission_duplicates: self.dedup.suppressed(),
+            mission: self.mission.stats(),
             commands: self.commands.stats(),
             signing: self.radio_leg.stats(),
             ground_signing: self
@@ -194,6 +239,11 @@ impl Router {
     /// The link-quality engine.
     pub fn quality(&self) -> &LinkQuality {
         &self.quality
+    }
+
+    /// What the ground station is told about the link.
+    pub fn monitor(&self) -> &LinkMonitor {
+        &self.monitor
     }
 
     /// The radio's serial port was closed.
@@ -251,6 +301,12 @@ impl Router {
                 );
                 continue;
             }
+            // the radio carries MAVLink 2 only; a ground station that speaks MAVLink 1 gets
+            // MAVLink 1 back
+            self.ground_version = frame.version();
+            let Some(frame) = self.radio_leg.admit(frame) else {
+                continue;
+            };
             let id = frame.message_id();
             if matches!(id, ids::COMMAND_INT | ids::COMMAND_LONG)
                 && let Ok(msg) = frame.decode::<MavMessage>()
@@ -275,14 +331,27 @@ impl Router {
             if rx.integrity == Integrity::Checked {
                 input.accepted += 1;
             }
+            if id == ids::LINK_QUALITY {
+                self.stats.ground_link_quality_dropped += 1;
+                continue;
+            }
             if id == ids::HEARTBEAT {
                 if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
                     continue;
                 }
-            } else if matches!(id, ids::MISSION_COUNT | ids::MISSION_ITEM_INT)
-                && let Ok(msg) = frame.decode::<MavMessage>()
-                && !self.dedup.from_ground(&msg, now)
+            } else if matches!(
+                id,
+                ids::MISSION_COUNT | ids::MISSION_ITEM_INT | ids::MISSION_ACK
+            ) && let Ok(msg) = frame.decode::<MavMessage>()
+                && self.mission.from_ground(
+                    now,
+                    (frame.system_id(), frame.component_id()),
+                    self.config.autopilot_component,
+                    &msg,
+                )
             {
+                // The ground's upload ends here (see `mission`).
+                self.drain_mission(now);
                 continue;
             }
             self.scheduler.push(frame, Class::of(id), now);
@@ -323,34 +392,50 @@ impl Router {
                 continue;
             };
             self.quality.handle_frame(now, &frame);
+            if self.vehicle.is_none() || frame.message_id() == ids::LINK_QUALITY {
+                self.vehicle = Some(frame.system_id());
+            }
             match frame.message_id() {
+                // The local radio's: the ground gets ours, which includes its fields.
+                ids::RADIO_STATUS => {}
                 ids::MAVLORA_POSITION_BATCH | ids::MAVLORA_STATUS => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.expand(now, frame.system_id(), &msg);
                     }
                 }
-                ids::MISSION_REQUEST | ids::MISSION_REQUEST_INT => {
-                    if let Ok(msg) = frame.decode::<MavMessage>() {
-                        self.dedup.from_radio(&msg, now);
-                    }
-                    self.push_gcs(now, frame);
-                }
-                ids::COMMAND_ACK => {
+                ids::MISSION_REQUEST | ids::MISSION_REQUEST_INT | ids::MISSION_ACK => {
                     if let Ok(msg) = frame.decode::<MavMessage>()
-                        && !self.commands.from_radio(
-                            now,
-                            frame.system_id(),
-                            frame.component_id(),
-                            &msg,
-                        )
+                        && self.mission.from_radio(now, &msg)
                     {
+                        self.drain_mission(now);
                         continue;
                     }
                     self.push_gcs(now, frame);
                 }
+                ids::COMMAND_ACK => {
+                    let Ok(MavMessage::COMMAND_ACK(ack)) = frame.decode::<MavMessage>() else {
+                        self.push_gcs(now, frame);
+                        continue;
+                    };
+                    // The bridge's tag names the command answered; the ground gets the ack
+                    // as the autopilot sent it.
+                    let (generation, frame, ack) = match untag_ack(&frame, &ack) {
+                        Some((g, plain, ack)) => (Some(g), plain, ack),
+                        None => (None, frame, ack),
+                    };
+                    let (system, component) = (frame.system_id(), frame.component_id());
+                    let msg = MavMessage::COMMAND_ACK(ack);
+                    if self
+                        .commands
+                        .from_radio_tagged(now, system, component, &msg, generation)
+                    {
+                        self.push_gcs(now, frame);
+                    }
+                }
                 _ => self.push_gcs(now, frame),
             }
         }
+        self.quality.observe(now, self.radio_reader.stats());
     }
 
     fn expand(&mut self, now: Instant, system: u8, msg: &MavMessage) {
@@ -394,6 +479,13 @@ impl Router {
     /// dropped: a station that signs would reject them).
     fn enqueue_gcs(&mut self, now: Instant, frame: OwnedFrame) {
         let frame = match &mut self.ground_signer {
+            None if self.ground_version == MavlinkVersion::V1 => match to_v1(frame) {
+                Some(v1) => v1,
+                None => {
+                    self.stats.to_gcs_not_v1 += 1;
+                    return;
+                }
+            },
             None => frame,
             Some(signer) => match signer.sign(&frame, now) {
                 Some(signed) => signed,
@@ -405,9 +497,28 @@ impl Router {
         self.to_gcs.push_back(frame);
     }
 
+    /// Mission frames for the radio (priority, in order: the radio leg relies on it) and for
+    /// the ground (as the vehicle it addressed, in that stream's numbering).
+    fn drain_mission(&mut self, now: Instant) {
+        while let Some(msg) = self.mission.poll_radio(now) {
+            let frame = self.sender.frame(&msg);
+            self.scheduler.push(frame, Class::Priority, now);
+        }
+        while let Some(((system, component), msg)) = self.mission.poll_ground() {
+            let header = MavHeader {
+                system_id: system.into(),
+                component_id: component,
+                sequence: self.next_sequence((system, component)),
+            };
+            self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, &msg));
+        }
+    }
+
     /// Does what is due at `now`: our link-quality report (also shown to the ground
-    /// station), command retransmissions.
+    /// station), command retransmissions, mission keep-alives and polls.
     pub fn handle_timeout(&mut self, now: Instant) {
+        self.mission.handle_timeout(now);
+        self.drain_mission(now);
         self.commands.handle_timeout(now);
         while let Some(frame) = self.commands.poll_retransmit() {
             self.scheduler.push(frame, Class::Priority, now);
@@ -418,6 +529,35 @@ impl Router {
             self.stats.link_quality_sent += 1;
             self.enqueue_gcs(now, frame.clone());
             self.scheduler.push(frame, Class::Periodic, now);
+        }
+        self.link_monitor(now);
+    }
+
+    /// `STATUSTEXT` announcements and `RADIO_STATUS` for the ground, as the vehicle's
+    /// telemetry radio (component 68, as a SiK radio would), so ground stations that show
+    /// only their vehicle's messages show these.
+    fn link_monitor(&mut self, now: Instant) {
+        self.monitor.handle_timeout(now, &self.quality);
+        let Some(system) = self.vehicle else {
+            return;
+        };
+        const RADIO_COMPONENT: u8 = 68; // MAV_COMP_ID_TELEMETRY_RADIO
+        let mut out = Vec::new();
+        while let Some(notice) = self.monitor.poll_notice() {
+            self.stats.link_notices += 1;
+            out.push(MavMessage::STATUSTEXT(notice.statustext()));
+        }
+        if let Some(status) = self.monitor.poll_radio_status(&self.quality) {
+            self.stats.radio_status_sent += 1;
+            out.push(MavMessage::RADIO_STATUS(status));
+        }
+        for msg in out {
+            let header = MavHeader {
+                system_id: system.into(),
+                component_id: RADIO_COMPONENT,
+                sequence: self.next_sequence((system, RADIO_COMPONENT)),
+            };
+            self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, &msg));
         }
     }
 
@@ -431,7 +571,19 @@ impl Router {
     pub fn poll_radio_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
         loop {
             let frame = self.scheduler.poll_transmit(now, room)?;
+            if (frame.system_id(), frame.component_id())
+                == (self.config.system_id, self.config.component_id)
+                && matches!(
+                    frame.message_id(),
+                    ids::MISSION_COUNT | ids::MISSION_ITEM_INT
+                )
+            {
+                // The stream's window moves on.
+                self.mission.radio_frame_left(now);
+                self.drain_mission(now);
+            }
             if let Some(frame) = self.radio_leg.outgoing(frame, now) {
+                self.quality.sent_frame(now);
                 return Some(frame);
             }
         }
@@ -441,8 +593,10 @@ impl Router {
     pub fn poll_timeout(&self) -> Option<Instant> {
         [
             self.quality.poll_timeout(),
+            self.monitor.poll_timeout(),
             self.scheduler.poll_timeout(),
             self.commands.poll_timeout(),
+            self.mission.poll_timeout(),
             // Frames waiting for the ground stations: due at once.
             (!self.to_gcs.is_empty()).then_some(Instant::ZERO),
         ]

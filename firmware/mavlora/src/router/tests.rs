@@ -98,54 +98,70 @@ fn ground_heartbeats_are_thinned_towards_the_radio() {
 }
 
 #[test]
-fn premature_mission_retransmission_is_dropped() {
+fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
+    use crate::dialect::MISSION_ITEM_INT_DATA;
     let mut r = router();
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let count = MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-        count: 5,
+        count: 3,
         target_system: 1,
         target_component: 1,
         ..Default::default()
     });
     r.handle_gcs_bytes(ms(0), gcs.frame(&count).as_bytes());
-    r.handle_gcs_bytes(ms(250), gcs.frame(&count).as_bytes());
-    let radio: Vec<_> = std::iter::from_fn(|| r.poll_radio_transmit(ms(300), usize::MAX)).collect();
-    assert_eq!(radio.len(), 1);
-    assert_eq!(r.stats().mission_duplicates, 1);
-    // after the timeout a retransmission is legitimate
-    r.handle_gcs_bytes(ms(2000), gcs.frame(&count).as_bytes());
-    assert!(r.poll_radio_transmit(ms(2000), usize::MAX).is_some());
+    let mut t = 0;
+    // the router asks the ground for every item itself, as the vehicle (1, 1)
+    for seq in 0..3u16 {
+        let asked: Vec<_> = gcs_out(&mut r)
+            .into_iter()
+            .filter(|f| f.message_id() == ids::MISSION_REQUEST_INT)
+            .collect();
+        assert_eq!(asked.len(), 1, "item {seq}");
+        assert_eq!((asked[0].system_id(), asked[0].component_id()), (1, 1));
+        assert!(
+            r.poll_radio_transmit(ms(t), usize::MAX).is_none(),
+            "nothing on the radio before the plan is complete"
+        );
+        t += 10;
+        let item = MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+            seq,
+            target_system: 1,
+            target_component: 1,
+            x: i32::from(seq),
+            ..Default::default()
+        });
+        r.handle_gcs_bytes(ms(t), gcs.frame(&item).as_bytes());
+    }
+    // paced at the radio budget: collect over a few seconds
+    let mut radio = Vec::new();
+    for step in 0..100 {
+        let now = ms(t + step * 50);
+        r.handle_timeout(now);
+        radio.extend(
+            std::iter::from_fn(|| r.poll_radio_transmit(now, usize::MAX))
+                .map(|f| f.decode::<MavMessage>().unwrap())
+                .filter(|m| {
+                    matches!(
+                        m,
+                        MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_)
+                    )
+                }),
+        );
+    }
+    assert!(matches!(&radio[0], MavMessage::MISSION_COUNT(c) if c.count == 3 && c.opaque_id != 0));
+    let seqs: Vec<u16> = radio[1..]
+        .iter()
+        .filter_map(|m| match m {
+            MavMessage::MISSION_ITEM_INT(i) => Some(i.seq),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        &seqs[..3],
+        &[0, 1, 2],
+        "streamed without waiting for requests"
+    );
     assert_eq!(known::message_name(44), Some("MISSION_COUNT"));
-}
-
-#[test]
-fn item_requested_again_by_the_vehicle_is_not_a_duplicate() {
-    use crate::dialect::{MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA};
-    let mut r = router();
-    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
-    let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
-    let item = MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
-        seq: 3,
-        target_system: 1,
-        ..Default::default()
-    });
-    let again = MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
-        seq: 3,
-        target_system: 255,
-        target_component: 190,
-        ..Default::default()
-    });
-    r.handle_gcs_bytes(ms(0), gcs.frame(&item).as_bytes());
-    // the ground's own early retry is dropped...
-    r.handle_gcs_bytes(ms(100), gcs.frame(&item).as_bytes());
-    // ...but its answer to the vehicle's new request for item 3 goes
-    r.handle_radio_bytes(ms(600), bridge.frame(&again).as_bytes());
-    r.handle_gcs_bytes(ms(601), gcs.frame(&item).as_bytes());
-    let items = std::iter::from_fn(|| r.poll_radio_transmit(ms(700), usize::MAX))
-        .filter(|f| f.message_id() == ids::MISSION_ITEM_INT)
-        .count();
-    assert_eq!(items, 2);
-    assert_eq!(r.stats().mission_duplicates, 1);
 }
 
 fn radio_out(r: &mut Router, now: Instant) -> Vec<MavMessage> {
@@ -174,7 +190,10 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
     });
     r.handle_gcs_bytes(ms(0), gcs.frame(&cmd).as_bytes());
     assert_eq!(commands(&radio_out(&mut r, ms(0))), 1);
-    // lost on the radio: resent after the initial 1 s timeout, not at the ground's 1.5 s
+    // its early second copy, before any timeout (another air packet)
+    assert_eq!(commands(&radio_out(&mut r, ms(119))), 0);
+    assert_eq!(commands(&radio_out(&mut r, ms(120))), 1);
+    // both lost on the radio: resent after the initial 1 s timeout, not at the ground's 1.5 s
     assert_eq!(commands(&radio_out(&mut r, ms(999))), 0);
     assert_eq!(commands(&radio_out(&mut r, ms(1000))), 1);
     // the ground station's own retry (confirmation 1) is not sent again
@@ -298,6 +317,7 @@ fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_ge
         key: key.clone(),
         link_id: 2,
         epoch: 1_000_000,
+        state: Default::default(),
     });
     let mut r = Router::new(config, Instant::ZERO).unwrap();
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);

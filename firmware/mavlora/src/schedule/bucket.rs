@@ -47,6 +47,19 @@ impl TokenBucket {
         }
     }
 
+    /// Takes `bytes` only if `reserve` more bytes would still be left at `now`: traffic that
+    /// may only use spare budget leaves a frame's worth for what matters more.
+    pub fn try_take_keeping(&mut self, bytes: usize, reserve: usize, now: Instant) -> bool {
+        self.refill(now);
+        let need = (bytes as u64 + reserve as u64).saturating_mul(MICRO);
+        if self.tokens_micro >= need {
+            self.tokens_micro -= (bytes as u64).saturating_mul(MICRO);
+            true
+        } else {
+            false
+        }
+    }
+
     /// Earliest time at which `bytes` can be taken, `None` if never (more than the capacity,
     /// or zero rate). Does not refill: the answer is the same whenever it is asked, and a
     /// time already past (the last refill) means "now".
@@ -83,6 +96,15 @@ mod tests {
         // a long pause refills only up to the capacity
         assert!(b.try_take(50, Instant::from_millis(10_000)));
         assert!(!b.try_take(1, Instant::from_millis(10_000)));
+    }
+
+    #[test]
+    fn taking_spare_budget_keeps_the_reserve() {
+        let mut b = TokenBucket::new(100, 60, Instant::ZERO);
+        assert!(!b.try_take_keeping(30, 40, Instant::ZERO));
+        assert!(b.try_take_keeping(20, 40, Instant::ZERO));
+        // the reserve is still there for a frame that may use it
+        assert!(b.try_take(40, Instant::ZERO));
     }
 
     #[test]

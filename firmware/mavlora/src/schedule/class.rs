@@ -2,15 +2,24 @@
 
 use crate::wire::ids;
 
-/// Scheduling class of a frame.
+/// Scheduling class of a frame, in the order the radio budget serves them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Class {
-    /// Commands, acks, mission and parameter traffic: sent first, in order, never replaced.
+    /// Commands, acks, mission and parameter requests: sent first, in order, never replaced.
     /// Losing or delaying one stalls a protocol (the paper's mission-upload problem).
     Priority,
-    /// Periodic telemetry: only the newest sample matters, so a newer one replaces an older
-    /// queued one.
+    /// `PARAM_VALUE`: a parameter stream is ~1000 frames at once (a ground station loading
+    /// parameters, an ArduPilot at boot). It gets its own bounded queue and a guaranteed
+    /// share of the budget, so it is paced instead of pushing commands out of a full queue
+    /// or starving position for minutes.
+    Param,
+    /// Periodic telemetry the profile names (a `radio` rate or `pass`): only the newest sample
+    /// matters, so a newer one replaces an older queued one; served before anything unnamed.
     Periodic,
+    /// Periodic telemetry the profile does not name: replaced like [`Class::Periodic`], but
+    /// sent only with what the named messages leave of the budget, so an autopilot that
+    /// ignores the stream configuration cannot starve position.
+    Unlisted,
 }
 
 /// Message ids that are part of a request/response protocol.
@@ -18,7 +27,6 @@ const PRIORITY: &[u32] = &[
     ids::SET_MODE,
     ids::PARAM_REQUEST_READ,
     ids::PARAM_REQUEST_LIST,
-    ids::PARAM_VALUE,
     ids::PARAM_SET,
     ids::MISSION_REQUEST_PARTIAL_LIST,
     ids::MISSION_WRITE_PARTIAL_LIST,
@@ -42,14 +50,24 @@ const PRIORITY: &[u32] = &[
 ];
 
 impl Class {
-    /// Default class of a message id: [`Class::Priority`] for command, mission, parameter and
-    /// status-text messages, [`Class::Periodic`] for everything else.
+    /// Default class of a message id: [`Class::Priority`] for command, mission, parameter
+    /// request and status-text messages, [`Class::Param`] for `PARAM_VALUE`,
+    /// [`Class::Periodic`] for everything else (the bridge demotes what its profile does not
+    /// name to [`Class::Unlisted`]).
     pub fn of(message_id: u32) -> Self {
         if PRIORITY.contains(&message_id) {
             Self::Priority
+        } else if message_id == ids::PARAM_VALUE {
+            Self::Param
         } else {
             Self::Periodic
         }
+    }
+
+    /// Whether frames of this class belong to a request/response protocol (never replaced by
+    /// a newer sample): what the IO queues keep in their priority lane.
+    pub fn is_protocol(self) -> bool {
+        matches!(self, Self::Priority | Self::Param)
     }
 }
 
@@ -63,5 +81,7 @@ mod tests {
         assert_eq!(Class::of(ids::HEARTBEAT), Class::Periodic);
         assert_eq!(Class::of(ids::COMMAND_LONG), Class::Priority);
         assert_eq!(Class::of(ids::MISSION_ITEM_INT), Class::Priority);
+        assert_eq!(Class::of(ids::PARAM_VALUE), Class::Param);
+        assert!(Class::Param.is_protocol() && !Class::Unlisted.is_protocol());
     }
 }

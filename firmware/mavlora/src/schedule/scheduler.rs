@@ -61,6 +61,12 @@ pub struct SchedulerStats {
     pub dropped_periodic: u64,
     /// Priority frames dropped because the queue was full of priority frames only.
     pub dropped_priority: u64,
+    /// Unnamed telemetry frames dropped because the queue was full.
+    pub dropped_unlisted: u64,
+    /// `PARAM_VALUE` frames handed to the radio.
+    pub sent_param_frames: u64,
+    /// `PARAM_VALUE` frames dropped because their own queue was full.
+    pub dropped_param: u64,
 }
 
 /// Identity of a periodic stream: a newer frame with the same key replaces the queued one.
@@ -81,6 +87,21 @@ impl Key {
     }
 }
 
+/// Bytes of `PARAM_VALUE` frames that may wait: a whole ArduCopter parameter list (~1000
+/// parameters of 33-37 bytes) fits, so a parameter load is paced rather than cut.
+pub const PARAM_QUEUE_BYTES: usize = 64 * 1024;
+
+/// Share of the budget guaranteed to a waiting parameter stream: one byte in
+/// `PARAM_SHARE_DIVISOR` (an eighth: on LoRa SF7's 273 B/s, ~34 B/s, one `PARAM_VALUE` a
+/// second, what is left once the profile's telemetry is served; more when it leaves more).
+pub const PARAM_SHARE_DIVISOR: u64 = 8;
+
+/// Budget that spare-capacity traffic (a parameter stream beyond its share, unnamed telemetry)
+/// leaves in the bucket: a named frame arriving next (a 3 Hz position is 36-53 bytes, signed
+/// MAVLink 2 included) finds it and leaves at once instead of waiting for a refill behind
+/// traffic that only fills gaps. Reduced to what the burst allows above one largest frame.
+pub const SPARE_RESERVE_BYTES: usize = 64;
+
 /// Sans-IO scheduler between the filter and the radio.
 ///
 /// Feed frames with [`push`](Self::push); whenever the radio can take bytes, call
@@ -89,6 +110,13 @@ impl Key {
 /// - over any window `w`, at most `rate * w + burst` bytes leave (token bucket);
 /// - priority frames leave first, in arrival order, and are dropped only when no periodic
 ///   frame is left to drop;
+/// - a waiting parameter stream ([`Class::Param`]) gets at least an eighth of the bytes sent
+///   (ahead of named telemetry only when the spare budget did not give it that much) and
+///   any spare budget, in arrival order, from its own bounded queue ([`PARAM_QUEUE_BYTES`]),
+///   so it never pushes a priority frame out;
+/// - named telemetry ([`Class::Periodic`]) goes before unnamed ([`Class::Unlisted`]), which
+///   only gets what is left and is dropped first when the queue is full; spare-capacity
+///   traffic never takes the last [`SPARE_RESERVE_BYTES`] of the budget;
 /// - a periodic frame replaces a queued frame of the same (sysid, compid, msgid) in place,
 ///   so the freshest sample leaves at the older one's turn instead of queueing behind it.
 #[derive(Debug)]
@@ -96,11 +124,30 @@ pub struct LinkScheduler {
     config: SchedulerConfig,
     bucket: TokenBucket,
     priority: VecDeque<OwnedFrame>,
+    params: VecDeque<OwnedFrame>,
+    param_bytes: usize,
+    /// Bytes the parameter stream may send without leaving the spare reserve, times
+    /// [`PARAM_SHARE_DIVISOR`] - 1: each byte of another class sent earns one, each
+    /// parameter byte sent on this credit costs `PARAM_SHARE_DIVISOR - 1`. Capped so an idle
+    /// stretch earns no burst.
+    param_credit: u64,
     /// Few distinct keys (one per periodic message per sender), so a linear scan for
     /// replacement beats maintaining an index.
     periodic: VecDeque<(Key, OwnedFrame)>,
+    unlisted: VecDeque<(Key, OwnedFrame)>,
+    /// Bytes waiting in the priority and telemetry queues (parameters are counted apart).
     queued_bytes: usize,
     stats: SchedulerStats,
+}
+
+/// Which queue the next frame comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Source {
+    Priority,
+    ParamShare,
+    Periodic,
+    ParamLeftover,
+    Unlisted,
 }
 
 impl LinkScheduler {
@@ -119,7 +166,11 @@ impl LinkScheduler {
             config,
             bucket: TokenBucket::new(config.rate_bytes_per_s, config.burst_bytes, now),
             priority: VecDeque::new(),
+            params: VecDeque::new(),
+            param_bytes: 0,
+            param_credit: 0,
             periodic: VecDeque::new(),
+            unlisted: VecDeque::new(),
             queued_bytes: 0,
             stats: SchedulerStats::default(),
         })
@@ -135,12 +186,20 @@ impl LinkScheduler {
         self.stats
     }
 
-    /// Frames waiting, priority and periodic.
+    /// Frames waiting: priority and periodic (named and unnamed; parameters not included).
     pub fn queued_frames(&self) -> (usize, usize) {
-        (self.priority.len(), self.periodic.len())
+        (
+            self.priority.len(),
+            self.periodic.len() + self.unlisted.len(),
+        )
     }
 
-    /// Bytes waiting.
+    /// `PARAM_VALUE` frames waiting.
+    pub fn queued_params(&self) -> usize {
+        self.params.len()
+    }
+
+    /// Bytes waiting in the priority and telemetry queues.
     pub fn queued_bytes(&self) -> usize {
         self.queued_bytes
     }
@@ -154,14 +213,29 @@ impl LinkScheduler {
                 self.priority.push_back(frame);
                 self.queued_bytes += len;
             }
-            Class::Periodic => {
+            Class::Param => {
+                if self.param_bytes + len > PARAM_QUEUE_BYTES {
+                    // The ground station re-requests what it misses (PARAM_REQUEST_READ).
+                    self.stats.dropped_param += 1;
+                    warn!(%now, "parameter queue full, dropped a PARAM_VALUE");
+                    return;
+                }
+                self.param_bytes += len;
+                self.params.push_back(frame);
+            }
+            Class::Periodic | Class::Unlisted => {
                 let key = Key::of(&frame);
-                if let Some(slot) = self.periodic.iter_mut().find(|(k, _)| *k == key) {
+                let queue = if class == Class::Periodic {
+                    &mut self.periodic
+                } else {
+                    &mut self.unlisted
+                };
+                if let Some(slot) = queue.iter_mut().find(|(k, _)| *k == key) {
                     self.queued_bytes = self.queued_bytes - slot.1.as_bytes().len() + len;
                     slot.1 = frame;
                     self.stats.replaced += 1;
                 } else {
-                    self.periodic.push_back((key, frame));
+                    queue.push_back((key, frame));
                     self.queued_bytes += len;
                 }
             }
@@ -171,7 +245,11 @@ impl LinkScheduler {
 
     fn enforce_queue_limit(&mut self, now: Instant) {
         while self.queued_bytes > self.config.max_queued_bytes {
-            if let Some((key, old)) = self.periodic.pop_front() {
+            if let Some((key, old)) = self.unlisted.pop_front() {
+                self.queued_bytes -= old.as_bytes().len();
+                self.stats.dropped_unlisted += 1;
+                debug!(%now, msgid = key.message, "queue full, dropped unlisted frame");
+            } else if let Some((key, old)) = self.periodic.pop_front() {
                 self.queued_bytes -= old.as_bytes().len();
                 self.stats.dropped_periodic += 1;
                 debug!(%now, msgid = key.message, "queue full, dropped periodic frame");
@@ -188,15 +266,43 @@ impl LinkScheduler {
     /// The next frame for the radio if the byte budget allows it at `now` and it fits in
     /// `room`, the bytes the radio can accept right now (its free buffer).
     pub fn poll_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
-        let len = self.head()?.as_bytes().len();
-        if len > room || !self.bucket.try_take(len, now) {
+        let (source, len) = self.next_source()?;
+        if len > room
+            || !self
+                .bucket
+                .try_take_keeping(len, self.reserve_for(source), now)
+        {
             return None;
         }
-        let frame = match self.priority.pop_front() {
-            Some(frame) => frame,
-            None => self.periodic.pop_front()?.1,
+        let frame = match source {
+            Source::Priority => self.priority.pop_front()?,
+            Source::ParamShare | Source::ParamLeftover => self.params.pop_front()?,
+            Source::Periodic => self.periodic.pop_front()?.1,
+            Source::Unlisted => self.unlisted.pop_front()?.1,
         };
-        self.queued_bytes -= len;
+        match source {
+            Source::ParamShare => {
+                self.param_bytes -= len;
+                self.param_credit -= len as u64 * (PARAM_SHARE_DIVISOR - 1);
+                self.stats.sent_param_frames += 1;
+            }
+            Source::ParamLeftover => {
+                // spare budget counts towards the share: the share only overtakes named
+                // telemetry when the spare budget did not give it as much
+                self.param_bytes -= len;
+                self.param_credit = self
+                    .param_credit
+                    .saturating_sub(len as u64 * (PARAM_SHARE_DIVISOR - 1));
+                self.stats.sent_param_frames += 1;
+            }
+            _ => {
+                self.queued_bytes -= len;
+                if !self.params.is_empty() {
+                    let cap = (MAX_FRAME_LEN as u64) * (PARAM_SHARE_DIVISOR - 1);
+                    self.param_credit = (self.param_credit + len as u64).min(cap);
+                }
+            }
+        }
         self.stats.sent_frames += 1;
         self.stats.sent_bytes += len as u64;
         Some(frame)
@@ -205,14 +311,42 @@ impl LinkScheduler {
     /// When the next queued frame fits the byte budget (a time already past if it does now),
     /// `None` if nothing is queued.
     pub fn poll_timeout(&self) -> Option<Instant> {
-        let len = self.head()?.as_bytes().len();
-        self.bucket.ready_at(len)
+        let (source, len) = self.next_source()?;
+        self.bucket.ready_at(len + self.reserve_for(source))
     }
 
-    fn head(&self) -> Option<&OwnedFrame> {
-        self.priority
+    fn reserve_for(&self, source: Source) -> usize {
+        match source {
+            Source::ParamLeftover | Source::Unlisted => SPARE_RESERVE_BYTES
+                .min((self.config.burst_bytes as usize).saturating_sub(MAX_FRAME_LEN)),
+            _ => 0,
+        }
+    }
+
+    /// The queue the next frame comes from and its length; depends on queue state only (not
+    /// on time), so [`poll_timeout`](Self::poll_timeout) names the frame
+    /// [`poll_transmit`](Self::poll_transmit) will send.
+    fn next_source(&self) -> Option<(Source, usize)> {
+        let len = |f: &OwnedFrame| f.as_bytes().len();
+        if let Some(f) = self.priority.front() {
+            return Some((Source::Priority, len(f)));
+        }
+        let share_due =
+            |f: &OwnedFrame| self.param_credit >= len(f) as u64 * (PARAM_SHARE_DIVISOR - 1);
+        if let Some(f) = self.params.front()
+            && share_due(f)
+        {
+            return Some((Source::ParamShare, len(f)));
+        }
+        if let Some((_, f)) = self.periodic.front() {
+            return Some((Source::Periodic, len(f)));
+        }
+        if let Some(f) = self.params.front() {
+            return Some((Source::ParamLeftover, len(f)));
+        }
+        self.unlisted
             .front()
-            .or_else(|| self.periodic.front().map(|(_, f)| f))
+            .map(|(_, f)| (Source::Unlisted, len(f)))
     }
 }
 

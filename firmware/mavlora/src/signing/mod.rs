@@ -10,16 +10,19 @@
 //! (`MAVLinkV2MessageRaw::calculate_signature`); its `SigningData` is not used because it
 //! reads the system clock, and the engines take time as an argument.
 //!
-//! Key files hold the 32-byte secret as 64 hexadecimal characters (whitespace ignored), or
-//! as 32 raw bytes.
+//! Key files hold the 32-byte secret as 64 hexadecimal characters and an optional newline,
+//! readable by their owner only ([`SigningKey::load`]). Timestamps follow the spec's rules
+//! and survive restarts through [`SigningState`] (see [`signer`](LinkSigner)).
 
 mod key;
 mod radio_leg;
 mod signer;
+mod state;
 
-pub use key::{KeyError, SigningKey};
+pub use key::{FormatError, KeyError, SigningKey};
 pub use radio_leg::RadioLeg;
-pub use signer::{LinkSigner, Rejection, SigningStats};
+pub use signer::{LinkSigner, NEW_STREAM_SLACK, Rejection, SigningStats};
+pub use state::{SigningState, StateError, StreamKey};
 
 /// Signing settings of one radio link end.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -30,11 +33,21 @@ pub struct SigningConfig {
     pub link_id: u8,
     /// Signing timestamp at engine time zero: 10 µs units since 2015-01-01 00:00 UTC.
     pub epoch: u64,
+    /// What a previous run stored (its timestamp, the streams it accepted); empty at first.
+    pub state: SigningState,
 }
 
 impl SigningConfig {
-    /// The signer this configuration describes.
+    /// The signer this configuration describes, resuming from its stored state.
     pub fn signer(&self) -> LinkSigner {
-        LinkSigner::new(self.key.clone(), self.link_id, self.epoch)
+        LinkSigner::with_state(
+            self.key.clone(),
+            self.link_id,
+            self.epoch,
+            self.state.clone(),
+        )
     }
 }
+
+#[cfg(test)]
+mod mavlink1_tests;

@@ -1,44 +1,83 @@
-//! What every frame crossing the radio gets, at both ends: frames leaving are renumbered
-//! (so the far end counts radio loss only) and signed when signing is on; frames arriving are
-//! verified and stripped of their signature, or rejected and counted.
+//! What every frame crossing the radio gets, at both ends: frames leaving are made MAVLink 2
+//! (a MAVLink 1 autopilot's frames too: same id, same payload), renumbered (so the far end
+//! counts radio loss only) and signed unless the link was explicitly set up unsigned; frames
+//! arriving are verified and stripped of their signature, or rejected and counted.
 
-use super::{LinkSigner, SigningConfig, SigningStats};
+use super::{LinkSigner, SigningConfig, SigningState, SigningStats};
 use crate::time::Instant;
-use crate::wire::{OwnedFrame, Resequencer};
+use crate::wire::{OwnedFrame, Resequencer, to_v2};
 
-/// One end's radio leg: sequence numbers and signing.
+/// One end's radio leg: version, sequence numbers and signing.
 #[derive(Debug)]
 pub struct RadioLeg {
     sequence: Resequencer,
     signer: Option<LinkSigner>,
+    /// Frames sent without a signature (signing off).
+    sent_unsigned: u64,
+    /// Frames [`RadioLeg::admit`] refused.
+    dropped: u64,
 }
 
 impl RadioLeg {
-    /// A leg that signs with `signing`, or passes frames unsigned when `None`.
+    /// A leg that signs with `signing`, or passes frames unsigned when `None` (the binaries
+    /// allow that only with `--unsigned`).
     pub fn new(signing: Option<&SigningConfig>) -> Self {
         Self {
             sequence: Resequencer::new(),
             signer: signing.map(SigningConfig::signer),
+            sent_unsigned: 0,
+            dropped: 0,
         }
     }
 
-    /// Signing counters (all zero when signing is off).
-    pub fn stats(&self) -> SigningStats {
-        self.signer.as_ref().map(|s| s.stats()).unwrap_or_default()
+    /// Whether frames leaving are signed.
+    pub fn signed(&self) -> bool {
+        self.signer.is_some()
     }
 
-    /// `frame` as it goes on the radio; `None` if it cannot be signed (MAVLink 1, unknown
-    /// id): the far end would reject it anyway.
-    pub fn outgoing(&mut self, mut frame: OwnedFrame, now: Instant) -> Option<OwnedFrame> {
+    /// Signing counters (only `sent_unsigned` when signing is off).
+    pub fn stats(&self) -> SigningStats {
+        let signer = self.signer.as_ref().map(|s| s.stats()).unwrap_or_default();
+        SigningStats {
+            sent_unsigned: self.sent_unsigned,
+            unsignable: signer.unsignable + self.dropped,
+            ..signer
+        }
+    }
+
+    /// What the signer must store to resume after a restart; `None` when signing is off.
+    pub fn signing_state(&self, now: Instant) -> Option<SigningState> {
+        self.signer.as_ref().map(|s| s.state(now))
+    }
+
+    /// `frame` in the form it will take on the radio before its signature: MAVLink 2. Called
+    /// before the radio budget so it counts the bytes that are sent. `None` (counted in
+    /// `unsignable`) for a frame whose checksum no CRC_EXTRA reproduces: an unknown id's
+    /// corrupted frame, which the reader could not check.
+    pub fn admit(&mut self, frame: OwnedFrame) -> Option<OwnedFrame> {
+        let v2 = to_v2(frame);
+        if v2.is_none() {
+            self.dropped += 1;
+        }
+        v2
+    }
+
+    /// `frame` as it goes on the radio; `None` if it cannot be made MAVLink 2 and signed
+    /// (counted in `unsignable`), which a checksum-valid frame always can.
+    pub fn outgoing(&mut self, frame: OwnedFrame, now: Instant) -> Option<OwnedFrame> {
+        let mut frame = self.admit(frame)?;
         self.sequence.apply(&mut frame);
         match &mut self.signer {
-            None => Some(frame),
+            None => {
+                self.sent_unsigned += 1;
+                Some(frame)
+            }
             Some(signer) => signer.sign(&frame, now),
         }
     }
 
     /// `frame` as read from the radio, verified and without its signature; `None` if it is
-    /// rejected (unsigned, bad signature, replayed: counted in [`RadioLeg::stats`]).
+    /// rejected (unsigned, bad signature, replayed, stale: counted in [`RadioLeg::stats`]).
     pub fn incoming(&mut self, frame: OwnedFrame, now: Instant) -> Option<OwnedFrame> {
         let Some(signer) = &mut self.signer else {
             return Some(frame);

@@ -1,17 +1,29 @@
-//! Signing and verification state of one radio link end.
+//! Signing and verification state of one radio link end, with the timestamp rules of the
+//! MAVLink signing spec ("Timestamp handling"):
+//! - our timestamp is the larger of the clock, our last one + 1, and the newest timestamp of
+//!   an accepted frame (so a side whose clock is behind catches up with its peer after one
+//!   good frame instead of having its own frames rejected as old);
+//! - a stream's frame must carry a timestamp above the last accepted from that stream;
+//! - a stream not seen before is accepted only if its timestamp is at most one minute behind
+//!   ours;
+//! - at start the timestamp and the streams come from the stored [`SigningState`], so a
+//!   restart neither reuses timestamps nor forgets what it accepted before.
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 
 use mavlink::MAVLinkV2MessageRaw;
 
 use super::key::SigningKey;
+use super::state::{SigningState, StreamKey};
 use crate::time::Instant;
-use crate::wire::{Frame, IFLAG_SIGNED, OwnedFrame, known};
+use crate::wire::{Frame, IFLAG_SIGNED, OwnedFrame, crc_extra_of};
 
 const SIGNATURE_LEN: usize = 13;
-/// A new stream's first timestamp may lag our clock by this much (the spec's one minute, in
-/// 10 µs units).
-const NEW_STREAM_SLACK: u64 = 60 * 100_000;
+/// A new stream's first timestamp may lag our timestamp by this much (the spec's one minute,
+/// in 10 µs units).
+pub const NEW_STREAM_SLACK: u64 = 60 * 100_000;
+/// Timestamps are 48 bits on the wire.
+const TIMESTAMP_MASK: u64 = (1 << 48) - 1;
 
 /// Why a received frame was rejected.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,9 +32,11 @@ pub enum Rejection {
     Unsigned,
     /// The signature does not match the key.
     BadSignature,
-    /// Timestamp not above the last accepted one of its stream, or a new stream older than
-    /// a minute.
+    /// Timestamp not above the last accepted one of its stream (also across a restart).
     Replayed,
+    /// A stream not seen before whose timestamp is more than a minute behind ours (a
+    /// captured frame, or a peer whose clock is behind and has not yet heard from us).
+    Stale,
 }
 
 /// Counters.
@@ -30,8 +44,11 @@ pub enum Rejection {
 pub struct SigningStats {
     /// Frames signed for the radio.
     pub signed: u64,
-    /// Frames that could not be signed (MAVLink 1 or unknown id) and were not sent.
+    /// Frames not sent on the radio because they could not be made MAVLink 2 and signed (a
+    /// checksum no CRC_EXTRA reproduces: corrupted).
     pub unsignable: u64,
+    /// Frames sent on the radio without a signature (only with signing off, `--unsigned`).
+    pub sent_unsigned: u64,
     /// Received frames accepted.
     pub accepted: u64,
     /// Received frames rejected as unsigned.
@@ -40,6 +57,8 @@ pub struct SigningStats {
     pub bad_signature: u64,
     /// Received frames rejected as replays.
     pub replayed: u64,
+    /// Received frames of a new stream rejected as more than a minute old.
+    pub stale: u64,
 }
 
 /// Sans-IO signer/verifier for one end of the radio link.
@@ -49,8 +68,9 @@ pub struct LinkSigner {
     link_id: u8,
     /// Signing timestamp (10 µs units since 2015-01-01) at engine time zero.
     epoch: u64,
-    last_sent: u64,
-    streams: HashMap<(u8, u8, u8), u64>,
+    /// The last timestamp used or adopted from an accepted frame.
+    timestamp: u64,
+    streams: BTreeMap<StreamKey, u64>,
     stats: SigningStats,
 }
 
@@ -58,14 +78,35 @@ impl LinkSigner {
     /// A signer with `key`, stamping `link_id`; `epoch` is the signing timestamp (10 µs units
     /// since 2015-01-01 00:00 UTC) at engine time zero, given by the driver from its clock.
     pub fn new(key: SigningKey, link_id: u8, epoch: u64) -> Self {
+        Self::with_state(key, link_id, epoch, SigningState::default())
+    }
+
+    /// A signer that resumes from `state` (stored by a previous run): it starts from the
+    /// larger of the stored timestamp and the clock, and keeps rejecting what the previous
+    /// run accepted.
+    pub fn with_state(key: SigningKey, link_id: u8, epoch: u64, state: SigningState) -> Self {
         Self {
             key,
             link_id,
             epoch,
-            last_sent: 0,
-            streams: HashMap::new(),
+            timestamp: state.timestamp,
+            streams: state.streams,
             stats: SigningStats::default(),
         }
+    }
+
+    /// What to store so a restart resumes safely (see [`LinkSigner::with_state`]); taken at
+    /// `now`, so the stored timestamp is at least the clock's.
+    pub fn state(&self, now: Instant) -> SigningState {
+        SigningState {
+            timestamp: self.local(now),
+            streams: self.streams.clone(),
+        }
+    }
+
+    /// Our timestamp at `now`: the clock, or what we used or adopted if that is later.
+    fn local(&self, now: Instant) -> u64 {
+        self.clock(now).max(self.timestamp)
     }
 
     /// Counters so far.
@@ -77,9 +118,11 @@ impl LinkSigner {
         self.epoch + now.as_micros() / 10
     }
 
-    /// The signed form of `frame`, `None` if it cannot be signed (MAVLink 1, unknown id).
+    /// The signed form of `frame`, `None` if it cannot be signed (MAVLink 1: make it
+    /// MAVLink 2 first, [`crate::wire::to_v2`]). Ids outside the dialect are signed with the
+    /// CRC_EXTRA their checksum was made with.
     pub fn sign(&mut self, frame: &OwnedFrame, now: Instant) -> Option<OwnedFrame> {
-        let extra = known::crc_extra(frame.message_id());
+        let extra = crc_extra_of(frame);
         let (Some(extra), false) = (extra, frame.version() == mavlink::MavlinkVersion::V1) else {
             self.stats.unsignable += 1;
             return None;
@@ -93,8 +136,8 @@ impl LinkSigner {
         // the flags are covered by the checksum
         let mut unsigned_view = Frame::new_unchecked(&mut bytes[..]);
         unsigned_view.fill_checksum(extra);
-        let timestamp = self.clock(now).max(self.last_sent + 1);
-        self.last_sent = timestamp;
+        let timestamp = self.clock(now).max(self.timestamp + 1) & TIMESTAMP_MASK;
+        self.timestamp = timestamp;
         bytes.push(self.link_id);
         bytes.extend_from_slice(&timestamp.to_le_bytes()[..6]);
         bytes.extend_from_slice(&[0; 6]);
@@ -122,6 +165,7 @@ impl LinkSigner {
             Err(Rejection::Unsigned) => self.stats.unsigned += 1,
             Err(Rejection::BadSignature) => self.stats.bad_signature += 1,
             Err(Rejection::Replayed) => self.stats.replayed += 1,
+            Err(Rejection::Stale) => self.stats.stale += 1,
         }
         result
     }
@@ -140,16 +184,19 @@ impl LinkSigner {
         let stream = (link_id, frame.system_id(), frame.component_id());
         match self.streams.get(&stream) {
             Some(&last) if timestamp <= last => return Err(Rejection::Replayed),
-            None if timestamp + NEW_STREAM_SLACK < self.clock(now) => {
-                return Err(Rejection::Replayed);
+            None if timestamp + NEW_STREAM_SLACK < self.local(now) => {
+                return Err(Rejection::Stale);
             }
             _ => {}
         }
         self.streams.insert(stream, timestamp);
+        // the spec: adopt a newer timestamp from an accepted frame
+        self.timestamp = self.timestamp.max(timestamp);
         let mut bytes = frame.as_bytes()[..frame.as_bytes().len() - SIGNATURE_LEN].to_vec();
         bytes[2] &= !IFLAG_SIGNED;
+        let extra = crc_extra_of(frame);
         let mut plain = Frame::new_unchecked(bytes);
-        if let Some(extra) = known::crc_extra(plain.message_id()) {
+        if let Some(extra) = extra {
             plain.fill_checksum(extra);
         }
         Ok(plain)
@@ -231,6 +278,94 @@ mod tests {
         let mut old = LinkSigner::new(key.clone(), 1, 0);
         let mut now = LinkSigner::new(key, 2, 10 * NEW_STREAM_SLACK);
         let s = old.sign(&frame(HEARTBEAT, 1, 1, 0), Instant::ZERO).unwrap();
-        assert_eq!(now.verify(&s, Instant::ZERO), Err(Rejection::Replayed));
+        assert_eq!(now.verify(&s, Instant::ZERO), Err(Rejection::Stale));
+        assert_eq!(now.stats().stale, 1);
+    }
+
+    /// A frame captured before the receiver restarts is rejected after it: the restarted
+    /// receiver resumes from the state its previous run stored.
+    #[test]
+    fn frames_captured_before_a_restart_are_replays_after_it() {
+        let key = SigningKey([7; 32]);
+        let mut sender = LinkSigner::new(key.clone(), 1, 1_000_000);
+        let mut receiver = LinkSigner::new(key.clone(), 2, 1_000_000);
+        let mut captured = Vec::new();
+        for seq in 0..20u8 {
+            let at = Instant::from_millis(u64::from(seq) * 100);
+            let s = sender.sign(&frame(HEARTBEAT, 1, 1, seq), at).unwrap();
+            assert!(receiver.verify(&s, at).is_ok());
+            captured.push(s);
+        }
+        let stored = receiver.state(Instant::from_secs(2));
+        // restart one second later (engine time starts again at zero, the epoch moved on)
+        let mut restarted = LinkSigner::with_state(key.clone(), 2, 1_000_000 + 300_000, stored);
+        for s in &captured {
+            assert_eq!(restarted.verify(s, Instant::ZERO), Err(Rejection::Replayed));
+        }
+        assert_eq!(restarted.stats().replayed, 20);
+        // without the stored state they would all pass: the window the spec leaves is a minute
+        let mut amnesiac = LinkSigner::new(key, 2, 1_000_000 + 300_000);
+        assert!(
+            captured
+                .iter()
+                .all(|s| amnesiac.verify(s, Instant::ZERO).is_ok())
+        );
+        // the sender's own next frame is still accepted by the restarted receiver
+        let next = sender.sign(&frame(HEARTBEAT, 1, 1, 20), Instant::from_secs(3));
+        assert!(restarted.verify(&next.unwrap(), Instant::ZERO).is_ok());
+    }
+
+    /// Our signer restarted with a clock that went back (no RTC) continues above what it used.
+    #[test]
+    fn restart_starts_from_the_larger_of_stored_and_clock() {
+        let key = SigningKey([7; 32]);
+        let mut before = LinkSigner::new(key.clone(), 1, 5_000_000);
+        let last = before.sign(&frame(HEARTBEAT, 1, 1, 0), Instant::from_secs(9));
+        let stored = before.state(Instant::from_secs(10));
+        let mut after = LinkSigner::with_state(key.clone(), 1, 0, stored.clone());
+        let first = after
+            .sign(&frame(HEARTBEAT, 1, 1, 1), Instant::ZERO)
+            .unwrap();
+        let stamp = |f: &OwnedFrame| {
+            let mut ts = [0u8; 8];
+            ts[..6].copy_from_slice(&f.signature().unwrap()[1..7]);
+            u64::from_le_bytes(ts)
+        };
+        assert!(stamp(&first) > stamp(&last.unwrap()));
+        assert!(stamp(&first) > stored.timestamp);
+        // and with a clock ahead of the stored value, the clock wins
+        let mut ahead = LinkSigner::with_state(key, 1, stored.timestamp + 1_000, stored);
+        let s = ahead
+            .sign(&frame(HEARTBEAT, 1, 1, 2), Instant::ZERO)
+            .unwrap();
+        assert_eq!(stamp(&s), ahead.state(Instant::ZERO).timestamp);
+    }
+
+    /// The spec's clock-behind peer: its first frames, more than a minute behind us, are
+    /// rejected as stale; once it accepted one of ours it signs with our timestamp and gets
+    /// through. A peer within a minute is accepted at once.
+    #[test]
+    fn peer_with_clock_behind_catches_up_after_hearing_us() {
+        let key = SigningKey([7; 32]);
+        let ten_minutes = 600 * 100_000;
+        let mut ground = LinkSigner::new(key.clone(), 2, 50 * ten_minutes);
+        let mut drone = LinkSigner::new(key.clone(), 1, 40 * ten_minutes);
+        let t = Instant::from_secs(1);
+        let early = drone.sign(&frame(HEARTBEAT, 1, 1, 0), t).unwrap();
+        assert_eq!(ground.verify(&early, t), Err(Rejection::Stale));
+        let hello = ground.sign(&frame(HEARTBEAT, 255, 190, 0), t).unwrap();
+        assert!(drone.verify(&hello, t).is_ok(), "a peer ahead is accepted");
+        let later = drone.sign(&frame(HEARTBEAT, 1, 1, 1), t).unwrap();
+        assert!(ground.verify(&later, t).is_ok(), "caught up");
+        assert_eq!(ground.stats().stale, 1);
+        // the stale frame stays rejected even now that the stream is known
+        assert_eq!(ground.verify(&early, t), Err(Rejection::Replayed));
+
+        let mut close = LinkSigner::new(key, 3, 50 * ten_minutes - 30 * 100_000);
+        let f = close.sign(&frame(HEARTBEAT, 2, 1, 0), t).unwrap();
+        assert!(
+            ground.verify(&f, t).is_ok(),
+            "30 s behind is within the minute"
+        );
     }
 }

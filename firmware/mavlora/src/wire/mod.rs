@@ -10,6 +10,7 @@ mod reader;
 mod resequence;
 mod sender;
 mod stats;
+mod version;
 
 pub use frame::{
     Frame, FrameError, IFLAG_SIGNED, MAX_FRAME_LEN, OwnedFrame, STX_V1, STX_V2, encode,
@@ -18,3 +19,4 @@ pub use reader::{CrcExtraFn, FrameReader, Integrity, Received};
 pub use resequence::Resequencer;
 pub use sender::Sender;
 pub use stats::{ReaderStats, StreamCounters, StreamId};
+pub use version::{crc_extra_of, to_v1, to_v2};

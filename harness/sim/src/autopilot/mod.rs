@@ -1,14 +1,22 @@
 //! Simulated flight controllers. The [`World`](crate::World) drives any [`Autopilot`]; the
-//! PX4-like one is [`Px4Fc`]. An ArduPilot-like one (MAVLink 1, `REQUEST_DATA_STREAM`) plugs in
-//! beside it by implementing the trait, and scenarios that need its specifics use
-//! `World<ThatFc>` as they use `World<Px4Fc>` (the default) for PX4's.
+//! PX4-like one is [`Px4Fc`], the ArduPilot-like one (MAVLink 1, `REQUEST_DATA_STREAM` groups,
+//! ardupilotmega messages, parameter streams) is [`ArduPilotFc`]. Scenarios that need one's
+//! specifics use `World<ArduPilotFc>` as they use `World<Px4Fc>` (the default) for PX4's.
 
+mod ardupilot;
+mod mission;
 mod px4;
 
-pub use px4::{Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec};
+pub use ardupilot::{
+    ARDUPILOT_STREAMS, ApStream, ArduPilotConfig, ArduPilotFc, ArduPilotStats, Group,
+};
+pub use mission::{MissionStore, MissionStoreStats};
+pub use px4::{
+    Executed, Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec,
+};
 
 use mavlora::Instant;
-use mavlora::dialect::MISSION_ITEM_INT_DATA;
+use mavlora::dialect::{MISSION_ITEM_INT_DATA, MavMissionType};
 use mavlora::wire::OwnedFrame;
 
 /// What the world needs of a simulated flight controller: a sans-IO engine on one serial
@@ -25,6 +33,13 @@ pub trait Autopilot {
     fn poll_transmit(&mut self) -> Option<OwnedFrame>;
     /// The mission it holds.
     fn mission(&self) -> &[MISSION_ITEM_INT_DATA];
+    /// The plan of `mission_type` it holds (fence and rally: none unless it keeps them).
+    fn plan(&self, mission_type: MavMissionType) -> &[MISSION_ITEM_INT_DATA] {
+        match mission_type {
+            MavMissionType::MAV_MISSION_TYPE_MISSION => self.mission(),
+            _ => &[],
+        }
+    }
 }
 
 impl Autopilot for Px4Fc {
@@ -46,5 +61,9 @@ impl Autopilot for Px4Fc {
 
     fn mission(&self) -> &[MISSION_ITEM_INT_DATA] {
         Px4Fc::mission(self)
+    }
+
+    fn plan(&self, mission_type: MavMissionType) -> &[MISSION_ITEM_INT_DATA] {
+        Px4Fc::plan(self, mission_type)
     }
 }

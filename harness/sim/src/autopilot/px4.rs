@@ -7,13 +7,14 @@ use std::collections::VecDeque;
 
 use mavlink::MavlinkVersion;
 
+use super::mission::MissionStore;
 use crate::rng::SplitMix64;
 use mavlora::Instant;
 use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType,
-    HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA,
-    MISSION_REQUEST_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionResult, MavModeFlag,
-    MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
+    HEARTBEAT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionType,
+    MavModeFlag, MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA,
+    VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 
@@ -213,15 +214,6 @@ struct Stream {
     next: Instant,
 }
 
-#[derive(Debug)]
-struct Upload {
-    peer: (u8, u8),
-    count: u16,
-    items: Vec<MISSION_ITEM_INT_DATA>,
-    requested_at: Instant,
-    last_progress: Instant,
-}
-
 /// Counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Px4Stats {
@@ -247,11 +239,22 @@ pub struct Px4Fc {
     out: VecDeque<OwnedFrame>,
     rng: SplitMix64,
     booted: Instant,
-    upload: Option<Upload>,
-    mission: Vec<MISSION_ITEM_INT_DATA>,
-    item_retry: Duration,
+    missions: MissionStore,
     flight: Flight,
     stats: Px4Stats,
+    /// Commands executed (other than `SET_MESSAGE_INTERVAL`), in order.
+    executed: Vec<Executed>,
+}
+
+/// A command the simulated PX4 executed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Executed {
+    /// Command id.
+    pub command: MavCmd,
+    /// The target component it was addressed to (0: all).
+    pub target_component: u8,
+    /// Its seven parameters.
+    pub params: [f32; 7],
 }
 
 impl Px4Fc {
@@ -273,11 +276,12 @@ impl Px4Fc {
             out: VecDeque::new(),
             rng: SplitMix64::new(seed),
             booted: now,
-            upload: None,
-            mission: Vec::new(),
-            item_retry: Duration::from_millis(250),
+            // PX4: an item re-requested after 250 ms whatever the link; 5 s without progress
+            // ends the upload.
+            missions: MissionStore::new(1, Duration::from_millis(250), Duration::from_secs(5)),
             flight: Flight::Circle,
             stats: Px4Stats::default(),
+            executed: Vec::new(),
         }
     }
 
@@ -319,12 +323,41 @@ impl Px4Fc {
 
     /// Counters so far.
     pub fn stats(&self) -> Px4Stats {
-        self.stats
+        let m = self.missions.stats();
+        Px4Stats {
+            item_requests: m.item_requests,
+            duplicate_items: m.duplicate_items,
+            missions_accepted: m.accepted,
+            ..self.stats
+        }
+    }
+
+    /// Every command executed so far (each copy that reached it counts), in order.
+    pub fn executed(&self) -> &[Executed] {
+        &self.executed
     }
 
     /// The mission stored by the last accepted upload.
     pub fn mission(&self) -> &[MISSION_ITEM_INT_DATA] {
-        &self.mission
+        self.missions.plan(MavMissionType::MAV_MISSION_TYPE_MISSION)
+    }
+
+    /// The stored plan of `mission_type` (mission, fence, rally).
+    pub fn plan(&self, mission_type: MavMissionType) -> &[MISSION_ITEM_INT_DATA] {
+        self.missions.plan(mission_type)
+    }
+
+    /// The mission protocol side (counters, upload in progress).
+    pub fn missions(&self) -> &MissionStore {
+        &self.missions
+    }
+
+    /// Reboots at `now`: `time_boot_ms` starts again from 0 (what the bridge's reboot
+    /// detection watches), an upload in progress is lost, stored plans survive.
+    pub fn reboot(&mut self, now: Instant) {
+        self.booted = now;
+        self.missions.reboot();
+        self.out.clear();
     }
 
     /// Current rate of message `id`.
@@ -370,93 +403,30 @@ impl Px4Fc {
             }
             // Any other command (mode changes, speed changes): accepted at once. PX4 acks
             // every copy it receives, retries included.
-            MavMessage::COMMAND_LONG(c) if c.target_system == 1 => {
+            MavMessage::COMMAND_LONG(c)
+                if c.target_system == 1 && matches!(c.target_component, 0 | 1) =>
+            {
                 self.stats.commands_acked += 1;
+                self.executed.push(Executed {
+                    command: c.command,
+                    target_component: c.target_component,
+                    params: [
+                        c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+                    ],
+                });
                 self.send(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                     command: c.command,
                     result: MavResult::MAV_RESULT_ACCEPTED,
                     ..Default::default()
                 }));
             }
-            MavMessage::MISSION_COUNT(c) if c.target_system == 1 => {
-                self.upload = Some(Upload {
-                    peer: from,
-                    count: c.count,
-                    items: Vec::new(),
-                    requested_at: now,
-                    last_progress: now,
-                });
-                self.request_next(now);
-            }
-            // Download and clear: PX4 answers each request once; only the requester retries.
-            MavMessage::MISSION_REQUEST_LIST(r) if r.target_system == 1 => {
-                self.send(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                    count: self.mission.len() as u16,
-                    target_system: from.0,
-                    target_component: from.1,
-                    ..Default::default()
-                }));
-            }
-            MavMessage::MISSION_REQUEST_INT(r) if r.target_system == 1 => {
-                if let Some(item) = self.mission.get(usize::from(r.seq)) {
-                    let item = MISSION_ITEM_INT_DATA {
-                        target_system: from.0,
-                        target_component: from.1,
-                        ..item.clone()
-                    };
-                    self.send(&MavMessage::MISSION_ITEM_INT(item));
+            ref msg if self.missions.handle(from, msg, now) => {
+                while let Some(reply) = self.missions.poll_message() {
+                    self.send(&reply);
                 }
-            }
-            MavMessage::MISSION_CLEAR_ALL(c) if c.target_system == 1 => {
-                self.mission.clear();
-                self.send(&MavMessage::MISSION_ACK(MISSION_ACK_DATA {
-                    target_system: from.0,
-                    target_component: from.1,
-                    mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
-                    ..Default::default()
-                }));
-            }
-            MavMessage::MISSION_ITEM_INT(item) if item.target_system == 1 => {
-                let Some(up) = &mut self.upload else {
-                    self.stats.duplicate_items += 1;
-                    return;
-                };
-                if usize::from(item.seq) != up.items.len() {
-                    self.stats.duplicate_items += 1;
-                    return;
-                }
-                up.items.push(item);
-                up.last_progress = now;
-                self.request_next(now);
             }
             _ => {}
         }
-    }
-
-    fn request_next(&mut self, now: Instant) {
-        let Some(up) = &mut self.upload else { return };
-        let peer = up.peer;
-        if up.items.len() == usize::from(up.count) {
-            self.mission = std::mem::take(&mut up.items);
-            self.upload = None;
-            self.stats.missions_accepted += 1;
-            self.send(&MavMessage::MISSION_ACK(MISSION_ACK_DATA {
-                target_system: peer.0,
-                target_component: peer.1,
-                mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
-                ..Default::default()
-            }));
-            return;
-        }
-        up.requested_at = now;
-        let seq = up.items.len() as u16;
-        self.stats.item_requests += 1;
-        self.send(&MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
-            seq,
-            target_system: peer.0,
-            target_component: peer.1,
-            ..Default::default()
-        }));
     }
 
     fn send(&mut self, msg: &MavMessage) {
@@ -471,11 +441,7 @@ impl Px4Fc {
             return Some(Instant::ZERO);
         }
         let streams = self.streams.iter().filter(|s| s.hz > 0.0).map(|s| s.next);
-        let retry = self
-            .upload
-            .as_ref()
-            .map(|u| u.requested_at + self.item_retry);
-        streams.chain(retry).min()
+        streams.chain(self.missions.poll_timeout()).min()
     }
 
     /// Emits what is due at `now`.
@@ -491,13 +457,9 @@ impl Px4Fc {
             let frame = self.telemetry(spec, now);
             self.out.push_back(frame);
         }
-        if let Some(up) = &self.upload {
-            if now.saturating_duration_since(up.last_progress) > Duration::from_secs(5) {
-                self.upload = None;
-            } else if now >= up.requested_at + self.item_retry {
-                // PX4: re-request after 250 ms whatever the link.
-                self.request_next(now);
-            }
+        self.missions.handle_timeout(now);
+        while let Some(msg) = self.missions.poll_message() {
+            self.send(&msg);
         }
     }
 

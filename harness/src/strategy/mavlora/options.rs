@@ -100,6 +100,8 @@ pub struct SessionOptions {
     pub compact: bool,
     /// `--rate` of the bridge (radio budget, B/s).
     pub rate: u32,
+    /// `--link-quality-period` of both ends (s); `None`: derived from the budget.
+    pub link_quality_period: Option<f64>,
     pub fc_profile: FcProfile,
     pub gcs: GcsPlan,
     /// Logs, summaries and the router's tlog go here.
@@ -156,6 +158,7 @@ impl SessionDefaults {
             bridge_profile: self.profile_dir.join("px4-compact.toml"),
             compact: true,
             rate: 3000,
+            link_quality_period: None,
             fc_profile: FcProfile::Normal,
             gcs: GcsPlan::default(),
             out_dir: out_dir.to_path_buf(),

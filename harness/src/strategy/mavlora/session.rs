@@ -89,6 +89,9 @@ impl MavloraSession {
         let mut router = None;
         let gcs_target: Vec<String>;
         if bridged {
+            // The radio leg is signed in every phase: a fresh key per session, owner-only
+            // (the binaries refuse others-readable keys), each end with its own state file.
+            let key = write_radio_key(dir)?;
             let mut command = Command::new(&options.bridge_program);
             command
                 .args(["--fc", &fc_port, "--radio", radio.air_path()])
@@ -96,9 +99,16 @@ impl MavloraSession {
                 .arg(&options.bridge_profile)
                 .args(["--rate", &options.rate.to_string()])
                 .args(["--status-interval", "2"])
+                .arg("--key")
+                .arg(&key)
+                .arg("--signing-state")
+                .arg(dir.join("bridge.signing-state"))
                 .env("NO_COLOR", "1");
             if options.compact {
                 command.arg("--compact");
+            }
+            if let Some(period) = options.link_quality_period {
+                command.args(["--link-quality-period", &period.to_string()]);
             }
             bridge = Some(Process::spawn(
                 "mavlora-bridge",
@@ -113,7 +123,14 @@ impl MavloraSession {
                 .args(["--udp-bind", "127.0.0.1:0", "--status-interval", "2"])
                 .arg("--tlog")
                 .arg(dir.join("router.tlog"))
+                .arg("--key")
+                .arg(&key)
+                .arg("--signing-state")
+                .arg(dir.join("router.signing-state"))
                 .env("NO_COLOR", "1");
+            if let Some(period) = options.link_quality_period {
+                command.args(["--link-quality-period", &period.to_string()]);
+            }
             router = Some(Process::spawn(
                 "mavlora-router",
                 command,
@@ -294,6 +311,32 @@ impl MavloraSession {
         }
         self.fc.stop(grace);
     }
+}
+
+/// Writes a fresh radio signing key (64 hex characters, mode 600) into `dir`. Not a secret
+/// worth keeping: it lives as long as the session's evidence.
+fn write_radio_key(dir: &Path) -> Result<PathBuf> {
+    use std::io::Write as _;
+    use std::os::unix::fs::OpenOptionsExt as _;
+    let path = dir.join("radio.key");
+    let io = |source| SessionError::Io {
+        path: path.clone(),
+        source,
+    };
+    let mut bytes = [0u8; 32];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut bytes))
+        .map_err(io)?;
+    let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+    let _ = std::fs::remove_file(&path);
+    std::fs::OpenOptions::new()
+        .create_new(true)
+        .write(true)
+        .mode(0o600)
+        .open(&path)
+        .and_then(|mut f| writeln!(f, "{hex}"))
+        .map_err(io)?;
+    Ok(path)
 }
 
 /// A UDP port free now on loopback, for the router to send to.

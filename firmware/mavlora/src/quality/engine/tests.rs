@@ -7,12 +7,14 @@ use crate::wire::{FrameReader, Sender};
 
 use crate::wire::ids::HEARTBEAT;
 
-/// One report a second, peer missing after 3 s.
+/// One report a second, peer missing after 3 s, no early reports (change > 1).
 fn config() -> LinkQualityConfig {
     LinkQualityConfig {
         period: Duration::from_secs(1),
         peer_timeout: Duration::from_secs(3),
-        radio_status: Some(RssiScale::Sik),
+        change: 2.0,
+        quiet_after: Duration::from_secs(3600),
+        ..LinkQualityConfig::for_budget(683, false)
     }
 }
 
@@ -61,7 +63,7 @@ fn report(rx: u16, lost: u16) -> MavMessage {
 fn reports_our_counters_once_per_period() {
     let stats = stats();
     let mut lq = LinkQuality::new(config(), secs(10));
-    assert_eq!(lq.poll_timeout(), Some(secs(11)));
+    assert!(lq.poll_timeout() <= Some(secs(11)));
     assert!(due_report(&mut lq, Instant::from_millis(10_999), &stats).is_none());
     let r = due_report(&mut lq, secs(11), &stats).unwrap();
     assert_eq!(
@@ -70,7 +72,8 @@ fn reports_our_counters_once_per_period() {
     );
     assert_eq!((r.rssi, r.remote_rssi), (i8::MAX, i8::MAX), "unknown");
     assert!(due_report(&mut lq, secs(11), &stats).is_none());
-    assert_eq!(lq.poll_timeout(), Some(secs(12)));
+    assert!(due_report(&mut lq, Instant::from_millis(11_999), &stats).is_none());
+    assert!(due_report(&mut lq, secs(12), &stats).is_some());
 }
 
 #[test]
@@ -79,7 +82,8 @@ fn a_stall_gives_one_report_not_a_burst() {
     let mut lq = LinkQuality::new(config(), secs(0));
     assert!(due_report(&mut lq, secs(30), &stats).is_some());
     assert!(due_report(&mut lq, secs(30), &stats).is_none());
-    assert_eq!(lq.poll_timeout(), Some(secs(31)));
+    assert!(due_report(&mut lq, Instant::from_millis(30_999), &stats).is_none());
+    assert!(due_report(&mut lq, secs(31), &stats).is_some());
 }
 
 #[test]
@@ -164,4 +168,133 @@ fn air_and_ground_learn_what_the_other_hears() {
 
     let seen = &ground.peer().unwrap().report;
     assert_eq!((seen.rx_packets, seen.rx_lost, seen.rx_bad_crc), (4, 1, 1));
+}
+
+#[test]
+fn budget_sets_the_steady_cost() {
+    // 3 B/s of LoRa SF7's 683 B/s at most (issue 12), signed or not.
+    for signed in [false, true] {
+        let c = LinkQualityConfig::for_budget(683, signed);
+        let bytes = if signed {
+            REPORT_BYTES_SIGNED
+        } else {
+            REPORT_BYTES
+        };
+        let cost = f64::from(bytes) / c.period.as_secs_f64();
+        assert!(cost <= 3.0, "{cost} B/s");
+    }
+    // A fast radio reports more often, never more than twice a second.
+    assert_eq!(
+        LinkQualityConfig::for_budget(1_000_000, false).period,
+        Duration::from_millis(500)
+    );
+}
+
+/// Frames from the peer, one per second from `from` s, every `lost_every`-th missing.
+fn peer_frames(reader: &mut FrameReader, seqs: std::ops::Range<u8>, skip: impl Fn(u8) -> bool) {
+    for seq in seqs {
+        if !skip(seq) {
+            reader.push(frame(HEARTBEAT, 255, 190, seq).as_bytes());
+        }
+    }
+    while reader.next_frame().is_some() {}
+}
+
+#[test]
+fn a_loss_change_sends_a_report_early_and_a_steady_link_stays_sparse() {
+    let config = LinkQualityConfig {
+        period: Duration::from_secs(10),
+        window: Duration::from_secs(4),
+        ..LinkQualityConfig::for_budget(683, false)
+    };
+    let mut lq = LinkQuality::new(config, secs(0));
+    let mut reader = FrameReader::new();
+    let mut reports = Vec::new();
+    let mut now = secs(0);
+    // 30 s of a clean link, one peer frame a second: only the keep-alives.
+    for s in 0..30u8 {
+        peer_frames(&mut reader, s..s + 1, |_| false);
+        let t = secs(u64::from(s));
+        lq.handle_frame(t, &frame(HEARTBEAT, 255, 190, s));
+        lq.observe(t, reader.stats());
+        while now <= t {
+            if let Some(r) = due_report(&mut lq, now, reader.stats()) {
+                reports.push((now, r));
+            }
+            now = lq
+                .poll_timeout()
+                .unwrap()
+                .max(now + Duration::from_millis(1));
+        }
+    }
+    assert_eq!(reports.len(), 2, "keep-alives at 10 s and 20 s only");
+    // Then half of the frames go missing: a report within 2 s of the first counted loss.
+    let before = reports.len();
+    for s in 30..40u8 {
+        peer_frames(&mut reader, s..s + 1, |q| q % 2 == 1);
+        let t = secs(u64::from(s));
+        if s % 2 == 0 {
+            lq.handle_frame(t, &frame(HEARTBEAT, 255, 190, s));
+        }
+        lq.observe(t, reader.stats());
+        while now <= t {
+            if let Some(r) = due_report(&mut lq, now, reader.stats()) {
+                reports.push((now, r));
+            }
+            now = lq
+                .poll_timeout()
+                .unwrap()
+                .max(now + Duration::from_millis(1));
+        }
+    }
+    // first loss counted when seq 32 arrives (31 missing); the keep-alive is due at 40 s
+    let first = reports[before..].iter().find(|(_, r)| r.rx_lost >= 1);
+    let (at, _) = first.expect("a report with the loss");
+    assert!(*at <= secs(33), "early report at {at}");
+}
+
+#[test]
+fn a_quiet_peer_is_reported_once_per_spell() {
+    let config = LinkQualityConfig {
+        period: Duration::from_secs(30),
+        quiet_after: Duration::from_secs(3),
+        ..LinkQualityConfig::for_budget(683, false)
+    };
+    let mut lq = LinkQuality::new(config, secs(0));
+    let stats = ReaderStats::default();
+    lq.handle_frame(secs(1), &frame(HEARTBEAT, 255, 190, 0));
+    let mut got = Vec::new();
+    let mut now = secs(1);
+    while now < secs(20) {
+        if due_report(&mut lq, now, &stats).is_some() {
+            got.push(now);
+        }
+        now = lq
+            .poll_timeout()
+            .unwrap()
+            .max(now + Duration::from_millis(1));
+    }
+    assert_eq!(got, vec![secs(4)], "once, 3 s after the last frame");
+    assert!(lq.peer_quiet(secs(20)));
+}
+
+#[test]
+fn a_report_of_nothing_received_while_we_sent_reads_as_a_deaf_peer() {
+    let mut sender = Sender::new(1, 191, MavlinkVersion::V2);
+    let mut lq = LinkQuality::new(config(), secs(0));
+    lq.handle_frame(secs(1), &sender.frame(&report(100, 0)));
+    for ms in [1_500, 2_000, 2_500, 3_000] {
+        lq.sent_frame(Instant::from_millis(ms));
+    }
+    // the peer received nothing new: 4 of ours sent, all older than the in-flight second
+    lq.handle_frame(secs(5), &sender.frame(&report(100, 0)));
+    assert_eq!(lq.peer().unwrap().unheard, 4);
+    assert_eq!(lq.peer_loss(secs(5)), Some(1.0));
+    // reports of "nothing new" a second apart still add up
+    lq.handle_frame(Instant::from_millis(5_500), &sender.frame(&report(100, 0)));
+    assert_eq!(lq.peer().unwrap().unheard, 4);
+    // it hears us again
+    lq.handle_frame(secs(6), &sender.frame(&report(101, 0)));
+    assert_eq!(lq.peer_loss(secs(6)), Some(0.0));
+    assert_eq!(lq.peer().unwrap().unheard, 0);
 }

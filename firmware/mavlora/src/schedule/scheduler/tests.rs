@@ -3,7 +3,7 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::testutil::raw_frame;
-use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT};
+use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT, PARAM_VALUE};
 
 const ROOM: usize = usize::MAX;
 
@@ -22,6 +22,7 @@ fn frame(id: u32, sysid: u8, compid: u8, seq: u8) -> OwnedFrame {
         GLOBAL_POSITION_INT => 28,
         COMMAND_LONG => 33,
         HEARTBEAT => 9,
+        PARAM_VALUE => 25,
         _ => unreachable!("test uses only the ids above"),
     };
     raw_frame(MavlinkVersion::V2, sysid, compid, seq, id, &vec![0x55; len])
@@ -133,6 +134,95 @@ fn full_queue_drops_periodic_before_priority() {
     s.push(frame(COMMAND_LONG, 1, 1, 6), Class::Priority, ms(0));
     assert_eq!(s.stats().dropped_priority, 1);
     assert!(s.queued_bytes() <= MAX_FRAME_LEN);
+}
+
+#[test]
+fn named_telemetry_goes_before_unlisted_whatever_the_arrival_order() {
+    let mut s = LinkScheduler::new(config(1000), ms(0)).unwrap();
+    // an autopilot flooding unnamed messages (distinct senders: no replacement)
+    for sys in 1..=5 {
+        s.push(frame(HEARTBEAT, sys, 1, 0), Class::Unlisted, ms(0));
+    }
+    s.push(frame(GLOBAL_POSITION_INT, 1, 1, 0), Class::Periodic, ms(0));
+    let first = s.poll_transmit(ms(0), ROOM).unwrap();
+    assert_eq!(first.message_id(), GLOBAL_POSITION_INT);
+}
+
+#[test]
+fn spare_traffic_leaves_a_reserve_for_named_telemetry() {
+    let mut c = config(100);
+    c.burst_bytes = MAX_FRAME_LEN as u32 + SPARE_RESERVE_BYTES as u32;
+    let mut s = LinkScheduler::new(c, ms(0)).unwrap();
+    for sys in 1..=20 {
+        s.push(frame(HEARTBEAT, sys, 1, 0), Class::Unlisted, ms(0));
+    }
+    drain(&mut s, ms(0));
+    // the unlisted flood stopped short of the reserve: a position that arrives now leaves now
+    s.push(frame(GLOBAL_POSITION_INT, 1, 1, 0), Class::Periodic, ms(0));
+    let out = s
+        .poll_transmit(ms(0), ROOM)
+        .expect("reserve kept for named telemetry");
+    assert_eq!(out.message_id(), GLOBAL_POSITION_INT);
+}
+
+#[test]
+fn parameter_burst_neither_evicts_commands_nor_is_dropped() {
+    // regression: a PARAM_VALUE burst at boot filled the priority queue, which then dropped
+    // priority frames (commands, acks) and parameters alike
+    let mut c = config(300);
+    c.max_queued_bytes = MAX_FRAME_LEN;
+    let mut s = LinkScheduler::new(c, ms(0)).unwrap();
+    for i in 0..1000u32 {
+        s.push(frame(PARAM_VALUE, 1, 1, i as u8), Class::Param, ms(0));
+    }
+    for seq in 0..5 {
+        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Priority, ms(0));
+    }
+    let st = s.stats();
+    assert_eq!((st.dropped_priority, st.dropped_param), (0, 0), "{st:?}");
+    assert_eq!(s.queued_params(), 1000);
+    // commands leave first; then every parameter, in order, paced by the budget
+    let mut t = 0;
+    let mut out = Vec::new();
+    while out.len() < 1005 && t < 1_000_000 {
+        out.extend(drain(&mut s, ms(t)));
+        t += 100;
+    }
+    assert_eq!(out.len(), 1005);
+    assert!(out[..5].iter().all(|f| f.message_id() == COMMAND_LONG));
+    let seqs: Vec<u8> = out[5..].iter().map(|f| f.sequence()).collect();
+    assert!(seqs.iter().enumerate().all(|(i, &q)| q == i as u8));
+}
+
+#[test]
+fn waiting_parameters_get_their_share_against_saturating_named_telemetry() {
+    let mut s = LinkScheduler::new(config(400), ms(0)).unwrap();
+    for i in 0..200u32 {
+        s.push(frame(PARAM_VALUE, 1, 1, i as u8), Class::Param, ms(0));
+    }
+    let (mut params, mut bytes, mut param_bytes) = (0, 0, 0);
+    for t in (0..60_000).step_by(10) {
+        // named telemetry offered far above the budget (fresh samples from many senders)
+        for sys in 1..=3 {
+            s.push(
+                frame(GLOBAL_POSITION_INT, sys, 1, 0),
+                Class::Periodic,
+                ms(t),
+            );
+        }
+        for f in drain(&mut s, ms(t)) {
+            bytes += f.as_bytes().len();
+            if f.message_id() == PARAM_VALUE {
+                params += 1;
+                param_bytes += f.as_bytes().len();
+            }
+        }
+    }
+    let share = param_bytes as f64 / bytes as f64;
+    assert!(
+        params > 0 && share >= 0.95 / PARAM_SHARE_DIVISOR as f64,
+        "{params} params, share {share:.3}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -13,14 +13,19 @@ use crate::strategy::mavlora::{FcProfile, GcsPlan, SessionDefaults};
 
 pub const SCENARIO: Scenario = Scenario {
     name: "table_ii",
-    summary: "Table II over ptys: radio B/s of compact telemetry (<= 50) and of limiting + filtering (<= 951), loss-free SiK",
+    summary: "Table II over ptys, radio signed: radio B/s of compact telemetry (<= 68.4, 10 % of LoRa SF7; marginal above our 50) and of limiting + filtering (<= 951), loss-free SiK",
     plan,
 };
 
-/// (variant, profile file, `--compact`, B/s limit)
-const VARIANTS: [(&str, &str, bool, f64); 2] = [
-    ("compact", "px4-compact.toml", true, 50.0),
-    ("limit_filter", "px4-normal.toml", false, 951.0),
+/// (variant, profile file, `--compact`, B/s limit, B/s target above which it is marginal)
+///
+/// Compact's limit is the EU 433 MHz SRD rule (ERC/REC 70-03: a 10 % duty cycle) on a
+/// LoRa SF7 channel of 683.6 B/s; 50 B/s is this project's own target, met unsigned (the
+/// simulated Table II) and not with every frame carrying signing's 13-byte trailer (one
+/// batch a second: about 13 B/s more).
+const VARIANTS: [(&str, &str, bool, f64, Option<f64>); 2] = [
+    ("compact", "px4-compact.toml", true, 68.36, Some(50.0)),
+    ("limit_filter", "px4-normal.toml", false, 951.0, None),
 ];
 
 /// Seconds before the counting window: FC boot, the bridge's
@@ -52,14 +57,16 @@ struct Measured {
 fn plan(d: &mut Declarations) -> Script {
     let measured: Vec<Measured> = VARIANTS
         .iter()
-        .map(|(v, _, _, limit)| {
+        .map(|(v, _, _, limit, target)| {
             let variant = |base: &str, unit: &str| spec(base, unit).dim(Dimension::Variant, *v);
+            let bytes = variant("bytes_per_s", "B/s")
+                .describe(format!("{v}: {HOW}"))
+                .at_most(*limit);
             Measured {
-                bytes_per_s: d.declare(
-                    variant("bytes_per_s", "B/s")
-                        .describe(format!("{v}: {HOW}"))
-                        .at_most(*limit),
-                ),
+                bytes_per_s: d.declare(match target {
+                    Some(t) => bytes.marginal_above(*t),
+                    None => bytes,
+                }),
                 msgs_per_s: d.declare(variant("msgs_per_s", "msg/s").describe(format!(
                     "{v}: messages the pymavlink GCS decoded per second over the same window \
                      (after the router's expansion of compact frames; paper: 35.23 with limiting + filtering)"
@@ -70,9 +77,12 @@ fn plan(d: &mut Declarations) -> Script {
     Box::new(move |ctx, defaults| run(ctx, defaults, &measured))
 }
 
+/// LoRa SF7's channel rate, as the engines' default link monitoring assumes.
+const LORA_SF7_BYTES_PER_S: u32 = 683;
+
 fn run(ctx: &mut PhaseContext, d: &SessionDefaults, measured: &[Measured]) -> Result<()> {
     let mut options = Vec::new();
-    for (variant, profile, compact, _) in VARIANTS {
+    for (variant, profile, compact, ..) in VARIANTS {
         let mut o = d.options(
             &format!("table_ii-{variant}"),
             &d.clean_radio,
@@ -81,6 +91,14 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, measured: &[Measured]) -> Re
         o.bridge_profile = d.profile_dir.join(profile);
         o.compact = compact;
         o.rate = RATE;
+        // Link monitoring as on the LoRa SF7 channel the 50 B/s is for (signed), as in the
+        // simulated Table II: the pty's 3000 B/s budget would buy a report every second or
+        // two, which the limit does not allow for.
+        o.link_quality_period = Some(
+            mavlora::quality::LinkQualityConfig::for_budget(LORA_SF7_BYTES_PER_S, true)
+                .period
+                .as_secs_f64(),
+        );
         o.fc_profile = FcProfile::Config;
         o.gcs = GcsPlan {
             listen_s: WARMUP_S + WINDOW_S,

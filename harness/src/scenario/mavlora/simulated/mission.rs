@@ -55,9 +55,15 @@ pub const MISSION_IDS: [u32; 6] = [
     ids::MISSION_ITEM_INT,
 ];
 
+/// Ground stations' mission timeouts (per step, retries): SDKs' 0.5 s x 3 (the issue's
+/// target) and the MAVLink spec's 1.5 s x 5.
+pub const GROUNDS: [(&str, u64, u32); 2] = [("0_5s", 500, 3), ("1_5s", 1500, 5)];
+
 /// One radio's measurements, relayed and naive.
 struct Measured {
-    upload_s: Handle,
+    /// Relay upload time per ground in [`GROUNDS`].
+    upload_s: Vec<Handle>,
+    mismatch: Handle,
     bytes_on_air: Handle,
     efficiency: Handle,
     naive_upload_s: Handle,
@@ -73,24 +79,47 @@ fn plan(d: &mut Declarations, radios: &Radios) -> Script {
                 .dim(Dimension::Radio, key.as_str())
                 .dim(Dimension::Variant, variant)
         };
-        measured.push(Measured {
-            upload_s: d.declare(
-                on("mission_upload_s", "s", RELAY)
-                .describe(
-                    "100-item upload through the MavLora relay (compact profile) under 10 % bursty \
-                     loss both ways, while flying: the ground station's MISSION_COUNT → its \
-                     MISSION_ACK (accepted, and the flight controller holds the same 100 items)",
+        let upload_s = GROUNDS
+            .iter()
+            .map(|(g, ms, retries)| {
+                d.declare(
+                    on("mission_upload_s", "s", RELAY)
+                        .dim(Dimension::GroundTimeout, *g)
+                        .describe(format!(
+                            "100-item upload through the MavLora relay (compact profile) under 10 % \
+                             bursty loss both ways, while flying, from a ground station with {ms} ms \
+                             timeouts and {retries} retries: its MISSION_COUNT → its MISSION_ACK \
+                             (accepted, and the flight controller holds the same 100 items)"
+                        ))
+                        .at_most(CUT_OFF_S),
                 )
-                .at_most(CUT_OFF_S),
+            })
+            .collect();
+        measured.push(Measured {
+            upload_s,
+            mismatch: d.declare(
+                on("mission_mismatch_on_accept", "", RELAY)
+                    .describe(
+                        "relayed uploads (both ground timeouts) whose ground heard ACCEPTED while the \
+                         flight controller does not hold exactly the plan sent (issue 9: must be 0)",
+                    )
+                    .at_most(0.0),
             ),
             bytes_on_air: d.declare(on("mission_bytes_on_air", "B", RELAY).describe(
                 "mission-protocol bytes handed to the radio during the relayed upload, both \
                  directions (MISSION_COUNT, _REQUEST(_INT), _ITEM(_INT), _ACK), retries included",
             )),
-            efficiency: d.declare(on("mission_efficiency", "", RELAY).describe(
-                "airtime 100 items need (one air packet each, no loss) ÷ airtime both radio \
-                 directions used during the relayed upload, telemetry included",
-            )),
+            efficiency: d.declare(
+                on("mission_efficiency", "", RELAY)
+                    .describe(
+                        "airtime the 100 items need at least (no loss) ÷ the relayed upload's time \
+                         with the 0.5 s x 3 ground. Issue 9's engineering target (time ≤ 1.5 × \
+                         that airtime, ≥ 0.65) is the marginal band, reported MARGINAL while not \
+                         met; no requirement of SORA or the paper sets a hard limit (the upload \
+                         time's limit does)",
+                    )
+                    .marginal_below(0.65),
+            ),
             naive_upload_s: d.declare(on("mission_upload_s", "s", "naive").describe(
                 "same upload over a transparent radio (the ground station's protocol straight \
                  to PX4 and its 250 ms item retries); if it does not finish, the cut-off time",
@@ -139,7 +168,13 @@ fn loss_of(s: &LinkStats) -> f64 {
 }
 
 /// Runs one upload, relayed or naive, over `setup` (already seeded).
-pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload> {
+/// `ground`: the ground station's mission timeout and retries (`None`: the spec's 1.5 s x 5).
+pub fn upload(
+    radios: &Radios,
+    setup: &RadioSetup,
+    relay: bool,
+    ground: Option<(Duration, u32)>,
+) -> Result<Upload> {
     let preset = setup.preset.resolve()?;
     let mut fc =
         Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(Route::PAPER));
@@ -158,6 +193,9 @@ pub fn upload(radios: &Radios, setup: &RadioSetup, relay: bool) -> Result<Upload
         None
     };
     let mut w = World::new(fc, mavlora, Some(setup))?;
+    if let Some((timeout, retries)) = ground {
+        w.gcs = GcsMock::new(Instant::ZERO).with_mission_timeouts(timeout, retries);
+    }
     w.run_until(secs(WARM_UP_S));
     let start = w.now;
     let downlink0 = w.sent(Direction::Downlink).clone();
@@ -215,9 +253,30 @@ fn airtime(w: &World) -> Duration {
 fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result<()> {
     for ((key, setup), m) in radios.mission.iter().zip(measured) {
         let setup = radios.seeded(setup);
-        let relay = upload(radios, &setup, true)?;
-        let naive = upload(radios, &setup, false)?;
-        for (label, u) in [("relay", &relay), ("naive", &naive)] {
+        let mut relays = Vec::new();
+        for (_, ms, retries) in GROUNDS {
+            relays.push(upload(
+                radios,
+                &setup,
+                true,
+                Some((Duration::from_millis(ms), retries)),
+            )?);
+        }
+        let naive = upload(radios, &setup, false, None)?;
+        let mismatches = relays
+            .iter()
+            .filter(|u| {
+                matches!(u.result, Some((MavMissionResult::MAV_MISSION_ACCEPTED, _))) && !u.stored
+            })
+            .count();
+        ctx.record(m.mismatch, mismatches as f64);
+        let relay = relays[0].clone();
+        let labelled = GROUNDS
+            .iter()
+            .zip(&relays)
+            .map(|((g, _, _), u)| (format!("relay ground {g}"), u))
+            .chain([("naive".to_owned(), &naive)]);
+        for (label, u) in labelled {
             ctx.log(format!(
                 "{key} {label}: result {:?}, stored {}, {} items sent, {} duplicates at PX4, \
                  mission bytes {}, airtime {:.1} s (items need {:.1} s); measured loss over \
@@ -239,22 +298,23 @@ fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result
             100.0 * relay.loss.0,
             100.0 * relay.loss.1
         );
-        let n = m.upload_s;
-        match relay.upload_s {
-            Some(s) => ctx.record(n, s),
-            None => {
-                ctx.record(n, f64::NAN);
-                ctx.annotate(
-                    n,
-                    &format!("not accepted by the cut-off: result {:?}", relay.result),
-                );
+        for (n, u) in m.upload_s.iter().zip(&relays) {
+            match u.upload_s {
+                Some(s) => ctx.record(*n, s),
+                None => {
+                    ctx.record(*n, f64::NAN);
+                    ctx.annotate(
+                        *n,
+                        &format!("not accepted by the cut-off: result {:?}", u.result),
+                    );
+                }
             }
+            ctx.annotate(*n, &loss_note);
         }
-        ctx.annotate(n, &loss_note);
         ctx.record(m.bytes_on_air, relay.mission_bytes as f64);
         ctx.record(
             m.efficiency,
-            relay.needed_airtime.as_secs_f64() / relay.airtime.as_secs_f64(),
+            relay.needed_airtime.as_secs_f64() / relay.upload_s.unwrap_or(f64::INFINITY),
         );
         let n = m.naive_upload_s;
         match naive.upload_s {

@@ -21,9 +21,9 @@
 //! |---|---|
 //! | `table_ii` | `mavlora.<variant>.bytes_per_s`, `.msgs_per_s` for `wired`, `limit`, `limit_filter` (≤ 951 B/s), `compact` (≤ 50 B/s) |
 //! | `mission_upload` | `mavlora.<radio>.mission_upload_s` (≤ 300 s), `.mission_bytes_on_air`, `.mission_efficiency`, `.naive.mission_upload_s`, `.naive.mission_bytes_on_air`, `.naive.duplicate_items` for `lora_sf7`, `sik_64k` |
-//! | `c2_latency` | `mavlora.c2_latency_p50_ms`, `mavlora.c2_latency_p99_ms` (≤ 3000 ms) |
+//! | `c2_latency` | `mavlora.c2_latency_p50_ms`, `mavlora.c2_latency_p99_ms` (≤ 3000 ms); `mavlora.sik_64k.c2_latency_p50_ms`, `.c2_latency_p99_ms` (≤ 500 ms, issue 9), `.commands_lost`, `.commands_executed_twice` (= 0) |
 //! | `attenuation_sweep` | `mavlora.<preset>.nominal_edge_db`, `.nominal_range_m` (paper ± 3 dB), CSV evidence |
-//! | `blind_drone` | `mavlora.blind_drone.detect_s` (≤ 15.5 s) |
+//! | `blind_drone` | `mavlora.blind_drone.detect_p50_s`, `.detect_p95_s` (≤ 5 s), `.restore_p95_s` (≤ 5 s) over 20 seeds; `mavlora.lora_sf7.monitor_uplink_bytes_per_s`, `.monitor_downlink_bytes_per_s` (≤ 3 B/s) |
 //! | `duty_cycle` | `mavlora.lora_sf7.duty_cycle_pct` (≤ 10 %), `mavlora.lora_sf7.uplink_duty_cycle_pct` |
 //!
 //! With the built-in radios and seed 1 three SLAs fail, for reasons the
@@ -33,9 +33,13 @@
 //! a ground station resending commands after 1.5 s needs a third copy for ~3.6 %
 //! of commands at 10 % loss, so p99 is 3.17 s (0.5 s retries give 1.18 s).
 //!
-//! Over seeds 1–20 (measured once, not a test): C2 p99 exceeds 3 s for 19;
-//! the blind drone is seen within 15.5 s for 15 (10.1–40 s: a quiet uplink
-//! carries ~2 router frames per 5 s report); the relayed LoRa upload finishes
+//! `blind_drone` fails its 5 s p95 (issue 12): over seeds 1–20 the router announces the
+//! uplink degraded in 4.0–16.5 s (p50 6.1 s, p95 16.5 s; before issue 12, 10.1–40 s for
+//! the raw report view): the drone can only miss frames the ground sends, and the steady
+//! cost limit (3 B/s on LoRa SF7, 0.4 % of a side's budget) leaves the SiK uplink ~0.7
+//! frames/s, so seeing 40 % loss takes several seconds of frames.
+//!
+//! Over seeds 1–20 (measured once, not a test): C2 p99 exceeds 3 s for 19; the relayed LoRa upload finishes
 //! for 18 (34–48 s) — seeds 2 and 12 hit multi-second downlink loss bursts
 //! (the Gilbert-Elliott tail) and the ground station's 5 × 1.5 s retries give
 //! up; with seed 12 PX4 still stored all 100 items while the ground saw the
@@ -105,8 +109,11 @@ pub struct Radios {
     pub table_ii: Option<RadioSetup>,
     /// Mission uploads: measurement key (`lora_sf7`) and radio.
     pub mission: Vec<(String, RadioSetup)>,
-    /// Command latency.
+    /// Command latency (SORA's TMPR bound).
     pub c2: RadioSetup,
+    /// Command latency against issue 9's target (SiK 64k, 10 % loss each way) and the
+    /// command mix's exactly-once counts.
+    pub c2_target: RadioSetup,
     /// Attenuation sweep, one preset each (their link configs give seeds and latency; the
     /// sweep sets the attenuation).
     pub sweep: Vec<RadioSetup>,
@@ -193,6 +200,11 @@ impl Radios {
                 independent(31, PAPER_LOSS),
                 independent(32, PAPER_LOSS),
             ),
+            c2_target: setup(
+                "sik-64k",
+                independent(33, PAPER_LOSS),
+                independent(34, PAPER_LOSS),
+            ),
             sweep: ["sik-64k", "lora-sf7", "dmd-dl1"]
                 .iter()
                 .enumerate()
@@ -243,7 +255,15 @@ pub fn mavlora_configs(
     let budget = scheduler_for(preset);
     let mut b = BridgeConfig::new(profile, budget);
     b.compact = compact.then(CompactConfig::default);
-    Ok((b, RouterConfig::new(budget)))
+    let mut r = RouterConfig::new(budget);
+    if preset.is_none() {
+        // An ideal wire has no radio budget for link monitoring to take its share of (its
+        // nominal rate would buy a report every 0.5 s): monitor as on the LoRa SF7 channel
+        // the paper's compact figures are for.
+        b.quality = mavlora::quality::LinkQualityConfig::default();
+        r.quality = mavlora::quality::LinkQualityConfig::default();
+    }
+    Ok((b, r))
 }
 
 /// Nearest-rank quantile of sorted samples, shared with the real-time scenarios.

@@ -77,7 +77,16 @@ fn value(ms: &[Measurement], base: &str, dims: &[(Dimension, &str)]) -> f64 {
 #[test]
 fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
     let (ms, _, _) = run_one("table_ii", &Radios::paper_defaults(), Path::new(""));
-    let b = |v: &str| value(&ms, "bytes_per_s", &[(Dimension::Variant, v)]);
+    let b = |v: &str| {
+        value(
+            &ms,
+            "bytes_per_s",
+            &[
+                (Dimension::Autopilot, crate::measurement::PX4),
+                (Dimension::Variant, v),
+            ],
+        )
+    };
     assert!(b("wired") > b("limit") && b("limit") > b("limit_filter"));
     assert!(b("limit_filter") > b("compact"));
     let compact_bytes = Selector::base("bytes_per_s").dim(Dimension::Variant, "compact");
@@ -169,8 +178,22 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
         )
     };
     for (key, _) in &radios.mission {
-        let relay = on(key, RELAY, "mission_upload_s");
-        assert!(relay > 0.0 && relay <= mission::CUT_OFF_S);
+        for (ground, _, _) in mission::GROUNDS {
+            let relay = value(
+                &ms,
+                "mission_upload_s",
+                &[
+                    (Dimension::Radio, key.as_str()),
+                    (Dimension::Variant, RELAY),
+                    (Dimension::GroundTimeout, ground),
+                ],
+            );
+            assert!(
+                relay > 0.0 && relay <= mission::CUT_OFF_S,
+                "{key} {ground}: {relay}"
+            );
+        }
+        assert_eq!(on(key, RELAY, "mission_mismatch_on_accept"), 0.0);
         let e = on(key, RELAY, "mission_efficiency");
         assert!(e > 0.0 && e <= 1.0, "{key}: efficiency {e}");
     }
@@ -178,7 +201,16 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
     let naive = |base: &str| on("lora_sf7", "naive", base);
     assert!(naive("duplicate_items") >= 50.0);
     assert!(naive("mission_bytes_on_air") > 2.0 * relay("mission_bytes_on_air"));
-    assert!(naive("mission_upload_s") > relay("mission_upload_s"));
+    let relay_05 = value(
+        &ms,
+        "mission_upload_s",
+        &[
+            (Dimension::Radio, "lora_sf7"),
+            (Dimension::Variant, RELAY),
+            (Dimension::GroundTimeout, "0_5s"),
+        ],
+    );
+    assert!(naive("mission_upload_s") > relay_05);
     // the relay's own uploads to PX4 never duplicate
     assert!(
         log.iter()
@@ -186,15 +218,19 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
     );
 }
 
-/// The bursty loss the mission scenario configures averages 10 %, as the radio counts it.
+/// The bursty loss the mission scenario configures averages 10 % of the time, as the radio
+/// counts it per packet. Fades step in time, so a packet is lost when a fade overlaps any of
+/// its airtime: at most 0.1 + 0.9 · (1 − e^(−T/9 s)) for a packet of airtime T with 1 s fades
+/// 10 % of the time (mean good spell 9 s): 0.139 for LoRa SF7's longest packet (~0.4 s), plus
+/// 0.03 for sampling over a few hundred packets.
 #[test]
 fn mission_radios_lose_ten_percent_on_average() {
     let radios = Radios::paper_defaults();
     for (key, setup) in &radios.mission {
-        let u = mission::upload(&radios, &radios.seeded(setup), true).unwrap();
+        let u = mission::upload(&radios, &radios.seeded(setup), true, None).unwrap();
         for (dir, loss) in [("down", u.loss.0), ("up", u.loss.1)] {
             assert!(
-                (0.06..=0.14).contains(&loss),
+                (0.06..=0.17).contains(&loss),
                 "{key} {dir}: measured loss {loss}"
             );
         }
@@ -209,8 +245,15 @@ fn mission_radios_lose_ten_percent_on_average() {
 fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
     let radios = Radios::paper_defaults();
     let (ms, log, _) = run_one("c2_latency", &radios, Path::new(""));
-    let p50 = value(&ms, "c2_latency_p50_ms", &[]);
-    let p99 = value(&ms, "c2_latency_p99_ms", &[]);
+    // the SORA measurements (no radio dimension; the `sik_64k` ones are issue 9's)
+    let named = |n: &str| {
+        ms.iter()
+            .find(|m| m.name == n)
+            .and_then(|m| m.value)
+            .unwrap_or_else(|| panic!("{n} not recorded"))
+    };
+    let p50 = named("mavlora.c2_latency_p50_ms");
+    let p99 = named("mavlora.c2_latency_p99_ms");
     assert!(p50 < 500.0, "p50 {p50}: one round trip expected");
     assert!(p99 <= 3000.0, "p99 {p99} with the command relay");
     let (lat, stats) = c2_latency::measure(&radios).unwrap();
@@ -231,6 +274,33 @@ fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
     );
 }
 
+/// Issue 9: over SiK at 10 % loss each way, a command mix with ground retries, new
+/// parameters under the same id and target component 0 or 1 reaches the autopilot exactly
+/// once per command, and every execution is of a command the ground sent.
+#[test]
+fn c2_command_mix_runs_each_command_exactly_once() {
+    let radios = Radios::paper_defaults();
+    let (lat, stats, integrity) = c2_latency::measure_target(&radios).unwrap();
+    eprintln!(
+        "sik c2: p50 {} p99 {} max {} ms; {stats:?}; {integrity:?}",
+        quantile(&lat, 0.5),
+        quantile(&lat, 0.99),
+        lat.last().unwrap()
+    );
+    assert!(
+        stats.copies > stats.started,
+        "no ground retry: the mix must include some"
+    );
+    assert_eq!(
+        integrity,
+        c2_latency::Integrity {
+            lost: 0,
+            executed_twice: 0,
+            unknown: 0
+        }
+    );
+}
+
 #[test]
 fn attenuation_sweep_finds_the_papers_edges_and_writes_its_csv() {
     let dir = tempfile::tempdir().unwrap();
@@ -243,8 +313,27 @@ fn attenuation_sweep_finds_the_papers_edges_and_writes_its_csv() {
 
 #[test]
 fn blind_drone_is_seen_from_the_ground() {
-    let (ms, _, _) = run_one("blind_drone", &Radios::paper_defaults(), Path::new(""));
-    assert_all_pass(&ms);
+    // Every seed: no false alarm before the onset, an alarm during the noise, restored after.
+    for seed in 1..=5 {
+        let radios = Radios {
+            seed,
+            ..Radios::paper_defaults()
+        };
+        let d = blind_drone::detect(&radios).unwrap();
+        assert_eq!(d.false_alarms, 0, "seed {seed}: {d:?}");
+        assert!(
+            d.detect_s.is_some_and(|s| s < blind_drone::NOISE_S),
+            "seed {seed}: {d:?}"
+        );
+        assert!(d.restore_s.is_some(), "seed {seed}: {d:?}");
+    }
+    // The steady cost fits LoRa SF7 (issue 12: 3 B/s each way).
+    let (up, down) = blind_drone::monitoring_cost(&Radios::paper_defaults()).unwrap();
+    assert!(
+        up <= blind_drone::COST_LIMIT_BPS && down <= blind_drone::COST_LIMIT_BPS,
+        "{up} {down}"
+    );
+    assert!(up > 0.0 && down > 0.0, "reports do flow: {up} {down}");
 }
 
 /// The airtime the radio reports is the airtime of the frames the bridge sent, one packet
@@ -312,8 +401,8 @@ fn runs_are_deterministic_for_a_seed() {
     };
     let c = blind_drone::detect(&other).unwrap();
     assert_ne!(a.views, c.views);
-    let m1 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true).unwrap();
-    let m2 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true).unwrap();
+    let m1 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true, None).unwrap();
+    let m2 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true, None).unwrap();
     assert_eq!(m1, m2);
 }
 
@@ -361,9 +450,25 @@ fn flat_names_are_the_ones_readers_know() {
             format!("mavlora.{v}.msgs_per_s"),
         ]);
     }
+    // The ArduPilot-like autopilot's rows (dimension autopilot = ardupilot; px4 stays out of
+    // the names), with the position rate and lag where the radio filters.
+    for v in ["wired", "limit", "limit_filter", "compact"] {
+        expected.extend([
+            format!("mavlora.ardupilot.{v}.bytes_per_s"),
+            format!("mavlora.ardupilot.{v}.msgs_per_s"),
+        ]);
+        if matches!(v, "limit_filter" | "compact") {
+            expected.extend([
+                format!("mavlora.ardupilot.{v}.position_hz"),
+                format!("mavlora.ardupilot.{v}.position_lag_p99_s"),
+            ]);
+        }
+    }
     for r in ["lora_sf7", "sik_64k"] {
         for what in [
-            "mission_upload_s",
+            "0_5s.mission_upload_s",
+            "1_5s.mission_upload_s",
+            "mission_mismatch_on_accept",
             "mission_bytes_on_air",
             "mission_efficiency",
             "naive.mission_upload_s",
@@ -376,6 +481,10 @@ fn flat_names_are_the_ones_readers_know() {
     expected.extend([
         "mavlora.c2_latency_p50_ms".into(),
         "mavlora.c2_latency_p99_ms".into(),
+        "mavlora.sik_64k.c2_latency_p50_ms".into(),
+        "mavlora.sik_64k.c2_latency_p99_ms".into(),
+        "mavlora.sik_64k.commands_lost".into(),
+        "mavlora.sik_64k.commands_executed_twice".into(),
     ]);
     for r in ["sik_64k", "lora_sf7", "dmd_dl1"] {
         expected.extend([
@@ -384,7 +493,11 @@ fn flat_names_are_the_ones_readers_know() {
         ]);
     }
     expected.extend([
-        "mavlora.blind_drone.detect_s".into(),
+        "mavlora.blind_drone.detect_p50_s".into(),
+        "mavlora.blind_drone.detect_p95_s".into(),
+        "mavlora.blind_drone.restore_p95_s".into(),
+        "mavlora.lora_sf7.monitor_uplink_bytes_per_s".into(),
+        "mavlora.lora_sf7.monitor_downlink_bytes_per_s".into(),
         "mavlora.lora_sf7.duty_cycle_pct".into(),
         "mavlora.lora_sf7.uplink_duty_cycle_pct".into(),
     ]);

@@ -1,0 +1,121 @@
+//! What a signer must remember across restarts (MAVLink signing spec, "Timestamp handling"):
+//! its own timestamp, so it starts from the larger of the stored value and the clock, and the
+//! last timestamp accepted from each stream, so a frame captured before a restart is still a
+//! replay after it. Text, one item per line, so an operator can read it:
+//!
+//! ```text
+//! mavlora-signing-state 1
+//! timestamp 371958470123
+//! stream 2 255 190 371958469000    # link id, system id, component id, last timestamp
+//! ```
+//!
+//! Reading and writing the file is the driver's ([`crate::io::SigningStateFile`]).
+
+use std::collections::BTreeMap;
+
+/// A stream of signed frames: (link id, system id, component id).
+pub type StreamKey = (u8, u8, u8);
+
+const MAGIC: &str = "mavlora-signing-state 1";
+
+/// A signer's persistent state; timestamps in 10 µs units since 2015-01-01 00:00 UTC.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SigningState {
+    /// The last timestamp this side used or adopted.
+    pub timestamp: u64,
+    /// The last timestamp accepted per stream.
+    pub streams: BTreeMap<StreamKey, u64>,
+}
+
+/// A state file that does not parse: the 1-based line and what is wrong.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("line {line}: {reason}")]
+pub struct StateError {
+    /// 1-based line.
+    pub line: usize,
+    /// What is wrong.
+    pub reason: String,
+}
+
+impl SigningState {
+    /// Parses the text form (see the module doc).
+    pub fn parse(text: &str) -> Result<Self, StateError> {
+        let mut state = Self::default();
+        let mut lines = text.lines().enumerate();
+        let err = |line: usize, reason: String| StateError {
+            line: line + 1,
+            reason,
+        };
+        match lines.next() {
+            Some((_, first)) if first.trim() == MAGIC => {}
+            _ => return Err(err(0, format!("expected `{MAGIC}`"))),
+        }
+        for (n, line) in lines {
+            let line = line.split('#').next().unwrap_or("").trim();
+            let words: Vec<&str> = line.split_whitespace().collect();
+            let number = |w: &str| -> Result<u64, StateError> {
+                w.parse::<u64>()
+                    .ok()
+                    .filter(|&v| v < 1 << 48)
+                    .ok_or_else(|| err(n, format!("`{w}` is not a 48-bit timestamp")))
+            };
+            let byte = |w: &str| -> Result<u8, StateError> {
+                w.parse::<u8>()
+                    .map_err(|_| err(n, format!("`{w}` is not a number 0..=255")))
+            };
+            match words.as_slice() {
+                [] => {}
+                ["timestamp", t] => state.timestamp = number(t)?,
+                ["stream", link, sys, comp, t] => {
+                    let key = (byte(link)?, byte(sys)?, byte(comp)?);
+                    state.streams.insert(key, number(t)?);
+                }
+                _ => {
+                    return Err(err(
+                        n,
+                        format!("expected `timestamp T` or `stream LINK SYS COMP T`, got `{line}`"),
+                    ));
+                }
+            }
+        }
+        Ok(state)
+    }
+
+    /// The text form.
+    pub fn to_text(&self) -> String {
+        let mut out = format!("{MAGIC}\ntimestamp {}\n", self.timestamp);
+        for ((link, sys, comp), t) in &self.streams {
+            out.push_str(&format!("stream {link} {sys} {comp} {t}\n"));
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trips_and_reads_comments() {
+        let mut s = SigningState {
+            timestamp: 371_958_470_123,
+            ..Default::default()
+        };
+        s.streams.insert((2, 255, 190), 371_958_469_000);
+        s.streams.insert((1, 1, 1), 5);
+        assert_eq!(SigningState::parse(&s.to_text()).unwrap(), s);
+        let commented = "mavlora-signing-state 1\n# saved by hand\ntimestamp 7 # ok\n\n";
+        assert_eq!(SigningState::parse(commented).unwrap().timestamp, 7);
+    }
+
+    #[test]
+    fn bad_files_name_the_line() {
+        assert_eq!(SigningState::parse("").unwrap_err().line, 1);
+        let e = SigningState::parse("mavlora-signing-state 1\ntimestamp x\n").unwrap_err();
+        assert_eq!(e.line, 2);
+        let e = SigningState::parse("mavlora-signing-state 1\nstream 1 2 300 4\n").unwrap_err();
+        assert_eq!((e.line, e.reason.contains("300")), (2, true));
+        let too_big = format!("mavlora-signing-state 1\ntimestamp {}\n", 1u64 << 48);
+        assert_eq!(SigningState::parse(&too_big).unwrap_err().line, 2);
+    }
+}
