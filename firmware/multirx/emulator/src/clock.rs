@@ -24,6 +24,11 @@
 //! - while it sleeps, how long it took to run once it could have: past the
 //!   wake-up it asked for, or past the input that woke it.
 //!
+//! Every accounting returns its instant, and the engine is given that one as
+//! "now" (and the TX probe stamps a frame with it): a hold after it belongs to
+//! the next accounting, so the engine never sees time a hold has not yet been
+//! taken out of (it would reset its frame grid to a late time).
+//!
 //! Nothing the device decides is excused: an engine that skips a frame or a
 //! loop that blocks still shows as a gap in device time. The TX probe writes
 //! the total held with each frame, so the rig judges the cadence in device
@@ -49,6 +54,9 @@ const BLOCKED_NOTE: Duration = Duration::from_millis(2);
 #[derive(Debug)]
 pub struct DeviceClock {
     epoch: HostInstant,
+    /// CLOCK_MONOTONIC at `epoch` (std's `Instant` reads the same clock on
+    /// Linux but does not show it).
+    monotonic_epoch: Duration,
     held: Duration,
     mark: Mark,
 }
@@ -90,8 +98,10 @@ impl DeviceClock {
     /// Device time zero is now; call from the thread that runs the device.
     pub fn new() -> DeviceClock {
         let mark = Mark::now();
+        let mono = rustix::time::clock_gettime(rustix::time::ClockId::Monotonic);
         DeviceClock {
             epoch: mark.host,
+            monotonic_epoch: Duration::new(mono.tv_sec as u64, mono.tv_nsec as u32),
             held: Duration::ZERO,
             mark,
         }
@@ -99,17 +109,17 @@ impl DeviceClock {
 
     /// The loop worked since the last accounting: holds what the host took,
     /// at least all past [`WORK_PASS`].
-    pub fn ran(&mut self) {
-        self.account(WORK_PASS);
+    pub fn ran(&mut self) -> HostInstant {
+        self.account(WORK_PASS)
     }
 
     /// The loop only polled since the last accounting, and found nothing to
     /// do: holds what the host took, at least all past [`IDLE_PASS`].
-    pub fn idled(&mut self) {
-        self.account(IDLE_PASS);
+    pub fn idled(&mut self) -> HostInstant {
+        self.account(IDLE_PASS)
     }
 
-    fn account(&mut self, pass: Duration) {
+    fn account(&mut self, pass: Duration) -> HostInstant {
         let now = Mark::now();
         let blocked = now.voluntary_switches != self.mark.voluntary_switches
             || now.voluntary_switches == i64::MAX;
@@ -126,23 +136,32 @@ impl DeviceClock {
             );
         }
         self.mark = now;
+        now.host
     }
 
     /// The loop slept since the last accounting and could have run again
     /// from `ready` (the wake-up it asked for, or the input that woke it):
     /// holds how long it took.
-    pub fn woke(&mut self, ready: HostInstant) {
+    pub fn woke(&mut self, ready: HostInstant) -> HostInstant {
         let now = Mark::now();
         self.held += now.host.saturating_duration_since(ready);
         self.mark = now;
+        now.host
     }
 
     /// The loop handed bytes to a port since the last accounting: all of
     /// it is held (on the board, DMA and the UART do it in the background).
-    pub fn handed_off(&mut self) {
+    pub fn handed_off(&mut self) -> HostInstant {
         let now = Mark::now();
         self.held += now.host.saturating_duration_since(self.mark.host);
         self.mark = now;
+        now.host
+    }
+
+    /// `t` on CLOCK_MONOTONIC (what the rig and the fixtures read), for the
+    /// TX probe.
+    pub fn monotonic(&self, t: HostInstant) -> Duration {
+        self.monotonic_epoch + t.saturating_duration_since(self.epoch)
     }
 
     /// Total time held so far.

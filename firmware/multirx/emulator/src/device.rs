@@ -17,6 +17,9 @@ use crate::tap::TxTap;
 /// timer wake-ups are late (virtual machines).
 const SPIN: std::time::Duration = std::time::Duration::from_micros(1500);
 
+/// Longest sleep, so the loop notices `stop`.
+const STOP_CHECK: std::time::Duration = std::time::Duration::from_millis(100);
+
 /// How often the boot line is repeated.
 const BOOT_LINE_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 
@@ -103,10 +106,11 @@ impl Device {
             self.account();
             let due = self.mux.poll_timeout().expect("the output never stops");
             let deadline = self.to_host(due);
+            let now = HostInstant::now();
             let wait = deadline
-                .saturating_duration_since(HostInstant::now())
+                .saturating_duration_since(now)
                 // Wake now and then to notice `stop`.
-                .min(std::time::Duration::from_millis(100));
+                .min(STOP_CHECK);
             if wait <= SPIN {
                 // Close to a deadline: poll instead of sleeping, since waking a
                 // sleeping thread on a virtual machine can take milliseconds.
@@ -117,9 +121,14 @@ impl Device {
                 self.service();
                 continue;
             }
+            // Sleep until SPIN before the deadline: account for the pass so far
+            // first (a hold in it moves the deadline, it must not become device
+            // time), then ask for a time fixed by the deadline, never one
+            // computed from a clock read that a hold may have made late.
+            self.account();
             let slept = HostInstant::now();
-            let asked = slept + (wait - SPIN);
-            let input = inputs.recv_timeout(wait - SPIN);
+            let asked = (self.to_host(due) - SPIN).min(now + STOP_CHECK).max(slept);
+            let input = inputs.recv_timeout(asked - slept);
             if let Err(RecvTimeoutError::Disconnected) = input {
                 // No reader left: keep the output going all the same,
                 // as the board would with every receiver unplugged.
@@ -128,7 +137,7 @@ impl Device {
             match input {
                 Ok(input) => {
                     // Woken by input: runnable from when it came (already
-                    // queued: from when we asked for it).
+                    // queued: from when we went to sleep).
                     let came = match &input {
                         Input::Bytes { at, .. } => (*at).clamp(slept, asked),
                         _ => asked,
@@ -136,7 +145,9 @@ impl Device {
                     self.clock.woke(came);
                     self.handle_input(input);
                 }
-                Err(_) => self.clock.woke(asked),
+                Err(_) => {
+                    self.clock.woke(asked);
+                }
             }
             self.service();
         }
@@ -152,18 +163,18 @@ impl Device {
 
     /// Brings the device clock up to now: a hold in the pass so far must be
     /// out of the time the engine is about to be given.
-    fn account(&mut self) {
+    fn account(&mut self) -> HostInstant {
         if std::mem::take(&mut self.worked) {
-            self.clock.ran();
+            self.clock.ran()
         } else {
-            self.clock.idled();
+            self.clock.idled()
         }
     }
 
     /// Handles due deadlines and sends what they produced.
     fn service(&mut self) {
-        self.account();
-        let now = self.to_core(HostInstant::now());
+        let at = self.account();
+        let now = self.to_core(at);
         if self.mux.poll_timeout().is_some_and(|due| now >= due) {
             self.worked = true;
             self.mux.handle_timeout(now);
@@ -209,16 +220,15 @@ impl Device {
 
     fn flush(&mut self) {
         while let Some(frame) = self.mux.poll_transmit() {
-            let now = HostInstant::now();
+            // Up to this instant: a hold in the engine's work just now is
+            // the host's too; the frame leaves at this instant.
+            let now = self.clock.ran();
             if let Some(last) = self.last_frame_at {
                 self.max_gap = self.max_gap.max(now - last);
             }
             self.last_frame_at = Some(now);
-            // Up to this instant: a hold in the engine's work just now is
-            // the host's too.
-            self.clock.ran();
             if let Some(tap) = &mut self.tap {
-                tap.frame_sent(self.clock.held());
+                tap.frame_sent(self.clock.monotonic(now), self.clock.held());
             }
             self.fc.send(&frame);
             self.clock.handed_off();

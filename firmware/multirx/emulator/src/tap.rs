@@ -21,16 +21,16 @@ impl TxTap {
         Ok(TxTap { file: Some(file) })
     }
 
-    /// Notes a frame leaving now. A write error stops the tap, never the device.
-    pub fn frame_sent(&mut self, held: std::time::Duration) {
+    /// Notes a frame leaving at `sent` (CLOCK_MONOTONIC), `held` held so far.
+    /// A write error stops the tap, never the device.
+    pub fn frame_sent(&mut self, sent: std::time::Duration, held: std::time::Duration) {
         let Some(file) = &mut self.file else { return };
-        let ts = rustix::time::clock_gettime(rustix::time::ClockId::Monotonic);
         // Unbuffered: the rig may read the file while the device runs.
         if let Err(e) = writeln!(
             file,
             "{}.{:09} {}.{:09}",
-            ts.tv_sec,
-            ts.tv_nsec,
+            sent.as_secs(),
+            sent.subsec_nanos(),
             held.as_secs(),
             held.subsec_nanos()
         ) {
