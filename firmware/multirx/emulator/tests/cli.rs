@@ -285,6 +285,78 @@ fn ends_when_the_flight_controller_port_is_gone_for_good() {
     drop(rx0);
 }
 
+/// A stopped process is what a host hold looks like from inside: the TX probe shows the
+/// holes in host time, and none in device time, where the output keeps its period (the
+/// rig judges 1.5 periods there). Invariant: what the host takes is held, whole.
+#[test]
+fn a_stopped_device_is_held_and_keeps_its_cadence_in_device_time() {
+    let dir = tempdir();
+    let path = write_config(&dir, "mode = \"parallel\"\nreceivers = 1\n");
+    let tx_log = dir.join("tx.log");
+    let (rx0, mut fc) = (Pty::new(), Pty::new());
+    let child = Killed(
+        Command::new(EMU)
+            .args(["--config", path.to_str().unwrap()])
+            .args(["--rx", &rx0.path(), "--fc", &fc.path()])
+            .arg("--tx-log")
+            .arg(&tx_log)
+            .stdin(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let pid = child.0.id().to_string();
+    let signal = |sig: &str| {
+        let ok = Command::new("kill").args([sig, &pid]).status().unwrap();
+        assert!(ok.success(), "kill {sig}");
+    };
+    // Drain the flight-controller side meanwhile, as a flight controller would.
+    let mut drain = |for_: Duration| {
+        let until = Instant::now() + for_;
+        let mut buf = [0u8; 512];
+        while Instant::now() < until {
+            let _ = fc.master.read(&mut buf);
+        }
+    };
+    drain(Duration::from_millis(800));
+    const STOP: Duration = Duration::from_millis(60);
+    for _ in 0..3 {
+        signal("-STOP");
+        std::thread::sleep(STOP);
+        signal("-CONT");
+        drain(Duration::from_millis(300));
+    }
+    drop(child);
+    let text = std::fs::read_to_string(&tx_log).unwrap();
+    let lines: Vec<(f64, f64)> = text
+        .lines()
+        .filter_map(|l| {
+            let (sent, held) = l.split_once(' ')?;
+            Some((sent.parse().ok()?, held.parse().ok()?))
+        })
+        .collect();
+    assert!(lines.len() > 100, "{} frames:\n{text}", lines.len());
+    let (mut host_gap, mut device_gap) = (0f64, 0f64);
+    for w in lines.windows(2) {
+        let host = w[1].0 - w[0].0;
+        host_gap = host_gap.max(host);
+        device_gap = device_gap.max(host - (w[1].1 - w[0].1));
+    }
+    let held = lines.last().unwrap().1;
+    assert!(
+        host_gap >= STOP.as_secs_f64(),
+        "the stops show in host time: {host_gap}"
+    );
+    assert!(held >= 3.0 * STOP.as_secs_f64(), "held {held} s in all");
+    // 1.5 frame periods of the default config's 7 ms.
+    assert!(
+        device_gap <= 0.0105,
+        "device-time gap {:.2} ms (host {:.2} ms)",
+        device_gap * 1000.0,
+        host_gap * 1000.0
+    );
+    drop(rx0);
+}
+
 fn tempdir() -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!(
         "multirx-emu-test-{}-{:?}",
