@@ -6,10 +6,13 @@
 //! the link is up, one "uplink lost/degraded" `STATUSTEXT` within 5 s of the cut and one
 //! "restored" within 5 s of the link coming back. Needs `python3` with pymavlink 2.4.
 
+mod common;
+use common::{Guard, root};
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::UdpSocket;
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
@@ -17,45 +20,6 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 use serialport::{SerialPort, TTYPort};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// Kills a child on drop so a failing test leaves no processes behind.
-struct Guard(Option<Child>, &'static str);
-
-impl Guard {
-    /// SIGTERM, then wait up to 5 s; returns whether it exited with status 0.
-    fn terminate(&mut self) -> bool {
-        let Some(mut child) = self.0.take() else {
-            return false;
-        };
-        let _ = Command::new("kill")
-            .args(["-TERM", &child.id().to_string()])
-            .status();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if let Ok(Some(status)) = child.try_wait() {
-                return status.success();
-            }
-            thread::sleep(Duration::from_millis(50));
-        }
-        let _ = child.kill();
-        let _ = child.wait();
-        eprintln!("{} did not stop on SIGTERM", self.1);
-        false
-    }
-}
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        if let Some(mut c) = self.0.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
 
 /// Copies bytes one way unless `cut` is set (then they are lost, as in the air).
 fn copy(mut from: TTYPort, mut to: TTYPort, stop: Arc<AtomicBool>, cut: Arc<AtomicBool>) {

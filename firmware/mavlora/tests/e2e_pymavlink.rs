@@ -4,58 +4,22 @@
 //! pymavlink ground station on the router's UDP port (`fixtures/mavlora_gcs.py`).
 //! Needs `python3` with pymavlink 2.4 (fixtures/requirements.txt); fails, not skips, without.
 
+mod common;
+use common::{Guard, root};
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::UdpSocket;
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::Value;
 use serialport::{SerialPort, TTYPort};
 
 use mavlora::wire::{Frame, FrameReader, known};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// Kills a child on drop so a failing test leaves no processes behind.
-struct Guard(Option<Child>, &'static str);
-
-impl Guard {
-    /// SIGTERM, then wait up to 5 s; returns whether it exited with status 0.
-    fn terminate(&mut self) -> bool {
-        let Some(mut child) = self.0.take() else {
-            return false;
-        };
-        let _ = Command::new("kill")
-            .args(["-TERM", &child.id().to_string()])
-            .status();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if let Ok(Some(status)) = child.try_wait() {
-                return status.success();
-            }
-            thread::sleep(Duration::from_millis(50));
-        }
-        let _ = child.kill();
-        let _ = child.wait();
-        eprintln!("{} did not stop on SIGTERM", self.1);
-        false
-    }
-}
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        if let Some(mut c) = self.0.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
 
 /// Two pty pairs; a thread copies between their masters: the radio.
 struct Radio {

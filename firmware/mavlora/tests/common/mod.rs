@@ -1,0 +1,46 @@
+//! What the end-to-end tests share: the repository root and a child-process guard.
+
+use std::path::PathBuf;
+use std::process::{Child, Command};
+use std::thread;
+use std::time::{Duration, Instant};
+
+/// The repository root, where `fixtures/` and `firmware/` are.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// Kills a child on drop so a failing test leaves no processes behind.
+pub struct Guard(pub Option<Child>, pub &'static str);
+
+impl Guard {
+    /// SIGTERM, then wait up to 5 s; returns whether it exited with status 0.
+    pub fn terminate(&mut self) -> bool {
+        let Some(mut child) = self.0.take() else {
+            return false;
+        };
+        let _ = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(status)) = child.try_wait() {
+                return status.success();
+            }
+            thread::sleep(Duration::from_millis(50));
+        }
+        let _ = child.kill();
+        let _ = child.wait();
+        eprintln!("{} did not stop on SIGTERM", self.1);
+        false
+    }
+}
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.0.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
