@@ -76,6 +76,15 @@ impl ModeLimits {
             .dim(Dimension::Mode, self.mode.as_str())
     }
 
+    /// A session measurement: of `scenario`, or of the whole run (`None`).
+    pub fn session_spec(&self, base: &str, unit: &str, scenario: Option<&str>) -> Spec {
+        let spec = self.spec(base, unit);
+        match scenario {
+            Some(name) => spec.dim(Dimension::Scenario, name),
+            None => spec,
+        }
+    }
+
     /// Largest output gap allowed: 1.5 frame periods.
     pub fn max_gap_ms(&self) -> f64 {
         1.5 * self.frame_period_ms
@@ -172,10 +181,7 @@ pub fn session_specs(limits: &ModeLimits, scenario: Option<&str>) -> [Spec; 3] {
             "RC losses PX4 would have declared over every scenario of this mode",
         ),
     };
-    let spec = |base: &str, unit: &str| match scenario {
-        Some(s) => limits.spec(base, unit).dim(Dimension::Scenario, s),
-        None => limits.spec(base, unit),
-    };
+    let spec = |base: &str, unit: &str| limits.session_spec(base, unit, scenario);
     [
         spec("max_output_gap_ms", "ms")
             .describe(format!("{OUTPUT_GAP}{over}"))
@@ -196,11 +202,9 @@ pub fn session_specs(limits: &ModeLimits, scenario: Option<&str>) -> [Spec; 3] {
 /// host).
 pub fn host_hold_spec(limits: &ModeLimits, scenario: Option<&str>) -> Option<Spec> {
     (limits.device == DeviceKind::Emulated).then(|| {
-        let spec = limits.spec("host_hold_ms", "ms").describe(HOST_HOLD);
-        match scenario {
-            Some(name) => spec.dim(Dimension::Scenario, name),
-            None => spec,
-        }
+        limits
+            .session_spec("host_hold_ms", "ms", scenario)
+            .describe(HOST_HOLD)
     })
 }
 
