@@ -66,6 +66,7 @@ fn pymavlink_frames_decode_to_the_scripted_values() {
             rx_bad_crc: 3,
             rssi: -92,
             remote_rssi: 127,
+            noise: -105,
         })
     );
 
@@ -93,7 +94,10 @@ fn pymavlink_frames_decode_to_the_scripted_values() {
     let MavMessage::LINK_QUALITY(v1) = &decoded[4].2 else {
         panic!("{:?}", decoded[4])
     };
-    assert_eq!((v1.rx_packets, v1.rx_lost, v1.rssi), (4700, 18, -93));
+    assert_eq!(
+        (v1.rx_packets, v1.rx_lost, v1.rssi, v1.noise),
+        (4700, 18, -93, 0)
+    );
 
     let MavMessage::COMMAND_LONG(cmd) = &decoded[5].2 else {
         panic!("{:?}", decoded[5])
@@ -107,11 +111,19 @@ fn pymavlink_frames_decode_to_the_scripted_values() {
 fn our_encoder_reproduces_pymavlink_bytes() {
     for f in read_all().iter().filter(|f| !f.is_signed()) {
         let msg: MavMessage = f.decode().unwrap();
-        assert_eq!(
-            encode(f.version(), f.header(), &msg).as_bytes(),
-            f.as_bytes(),
-            "{msg:?}"
-        );
+        let ours = encode(f.version(), f.header(), &msg);
+        if f.version() == MavlinkVersion::V1 && ours.payload_len() < f.payload_len() {
+            // pymavlink packs extension fields into MAVLink 1 frames too; MAVLink 1 has none
+            // (the spec, and the mavlink crate, leave them out): the same fields, no more.
+            assert_eq!(
+                ours.payload(),
+                &f.payload()[..ours.payload_len()],
+                "{msg:?}"
+            );
+            assert_eq!(ours.decode::<MavMessage>().unwrap(), msg);
+            continue;
+        }
+        assert_eq!(ours.as_bytes(), f.as_bytes(), "{msg:?}");
     }
 }
 

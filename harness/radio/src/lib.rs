@@ -56,7 +56,7 @@ pub use airtime::{FskParams, LoraParams, Modulation};
 pub use duty::{DutyCycle, DutyTracker};
 pub use error::ConfigError;
 pub use faults::{Reorder, Silence};
-pub use link::{AirPacket, Link, LinkConfig, LinkStats, Slot};
+pub use link::{AirPacket, Link, LinkConfig, LinkStats, ReceiverReading, Slot};
 pub use loss::{GilbertElliott, LinkBudget, LossModel, PathLoss};
 pub use pair::{Direction, Radio};
 pub use preset::{Access, BurstParams, Preset, TdmParams};

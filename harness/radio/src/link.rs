@@ -55,6 +55,15 @@ pub struct LinkConfig {
     pub seed: u64,
 }
 
+/// A receiver's measurement: see [`Link::receiver`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReceiverReading {
+    /// Signal level of the packets arriving, dBm.
+    pub rssi_dbm: f64,
+    /// Noise floor, dBm.
+    pub noise_dbm: f64,
+}
+
 /// Which TDM slot a direction owns; B's windows start half a round after A's.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Slot {
@@ -318,6 +327,20 @@ impl Link {
     /// Loss probability of a reference-length packet through the budget alone.
     pub fn reference_per(&self) -> f64 {
         self.budget.reference_per(&self.preset)
+    }
+
+    /// What this direction's receiver measures, as a radio reports it (SiK's `RADIO_STATUS`):
+    /// the signal level of arriving packets and the receiver's noise floor.
+    ///
+    /// The model has no thermal floor of its own: the floor reported is the level a packet
+    /// must clear, the sensitivity raised by the receiver's noise (`rx_noise_db`). A real
+    /// radio's figure sits lower by the modulation's required SNR, a constant; the rise that
+    /// deafens a receiver (the paper's blind drone) is the same dB for dB.
+    pub fn receiver(&self) -> ReceiverReading {
+        ReceiverReading {
+            rssi_dbm: self.budget.received_dbm(&self.preset),
+            noise_dbm: self.preset.sensitivity_dbm + self.budget.rx_noise_db,
+        }
     }
 
     /// Changes the budget mid-run (an attenuation sweep); the burst model keeps its state.

@@ -15,6 +15,8 @@ use std::collections::BTreeMap;
 
 use harness_radio::{ConfigError, Direction, LinkStats, Radio, RadioSetup};
 use mavlora::bridge::{Bridge, BridgeConfig};
+use mavlora::dialect::RADIO_STATUS_DATA;
+use mavlora::quality::RssiScale;
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::ScheduleError;
 use mavlora::wire::FrameReader;
@@ -140,6 +142,27 @@ pub struct World<A: Autopilot = Px4Fc> {
     downlink_rx: Tap,
     uplink_rx: Tap,
     steps: u64,
+    /// When each end's radio next reports its status (radio carrier only).
+    next_radio_status: Option<Instant>,
+}
+
+/// How often a radio reports its status to its host (SiK: once a second).
+pub const RADIO_STATUS_PERIOD: Duration = Duration::from_secs(1);
+
+/// What the radio at the receiving end of `rx` tells its host, as a SiK radio would: its
+/// receiver's readings, the far receiver's, and its free buffer.
+pub fn radio_status(radio: &Radio, rx: Direction) -> RADIO_STATUS_DATA {
+    let (here, there) = (radio.link(rx), radio.link(rx.reverse()));
+    let sik = |dbm: f64| RssiScale::Sik.from_dbm(Some(dbm.round().clamp(-128.0, 126.0) as i8));
+    RADIO_STATUS_DATA {
+        rssi: sik(here.receiver().rssi_dbm),
+        remrssi: sik(there.receiver().rssi_dbm),
+        noise: sik(here.receiver().noise_dbm),
+        remnoise: sik(there.receiver().noise_dbm),
+        txbuf: (100.0 * there.buffer_free_share()).round() as u8,
+        rxerrors: 0,
+        fixed: 0,
+    }
 }
 
 impl<A: Autopilot> World<A> {
@@ -173,6 +196,7 @@ impl<A: Autopilot> World<A> {
             downlink_rx: Tap::default(),
             uplink_rx: Tap::default(),
             steps: 0,
+            next_radio_status: radio.map(|_| now),
         })
     }
 
@@ -252,6 +276,7 @@ impl<A: Autopilot> World<A> {
         if let Carrier::Radio(radio) = &self.carrier {
             fold(radio.poll_timeout());
         }
+        fold(self.next_radio_status);
         t
     }
 
@@ -266,6 +291,7 @@ impl<A: Autopilot> World<A> {
         let now = self.now;
         self.fc.handle_timeout(now);
         self.gcs.handle_timeout(now);
+        self.report_radio_status(now);
 
         // Air side: whatever the radio delivered up to now, then what leaves for the ground.
         let mut downlink: Vec<Vec<u8>> = Vec::new();
@@ -362,6 +388,30 @@ impl<A: Autopilot> World<A> {
                     radio.handle_input(now, Direction::Uplink, bytes);
                 }
             }
+        }
+    }
+
+    /// Whether each end's radio reports its status to its host once a
+    /// [`RADIO_STATUS_PERIOD`] (on with a radio carrier, as SiK radios do); off plays a
+    /// radio that reports nothing, so loss must be counted from frames.
+    pub fn set_radio_status(&mut self, on: bool) {
+        let radio = matches!(self.carrier, Carrier::Radio(_));
+        self.next_radio_status = (on && radio).then_some(self.now);
+    }
+
+    /// Each end's radio reports its status when due (out of band: the sim has no serial
+    /// stream to inject it into).
+    fn report_radio_status(&mut self, now: Instant) {
+        let (Some(due), Carrier::Radio(radio)) = (self.next_radio_status, &self.carrier) else {
+            return;
+        };
+        if now < due {
+            return;
+        }
+        self.next_radio_status = Some(due + RADIO_STATUS_PERIOD);
+        if let Relay::MavLora(b, r) = &mut self.relay {
+            b.handle_radio_status(radio_status(radio, Direction::Uplink));
+            r.handle_radio_status(radio_status(radio, Direction::Downlink));
         }
     }
 

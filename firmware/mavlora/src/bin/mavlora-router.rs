@@ -16,8 +16,8 @@ use serde::Deserialize;
 use tracing::{info, warn};
 
 use mavlora::io::{
-    Clock, Event, INBOX_BYTES, Inbox, Percent, PopError, RadioOptions, Seconds, SerialEvent,
-    SerialLink, TcpEndpoint, Tlog, UdpEndpoint, UsageError, frame_gap, on_signal,
+    Clock, Decibels, Event, INBOX_BYTES, Inbox, Percent, PopError, RadioOptions, Seconds,
+    SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, UsageError, frame_gap, on_signal,
     signing_epoch_now,
 };
 use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
@@ -73,6 +73,11 @@ struct Options {
     /// Loss (percent) below which a degraded link is announced restored [default: 10].
     #[arg(long)]
     link_restored: Option<Percent>,
+    /// Rise (dB, 0..=60) of the drone's receiver noise floor over the lowest it reported at
+    /// which the uplink is announced degraded before any loss shows; restored below half of
+    /// it [default: 6, half the free-space range].
+    #[arg(long)]
+    link_noise_rise: Option<Decibels>,
 }
 
 fn main() -> ExitCode {
@@ -95,6 +100,10 @@ fn run(o: Options) -> Result<()> {
     }
     if let Some(p) = o.link_restored {
         config.monitor.restored = p.fraction();
+    }
+    if let Some(db) = o.link_noise_rise {
+        config.monitor.noise_rise_db = db.db();
+        config.monitor.noise_restored_db = db.db() / 2.0;
     }
     if config.monitor.restored > config.monitor.degraded {
         return Err(UsageError::option(

@@ -11,7 +11,7 @@ use super::fc_watch::{FcEvent, FcWatch};
 use super::gcs_heartbeat::GcsHeartbeat;
 use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
-use crate::dialect::{MavCmd, MavMessage, MavResult, MavType};
+use crate::dialect::{MavCmd, MavMessage, MavResult, MavType, RADIO_STATUS_DATA};
 use crate::filter::{
     FilterStats, RadioFilter, Unlisted, Verdict, request_data_stream_requests,
     set_message_interval_requests,
@@ -420,6 +420,12 @@ impl Bridge {
         }
     }
 
+    /// The local radio's status read out of band (a modem's registers; a SiK radio's comes
+    /// in the byte stream by itself).
+    pub fn handle_radio_status(&mut self, status: RADIO_STATUS_DATA) {
+        self.quality.handle_radio_status(status);
+    }
+
     /// Bytes read from the radio's serial port.
     pub fn handle_radio_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.radio_reader.push(bytes);
@@ -430,6 +436,12 @@ impl Bridge {
     }
 
     fn radio_frame(&mut self, frame: OwnedFrame, now: Instant) {
+        // The local radio's own report (SiK injects it into its serial output): never signed,
+        // for the link-quality engine only.
+        if frame.message_id() == ids::RADIO_STATUS {
+            self.quality.handle_frame(now, &frame);
+            return;
+        }
         let Some(frame) = self.radio_leg.incoming(frame, now) else {
             return;
         };

@@ -433,3 +433,51 @@ fn compact_mode_keeps_replaced_messages_off_the_radio_before_the_fc_is_known() {
             .any(|f| f.message_id() == ids::GLOBAL_POSITION_INT)
     );
 }
+
+#[test]
+fn with_signing_on_the_local_radios_unsigned_status_still_reaches_the_link_report() {
+    // SiK injects RADIO_STATUS into its serial output itself: it cannot be signed, and
+    // dropping it with the unsigned air frames would blind the link monitor to the noise
+    // floor. It feeds the report, and is not counted as a frame from the peer.
+    use crate::dialect::RADIO_STATUS_DATA;
+    use crate::quality::RssiScale;
+    use crate::signing::{SigningConfig, SigningKey};
+    let mut config = config();
+    config.signing = Some(SigningConfig {
+        key: SigningKey([9; 32]),
+        link_id: 1,
+        epoch: 3_000_000_000,
+        state: Default::default(),
+    });
+    let mut b = Bridge::new(config.clone(), Instant::ZERO).unwrap();
+    let status = MavMessage::RADIO_STATUS(RADIO_STATUS_DATA {
+        rssi: RssiScale::Sik.from_dbm(Some(-80)),
+        noise: RssiScale::Sik.from_dbm(Some(-104)),
+        remrssi: 255,
+        remnoise: 255,
+        ..RADIO_STATUS_DATA::default()
+    });
+    let mut sik = Sender::new(51, 68, MavlinkVersion::V1);
+    b.handle_radio_bytes(ms(10), sik.frame(&status).as_bytes());
+    // An unsigned frame from the air is still refused.
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    let cmd = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA::default());
+    b.handle_radio_bytes(ms(20), ground.frame(&cmd).as_bytes());
+    assert!(to_fc(&mut b, ms(20)).is_empty());
+    assert_eq!(b.quality().noise(), Some(-104));
+    let out = to_radio(&mut b, Instant::ZERO + config.quality.period);
+    let report = out
+        .iter()
+        .find(|f| f.message_id() == ids::LINK_QUALITY)
+        .expect("our report");
+    let mut r = FrameReader::new();
+    r.push(report.as_bytes());
+    let MavMessage::LINK_QUALITY(report) = r.next_frame().unwrap().frame.decode().unwrap() else {
+        panic!()
+    };
+    assert_eq!((report.noise, report.rssi), (-104, -80));
+    assert_eq!(
+        report.rx_packets, 1,
+        "the refused command, not the radio's status"
+    );
+}

@@ -15,7 +15,8 @@ mod udp;
 pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
 pub use framing::{DatagramFramer, FramingCounters};
 pub use options::{
-    Percent, PercentError, RadioOptions, RadioSigning, Seconds, SecondsError, UsageError, main,
+    Decibels, DecibelsError, Percent, PercentError, RadioOptions, RadioSigning, Seconds,
+    SecondsError, UsageError, main,
 };
 pub use queue::{Lane, PopError, Queue, QueueStats};
 pub use serial::{SerialCounters, SerialEvent, SerialLink, frame_gap};

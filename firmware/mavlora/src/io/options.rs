@@ -282,6 +282,44 @@ impl std::str::FromStr for Percent {
     }
 }
 
+/// A rise in decibels: a finite number in 0..=60, checked where it is read.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(try_from = "f64")]
+pub struct Decibels(f64);
+
+impl Decibels {
+    /// The value, dB.
+    pub fn db(self) -> f64 {
+        self.0
+    }
+}
+
+/// A decibel value out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0} is not a rise in dB in 0..=60")]
+pub struct DecibelsError(String);
+
+impl TryFrom<f64> for Decibels {
+    type Error = DecibelsError;
+
+    fn try_from(db: f64) -> Result<Self, Self::Error> {
+        if (0.0..=60.0).contains(&db) {
+            Ok(Self(db))
+        } else {
+            Err(DecibelsError(db.to_string()))
+        }
+    }
+}
+
+impl std::str::FromStr for Decibels {
+    type Err = DecibelsError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let value: f64 = s.trim().parse().map_err(|_| DecibelsError(s.to_owned()))?;
+        Self::try_from(value)
+    }
+}
+
 /// A bad value the types let through, or a bad config file: exit status 2, like clap's
 /// usage errors. The message names the option (`--flag` / `key`) or `file:line`.
 #[derive(Debug, thiserror::Error)]

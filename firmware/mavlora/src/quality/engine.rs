@@ -7,6 +7,13 @@
 //! one per [`LinkQualityConfig::period`] (the steady cost). The side that sends the reports
 //! also counts its own radio frames ([`LinkQuality::sent_frame`]), so a report that says "I
 //! received nothing" while we sent is read as a deaf peer at once.
+//!
+//! Counting loss needs frames, and the uplink of a slow radio carries few: at one frame every
+//! few seconds, 40 % loss takes tens of seconds to show. The paper's cause of a blind drone,
+//! its own noise floor rising, shows at once in the drone radio's `RADIO_STATUS` (`noise`):
+//! each report carries the sender's noise floor, one goes out early when it moved by
+//! [`LinkQualityConfig::noise_change_db`], and the side reading the reports knows how far the
+//! peer's receiver is desensitised ([`LinkQuality::peer_noise_rise_db`]).
 
 use std::collections::VecDeque;
 
@@ -18,10 +25,11 @@ use crate::dialect::{LINK_QUALITY_DATA, MavMessage, RADIO_STATUS_DATA};
 use crate::time::{Duration, Instant};
 use crate::wire::{Frame, ReaderStats, ids};
 
-/// A `LINK_QUALITY` frame on the radio: MAVLink 2, 12-byte payload, unsigned / signed.
-pub const REPORT_BYTES: u32 = 24;
+/// A `LINK_QUALITY` frame on the radio: MAVLink 2, 13-byte payload with the noise floor (one
+/// byte less when the radio reports none), unsigned.
+pub const REPORT_BYTES: u32 = 25;
 /// The same, signed (13-byte trailer).
-pub const REPORT_BYTES_SIGNED: u32 = 37;
+pub const REPORT_BYTES_SIGNED: u32 = 38;
 /// Share of a side's radio budget its steady reports may use: 3 B/s of LoRa SF7's 683 B/s
 /// (issue 12's limit, ≈ 0.44 %), rounded down.
 pub const MONITOR_SHARE: f64 = 0.004;
@@ -44,6 +52,10 @@ pub struct LinkQualityConfig {
     pub quiet_after: Duration,
     /// A peer report older than this counts as missing.
     pub peer_timeout: Duration,
+    /// Our radio's noise floor moving by at least this much (dB) since our last report sends
+    /// the next one early; the peer's moving by twice this starts its loss estimate afresh
+    /// (what was counted before describes another channel).
+    pub noise_change_db: f64,
     /// How to read `RADIO_STATUS` from the local radio; `None` ignores it.
     pub radio_status: Option<RssiScale>,
 }
@@ -75,6 +87,9 @@ impl LinkQualityConfig {
             window: Duration::from_secs(4).max(period * 2),
             quiet_after: (period * 3) / 2 + Duration::from_millis(500),
             peer_timeout: (period * 5) / 2 + Duration::from_secs(5),
+            // Past the jitter of a SiK radio's noise readings (a few of its 0.5 dB units):
+            // a change, not a reading's noise.
+            noise_change_db: 4.0,
             radio_status: Some(RssiScale::Sik),
         }
     }
@@ -139,7 +154,18 @@ pub struct LinkQuality {
     rssi: Option<i8>,
     remote_rssi: Option<i8>,
     local_radio: Option<RADIO_STATUS_DATA>,
+    /// Our receiver's noise floor, dBm, from the local radio.
+    noise: Option<i8>,
+    /// The noise floor in our last report.
+    reported_noise: Option<i8>,
     peer: Option<PeerReport>,
+    /// The lowest noise floor the peer has reported: its receiver undisturbed.
+    peer_noise_floor: Option<i8>,
+    /// The peer's noise floor when its loss estimate last started afresh.
+    peer_regime_noise: Option<i8>,
+    /// The local radio's `RADIO_STATUS` frames the reader counted: taken out of what we
+    /// report received, which is the peer's frames.
+    local_frames: u64,
     /// The peer's counters, unwrapped, over the window.
     peer_window: LossWindow,
     peer_totals: (u64, u64),
@@ -172,7 +198,12 @@ impl LinkQuality {
             rssi: None,
             remote_rssi: None,
             local_radio: None,
+            noise: None,
+            reported_noise: None,
             peer: None,
+            peer_noise_floor: None,
+            peer_regime_noise: None,
+            local_frames: 0,
             peer_window: LossWindow::new(config.window),
             peer_totals: (0, 0),
             own_window: LossWindow::new(config.window),
@@ -208,19 +239,30 @@ impl LinkQuality {
                     self.peer_report(report, now);
                 }
             }
-            // Injected by the local radio: not the peer.
+            // Injected by the local radio: not the peer, and not one of its frames either.
             ids::RADIO_STATUS => {
-                let Some(scale) = self.config.radio_status else {
-                    return;
-                };
+                self.local_frames += 1;
                 if let Ok(MavMessage::RADIO_STATUS(status)) = frame.decode::<MavMessage>() {
-                    self.rssi = scale.to_dbm(status.rssi);
-                    self.remote_rssi = scale.to_dbm(status.remrssi);
-                    self.local_radio = Some(status);
+                    self.handle_radio_status(status);
                 }
             }
             _ => self.heard(now),
         }
+    }
+
+    /// A status report of the local radio: in the radio's byte stream (SiK injects
+    /// `RADIO_STATUS` there, see [`handle_frame`](Self::handle_frame)) or read out of band
+    /// (a modem's registers), with the scale of its `rssi`/`noise` bytes.
+    /// Ignored when [`LinkQualityConfig::radio_status`] is `None`.
+    pub fn handle_radio_status(&mut self, status: RADIO_STATUS_DATA) {
+        let Some(scale) = self.config.radio_status else {
+            return;
+        };
+        self.rssi = scale.to_dbm(status.rssi);
+        self.remote_rssi = scale.to_dbm(status.remrssi);
+        // 0 dBm of noise is no receiver's floor: the report's "unknown".
+        self.noise = scale.to_dbm(status.noise).filter(|n| *n != 0);
+        self.local_radio = Some(status);
     }
 
     fn heard(&mut self, now: Instant) {
@@ -231,7 +273,8 @@ impl LinkQuality {
     /// The radio reader's counters at `now` (call after each read): our loss estimate, and
     /// an early report when it moved.
     pub fn observe(&mut self, now: Instant, stats: &ReaderStats) {
-        self.own_window.push(now, stats.frames(), stats.lost);
+        self.own_window
+            .push(now, self.peer_frames(stats), stats.lost);
         self.stats = stats.clone();
     }
 
@@ -256,6 +299,24 @@ impl LinkQuality {
                 report.rx_lost.wrapping_sub(p.report.rx_lost),
             )
         });
+        // The peer's receiver changed: what was counted before describes another channel.
+        let noise = (report.noise != 0).then_some(report.noise);
+        if let Some(n) = noise {
+            match self.peer_regime_noise {
+                Some(r) if f64::from(n.abs_diff(r)) >= 2.0 * self.config.noise_change_db => {
+                    // Neither the loss counted nor the frames unheard before the change
+                    // speak for the channel after it.
+                    self.peer_window = LossWindow::new(self.config.window);
+                    self.progress_at = Some(now);
+                    self.peer_regime_noise = Some(n);
+                }
+                Some(_) => {}
+                None => self.peer_regime_noise = Some(n),
+            }
+        }
+        if let Some(n) = noise {
+            self.peer_noise_floor = Some(self.peer_noise_floor.map_or(n, |f| f.min(n)));
+        }
         let loss_ratio = deltas.and_then(|(received, lost)| {
             let total = u32::from(lost) + u32::from(received);
             (total > 0).then(|| f64::from(lost) / f64::from(total))
@@ -296,6 +357,11 @@ impl LinkQuality {
         });
     }
 
+    /// Frames the reader counted that came from the peer.
+    fn peer_frames(&self, stats: &ReaderStats) -> u64 {
+        stats.frames().saturating_sub(self.local_frames)
+    }
+
     /// Our loss estimate over the window, as of `now`.
     pub fn own_loss(&self, now: Instant) -> Option<f64> {
         self.own_window.estimate(now)
@@ -309,6 +375,22 @@ impl LinkQuality {
             return Some(1.0);
         }
         self.peer_window.estimate(now)
+    }
+
+    /// How far the peer's receiver noise floor is above the lowest it has reported, dB, as of
+    /// its latest report (while not missing); `None` when it does not report one.
+    pub fn peer_noise_rise_db(&self, now: Instant) -> Option<f64> {
+        let p = self.peer.as_ref()?;
+        if now.saturating_duration_since(p.received_at) > self.config.peer_timeout {
+            return None;
+        }
+        let noise = (p.report.noise != 0).then_some(p.report.noise)?;
+        Some(f64::from(noise) - f64::from(self.peer_noise_floor?))
+    }
+
+    /// Our receiver's noise floor as the local radio last reported it, dBm.
+    pub fn noise(&self) -> Option<i8> {
+        self.noise
     }
 
     /// When we last heard the peer.
@@ -352,6 +434,11 @@ impl LinkQuality {
         if !self.quiet_reported && self.heard.is_some() && now >= quiet {
             return Some("peer quiet");
         }
+        if let (Some(n), Some(r)) = (self.noise, self.reported_noise)
+            && f64::from(n.abs_diff(r)) >= self.config.noise_change_db
+        {
+            return Some("noise changed");
+        }
         let loss = self.own_loss(now).unwrap_or(0.0);
         ((loss - self.reported_loss).abs() >= self.config.change).then_some("loss changed")
     }
@@ -385,15 +472,17 @@ impl LinkQuality {
         }
         self.last_report = Some(now);
         self.reported_loss = self.own_loss(now).unwrap_or(0.0);
-        debug!(why, loss = self.reported_loss, "link-quality report");
+        self.reported_noise = self.noise;
+        debug!(why, loss = self.reported_loss, noise = ?self.noise, "link-quality report");
         let unknown = |v: Option<i8>| v.unwrap_or(i8::MAX);
         self.due = Some(LINK_QUALITY_DATA {
             time_boot_ms: now.saturating_duration_since(self.started).as_millis() as u32,
-            rx_packets: stats.frames() as u16,
+            rx_packets: self.peer_frames(stats) as u16,
             rx_lost: stats.lost as u16,
             rx_bad_crc: stats.bad_crc as u16,
             rssi: unknown(self.rssi),
             remote_rssi: unknown(self.remote_rssi),
+            noise: self.noise.unwrap_or(0),
         });
     }
 

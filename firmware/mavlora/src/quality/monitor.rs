@@ -24,6 +24,12 @@ pub struct MonitorConfig {
     pub degraded: f64,
     /// Loss below which a degraded or lost direction is restored.
     pub restored: f64,
+    /// The drone's receiver noise floor this far (dB) above the lowest it reported degrades
+    /// the uplink before any loss is counted (the paper's blind drone). 6 dB halves the
+    /// free-space range the uplink had.
+    pub noise_rise_db: f64,
+    /// Noise rise below which a degraded uplink is restored (if its loss allows).
+    pub noise_restored_db: f64,
     /// At most one announcement per direction per this.
     pub hold: Duration,
     /// Time between two `RADIO_STATUS` to the ground (SiK radios send one a second).
@@ -35,6 +41,8 @@ impl Default for MonitorConfig {
         Self {
             degraded: 0.20,
             restored: 0.10,
+            noise_rise_db: 6.0,
+            noise_restored_db: 3.0,
             hold: Duration::from_secs(2),
             radio_status_period: Duration::from_secs(1),
         }
@@ -85,6 +93,10 @@ pub struct Notice {
     pub loss: Option<f64>,
     /// How long the peer has been silent, s ([`Health::Silent`], downlink [`Health::Lost`]).
     pub silent_s: Option<f64>,
+    /// Uplink: the drone's noise floor above its lowest, dB, when it reports one.
+    pub noise_rise_db: Option<f64>,
+    /// The noise rise, not the loss, is what degraded the direction.
+    pub by_noise: bool,
 }
 
 impl Notice {
@@ -92,8 +104,15 @@ impl Notice {
     pub fn text(&self) -> String {
         let mut t = String::from(self.direction.label());
         let pct = |l: Option<f64>| l.map_or("?".into(), |l| format!("{:.0}", 100.0 * l));
+        let noise = |r: Option<f64>| format!("drone noise {:+.0}dB", r.unwrap_or(0.0));
         let _ = match (self.health, self.direction) {
+            (Health::Ok, _) if self.loss.is_none() && self.noise_rise_db.is_some() => {
+                write!(t, " restored: {}", noise(self.noise_rise_db))
+            }
             (Health::Ok, _) => write!(t, " restored: {}% lost", pct(self.loss)),
+            (Health::Degraded, _) if self.by_noise => {
+                write!(t, " degraded: {}", noise(self.noise_rise_db))
+            }
             (Health::Degraded, _) => write!(t, " degraded: {}% lost", pct(self.loss)),
             (Health::Lost, Direction::Uplink) => write!(t, " lost: drone hears nothing"),
             (Health::Lost, Direction::Downlink) => write!(
@@ -137,6 +156,8 @@ struct Track {
     announced_at: Option<Instant>,
     loss: Option<f64>,
     silent_s: Option<f64>,
+    noise_rise: Option<f64>,
+    by_noise: bool,
 }
 
 /// Sans-IO: turns a [`LinkQuality`] into what the ground station is told. Call
@@ -201,6 +222,20 @@ impl LinkMonitor {
         }
     }
 
+    /// Hysteresis on the drone's noise rise from the previous health.
+    fn by_noise(&self, prev: Option<Health>, rise_db: f64) -> Health {
+        if rise_db >= self.config.noise_rise_db {
+            Health::Degraded
+        } else if rise_db < self.config.noise_restored_db {
+            Health::Ok
+        } else {
+            match prev {
+                None | Some(Health::Ok) => Health::Ok,
+                Some(_) => Health::Degraded,
+            }
+        }
+    }
+
     /// Looks at the link as of `now`.
     pub fn handle_timeout(&mut self, now: Instant, q: &LinkQuality) {
         let heard = q.last_heard();
@@ -226,18 +261,29 @@ impl LinkMonitor {
                 self.up.silent_s = Some(now.saturating_duration_since(since).as_secs_f64());
                 Some(Health::Silent)
             }
-            PeerState::Reporting { .. } => match q.peer_loss(now) {
-                Some(l) if l >= 1.0 => {
-                    self.up.loss = Some(1.0);
-                    Some(Health::Lost)
+            PeerState::Reporting { .. } => {
+                let loss = q.peer_loss(now);
+                let rise = q.peer_noise_rise_db(now);
+                self.up.loss = loss;
+                self.up.noise_rise = rise;
+                let prev = self.up.health.filter(|h| *h != Health::Silent);
+                match loss {
+                    Some(l) if l >= 1.0 => Some(Health::Lost),
+                    _ => {
+                        let by_loss = loss.map(|l| self.by_loss(prev, l));
+                        let by_noise = rise.map(|r| self.by_noise(prev, r));
+                        self.up.by_noise =
+                            by_noise == Some(Health::Degraded) && by_loss != Some(Health::Degraded);
+                        match (by_loss, by_noise) {
+                            (Some(Health::Degraded), _) | (_, Some(Health::Degraded)) => {
+                                Some(Health::Degraded)
+                            }
+                            (None, None) => prev,
+                            _ => Some(Health::Ok),
+                        }
+                    }
                 }
-                Some(l) => {
-                    self.up.loss = Some(l);
-                    let prev = self.up.health.filter(|h| *h != Health::Silent);
-                    Some(self.by_loss(prev, l))
-                }
-                None => self.up.health.filter(|h| *h != Health::Silent),
-            },
+            }
         };
         self.up.health = up;
         self.announce(now, Direction::Uplink);
@@ -287,6 +333,8 @@ impl LinkMonitor {
             health,
             loss: track.loss,
             silent_s: track.silent_s,
+            noise_rise_db: track.noise_rise,
+            by_noise: track.by_noise,
         };
         match direction {
             Direction::Uplink => self.announced.0 += 1,
@@ -313,8 +361,9 @@ impl LinkMonitor {
 
     /// The `RADIO_STATUS` due, once: our RSSI and the drone's (from its report, else our
     /// radio's remote RSSI), receive errors on the downlink (lost + bad CRC, wrapping), the
-    /// local radio's noise, remote noise, corrected packets and free buffer when it sends
-    /// `RADIO_STATUS` (else unknown: 255, 0 corrected, 100 % free).
+    /// drone's noise floor (from its report, else our radio's remote noise), the local
+    /// radio's noise, corrected packets and free buffer when it sends `RADIO_STATUS` (else
+    /// unknown: 255, 0 corrected, 100 % free).
     // `..Default::default()` stays: the dialect gains MAVLink 2 extension fields.
     #[allow(clippy::needless_update)]
     pub fn poll_radio_status(&mut self, q: &LinkQuality) -> Option<RADIO_STATUS_DATA> {
@@ -336,7 +385,14 @@ impl LinkMonitor {
             rxerrors: (stats.lost + stats.bad_crc) as u16,
             fixed: local.map_or(0, |l| l.fixed),
             noise: local.map_or(u8::MAX, |l| l.noise),
-            remnoise: local.map_or(u8::MAX, |l| l.remnoise),
+            // The drone's own word on its noise floor first: it is what deafens it.
+            remnoise: q
+                .peer()
+                .map(|p| p.report.noise)
+                .filter(|n| *n != 0)
+                .map_or(local.map_or(u8::MAX, |l| l.remnoise), |n| {
+                    scale.from_dbm(Some(n))
+                }),
             txbuf: local.map_or(100, |l| l.txbuf),
             ..Default::default()
         })

@@ -10,7 +10,7 @@ use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
 use crate::command::ack_tag::untag_ack;
 use crate::command::{Admission, CommandRetransmitter, RetransmitStats};
 use crate::compact::Expander;
-use crate::dialect::MavMessage;
+use crate::dialect::{MavMessage, RADIO_STATUS_DATA};
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
 use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig};
@@ -241,6 +241,12 @@ impl Router {
         &self.quality
     }
 
+    /// The local radio's status read out of band (a modem's registers; a SiK radio's comes
+    /// in the byte stream by itself).
+    pub fn handle_radio_status(&mut self, status: RADIO_STATUS_DATA) {
+        self.quality.handle_radio_status(status);
+    }
+
     /// What the ground station is told about the link.
     pub fn monitor(&self) -> &LinkMonitor {
         &self.monitor
@@ -388,6 +394,12 @@ impl Router {
     pub fn handle_radio_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.radio_reader.push(bytes);
         while let Some(rx) = self.radio_reader.next_frame() {
+            // The local radio's own report (SiK injects it into its serial output): never
+            // signed, never the vehicle, folded into ours for the ground.
+            if rx.frame.message_id() == ids::RADIO_STATUS {
+                self.quality.handle_frame(now, &rx.frame);
+                continue;
+            }
             let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
                 continue;
             };
@@ -396,8 +408,6 @@ impl Router {
                 self.vehicle = Some(frame.system_id());
             }
             match frame.message_id() {
-                // The local radio's: the ground gets ours, which includes its fields.
-                ids::RADIO_STATUS => {}
                 ids::MAVLORA_POSITION_BATCH | ids::MAVLORA_STATUS => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.expand(now, frame.system_id(), &msg);

@@ -56,7 +56,89 @@ fn report(rx: u16, lost: u16) -> MavMessage {
         rx_bad_crc: 0,
         rssi: i8::MAX,
         remote_rssi: i8::MAX,
+        noise: 0,
     })
+}
+
+/// A SiK radio's `RADIO_STATUS` frame with its noise floor at `noise_dbm`.
+fn sik_status(noise_dbm: i8) -> crate::wire::OwnedFrame {
+    let status = MavMessage::RADIO_STATUS(RADIO_STATUS_DATA {
+        rssi: RssiScale::Sik.from_dbm(Some(-80)),
+        remrssi: 255,
+        noise: RssiScale::Sik.from_dbm(Some(noise_dbm)),
+        remnoise: 255,
+        ..RADIO_STATUS_DATA::default()
+    });
+    Sender::new(51, 68, MavlinkVersion::V1).frame(&status)
+}
+
+#[test]
+fn a_noise_floor_that_rises_sends_a_report_early_and_the_reports_carry_it() {
+    let stats = ReaderStats::default();
+    let config = LinkQualityConfig {
+        period: Duration::from_secs(30),
+        ..config()
+    };
+    let mut lq = LinkQuality::new(config, secs(0));
+    lq.handle_frame(secs(0), &sik_status(-110));
+    let first = due_report(&mut lq, secs(30), &stats).unwrap();
+    assert_eq!(first.noise, -110);
+    // A 2 dB wobble is a reading's noise, not a change.
+    lq.handle_frame(secs(31), &sik_status(-108));
+    assert!(due_report(&mut lq, secs(32), &stats).is_none());
+    // 12 dB up: out within the next look, not at the 30 s keep-alive.
+    lq.handle_frame(secs(33), &sik_status(-98));
+    let early = due_report(&mut lq, Instant::from_millis(33_200), &stats).unwrap();
+    assert_eq!(early.noise, -98);
+    // And back down: restored as fast.
+    lq.handle_frame(secs(40), &sik_status(-110));
+    assert_eq!(
+        due_report(&mut lq, Instant::from_millis(40_200), &stats).map(|r| r.noise),
+        Some(-110)
+    );
+}
+
+#[test]
+fn the_peer_noise_rise_is_over_its_quietest_floor_and_restarts_its_loss_estimate() {
+    let mut lq = LinkQuality::new(config(), secs(0));
+    let mut sender = Sender::new(1, 191, MavlinkVersion::V2);
+    let with_noise = |rx: u16, lost: u16, noise: i8| match report(rx, lost) {
+        MavMessage::LINK_QUALITY(r) => MavMessage::LINK_QUALITY(LINK_QUALITY_DATA { noise, ..r }),
+        _ => unreachable!(),
+    };
+    lq.handle_frame(secs(1), &sender.frame(&with_noise(10, 0, -108)));
+    lq.handle_frame(secs(2), &sender.frame(&with_noise(14, 6, -110)));
+    assert_eq!(lq.peer_loss(secs(2)), Some(0.6));
+    assert_eq!(lq.peer_noise_rise_db(secs(2)), Some(0.0));
+    // 14 dB up: a new channel; the loss counted before it no longer stands.
+    lq.handle_frame(secs(3), &sender.frame(&with_noise(15, 6, -96)));
+    assert_eq!(lq.peer_noise_rise_db(secs(3)), Some(14.0));
+    assert_eq!(lq.peer_loss(secs(3)), None);
+    // A peer without the field (an older bridge) is unknown, not 0 dB.
+    lq.handle_frame(secs(4), &sender.frame(&report(16, 6)));
+    assert_eq!(lq.peer_noise_rise_db(secs(4)), None);
+    // A report gone stale says nothing about now.
+    lq.handle_frame(secs(5), &sender.frame(&with_noise(17, 6, -96)));
+    assert_eq!(lq.peer_noise_rise_db(secs(9)), None);
+}
+
+#[test]
+fn the_local_radios_own_frames_are_not_counted_as_the_peers() {
+    // A sparse uplink (one frame) among SiK's once-a-second RADIO_STATUS: what we report
+    // received must be the peer's frames only, or the peer's loss estimate drowns.
+    let mut reader = FrameReader::new();
+    let mut lq = LinkQuality::new(config(), secs(0));
+    for k in 0..5u8 {
+        reader.push(sik_status(-110).as_bytes());
+        if k == 2 {
+            reader.push(frame(HEARTBEAT, 255, 190, 0).as_bytes());
+        }
+        while let Some(rx) = reader.next_frame() {
+            lq.handle_frame(secs(u64::from(k)), &rx.frame);
+        }
+    }
+    let r = due_report(&mut lq, secs(5), reader.stats()).unwrap();
+    assert_eq!(r.rx_packets, 1);
 }
 
 #[test]

@@ -41,14 +41,34 @@ fn fly(
     loss: impl Fn(u64) -> u16,
     totals: &mut (u16, u16),
 ) -> Vec<(u64, String)> {
+    fly_with(q, m, range, |s| (loss(s), 0), totals)
+}
+
+/// [`fly`] with the drone's noise floor in its reports: `second(s)` is (frames lost of 10,
+/// noise floor dBm or 0 unknown) in second `s`.
+fn fly_with(
+    q: &mut LinkQuality,
+    m: &mut LinkMonitor,
+    range: std::ops::Range<u64>,
+    second: impl Fn(u64) -> (u16, i8),
+    totals: &mut (u16, u16),
+) -> Vec<(u64, String)> {
     let mut sender = Sender::new(1, 191, MavlinkVersion::V2);
     let mut out = Vec::new();
     for s in range {
-        let lost = loss(s);
+        let (lost, noise) = second(s);
         totals.0 = totals.0.wrapping_add(10 - lost);
         totals.1 = totals.1.wrapping_add(lost);
+        let lq = MavMessage::LINK_QUALITY(LINK_QUALITY_DATA {
+            rx_packets: totals.0,
+            rx_lost: totals.1,
+            rssi: i8::MAX,
+            remote_rssi: i8::MAX,
+            noise,
+            ..Default::default()
+        });
         q.handle_frame(secs(s), &frame(HEARTBEAT, 1, 1, s as u8));
-        q.handle_frame(secs(s), &sender.frame(&report(totals.0, totals.1)));
+        q.handle_frame(secs(s), &sender.frame(&lq));
         m.handle_timeout(secs(s), q);
         while let Some(n) = m.poll_notice() {
             assert!(n.text().len() <= 50);
@@ -171,4 +191,28 @@ fn radio_status_once_a_second_with_the_drones_rssi() {
         }
     }
     assert_eq!(got, 10);
+}
+
+#[test]
+fn a_drone_noise_floor_up_6_db_degrades_the_uplink_before_any_loss_and_its_end_restores_it() {
+    let (mut q, mut m) = (quality(), LinkMonitor::new(MonitorConfig::default()));
+    let mut totals = (0, 0);
+    // 4 dB of wobble above the quietest floor: below the 6 dB alarm, no message.
+    let wobble = |s: u64| (0, if s.is_multiple_of(2) { -110 } else { -106 });
+    let quiet = fly_with(&mut q, &mut m, 0..10, wobble, &mut totals);
+    assert!(quiet.is_empty(), "{quiet:?}");
+    let deaf = fly_with(&mut q, &mut m, 10..20, |_| (0, -98), &mut totals);
+    assert_eq!(
+        deaf,
+        vec![(10, "Uplink GCS>UAV degraded: drone noise +12dB".to_string())]
+    );
+    assert_eq!(m.health(Direction::Uplink), Some(Health::Degraded));
+    // The ground's RADIO_STATUS shows the drone's floor as remnoise (SiK scale).
+    let status = m.poll_radio_status(&q).unwrap();
+    assert_eq!(status.remnoise, RssiScale::Sik.from_dbm(Some(-98)));
+    let back = fly_with(&mut q, &mut m, 20..25, |_| (0, -110), &mut totals);
+    assert_eq!(
+        back,
+        vec![(20, "Uplink GCS>UAV restored: drone noise +0dB".to_string())]
+    );
 }

@@ -3,6 +3,10 @@
 //! Nothing in standard telemetry shows it; MavLora's `LINK_QUALITY` (id 15) does, and the
 //! router turns it into a `STATUSTEXT` any ground station shows (issue 12).
 //!
+//! Each end's radio reports its receiver's noise floor once a second, as SiK radios do
+//! (`harness_sim::World`'s `RADIO_STATUS`), so the drone can say at once that its floor rose;
+//! the same run without those reports measures what counting loss alone can do.
+//!
 //! The ground's view is the router's link monitor (`mavlora::quality::LinkMonitor`): the
 //! time from the noise starting to its uplink announcement (degraded or lost), and from the
 //! noise ending to its "restored", over [`SEEDS`] seeds. The steady cost of link monitoring
@@ -18,11 +22,12 @@ use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use harness_radio::{Direction, LinkBudget};
 use harness_sim::{Carrier, World, secs};
-use mavlora::quality::{Direction as LinkDirection, Health, REPORT_BYTES};
+use mavlora::quality::{Direction as LinkDirection, Health};
+use mavlora::wire::ids;
 
 pub const SCENARIO: Scenario = Scenario {
     name: "blind_drone",
-    summary: "Blind drone: 40 % loss GCS→UAV only from t = 60 s for 30 s, over 20 seeds; the ground station is told (STATUSTEXT) through the router's link monitor; steady link-monitoring cost on LoRa SF7",
+    summary: "Blind drone: 40 % loss GCS→UAV only from t = 60 s for 30 s, over 20 seeds; the ground station is told (STATUSTEXT) through the router's link monitor, with and without radios that report their noise floor; steady link-monitoring cost on LoRa SF7",
     plan,
 };
 
@@ -54,6 +59,7 @@ pub const RESTORE_LIMIT_S: f64 = AFTER_S;
 struct Handles {
     p50: Handle,
     p95: Handle,
+    counted_p95: Handle,
     restore_p95: Handle,
     up_cost: Handle,
     down_cost: Handle,
@@ -93,6 +99,16 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
              no alarm, counts as the whole run); limit: while the drone is deaf (30 s); issue \
              12's 5 s target is the marginal band",
             Some((DETECT_LIMIT_S, DETECT_TARGET_S)),
+        ),
+        counted_p95: d.declare(
+            spec("detect_p95_counting_only_s", "s")
+                .dim(Dimension::Scenario, SCENARIO.name)
+                .describe(
+                    "the same with radios that do not report their noise floor: the uplink's \
+                     loss must be counted from its few frames; limit: while the drone is deaf \
+                     (30 s)",
+                )
+                .at_most(DETECT_LIMIT_S),
         ),
         restore_p95: blind(
             d,
@@ -135,14 +151,16 @@ pub struct Detection {
     pub downlink_loss: f64,
 }
 
-/// Runs the flight with the noise and follows what the router announces.
-pub fn detect(radios: &Radios) -> Result<Detection> {
+/// Runs the flight with the noise and follows what the router announces; `noise_floor`:
+/// each end's radio reports its noise floor once a second (SiK's `RADIO_STATUS`).
+pub fn detect(radios: &Radios, noise_floor: bool) -> Result<Detection> {
     let setup = radios.seeded(&radios.blind_drone);
     let preset = setup.preset.resolve()?;
     let fc =
         Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(Route::PAPER));
     let mavlora = mavlora_configs(PX4_COMPACT_TOML, "px4-compact.toml", true, Some(&preset))?;
     let mut w = World::new(fc, Some(mavlora), Some(&setup))?;
+    w.set_radio_status(noise_floor);
     let mut last_seen: Option<Instant> = None;
     let mut views = Vec::new();
     let mut announced = 0u64;
@@ -235,11 +253,10 @@ pub fn monitoring_cost(radios: &Radios) -> Result<(f64, f64)> {
         Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(Route::PAPER));
     let mavlora = mavlora_configs(PX4_COMPACT_TOML, "px4-compact.toml", true, Some(&preset))?;
     let mut w = World::new(fc, Some(mavlora), Some(&setup))?;
+    // The bytes the reports took on the radio, as sent.
     let sent = |w: &World| -> (u64, u64) {
-        (
-            w.router().map_or(0, |r| r.stats().link_quality_sent),
-            w.bridge().map_or(0, |b| b.stats().link_quality_sent),
-        )
+        let lq = |d| w.sent(d).bytes_of(&[ids::LINK_QUALITY]);
+        (lq(Direction::Uplink), lq(Direction::Downlink))
     };
     let (start, span) = (60.0, 300.0);
     while w.now < secs(start) {
@@ -250,7 +267,7 @@ pub fn monitoring_cost(radios: &Radios) -> Result<(f64, f64)> {
         w.step();
     }
     let b = sent(&w);
-    let rate = |n: u64| n as f64 * f64::from(REPORT_BYTES) / span;
+    let rate = |n: u64| n as f64 / span;
     Ok((rate(b.0 - a.0), rate(b.1 - a.1)))
 }
 
@@ -264,19 +281,24 @@ pub fn noise_for_loss(budget: &LinkBudget, preset: &harness_radio::Preset, p: f6
 fn run(ctx: &mut PhaseContext, radios: &Radios, h: Handles) -> Result<()> {
     let run_s = ONSET_S + NOISE_S + AFTER_S;
     let mut detects = Vec::new();
+    let mut counted = Vec::new();
     let mut restores = Vec::new();
+    // A false alarm or no alarm counts as the whole run: it can only fail the limit.
+    let detect_s = |d: &Detection| {
+        if d.false_alarms > 0 {
+            run_s
+        } else {
+            d.detect_s.unwrap_or(run_s)
+        }
+    };
     for k in 0..SEEDS {
         let seeded = Radios {
             seed: radios.seed + k,
             ..radios.clone()
         };
-        let d = detect(&seeded)?;
-        // A false alarm or no alarm counts as the whole run: it can only fail the limit.
-        let detect = if d.false_alarms > 0 {
-            run_s
-        } else {
-            d.detect_s.unwrap_or(run_s)
-        };
+        counted.push(detect_s(&detect(&seeded, false)?));
+        let d = detect(&seeded, true)?;
+        let detect = detect_s(&d);
         let restore = d.restore_s.unwrap_or(run_s);
         ctx.log(format!(
             "seed {}: detect {} restore {} false alarms {}; GCS→UAV {:.1} % lost during the \
@@ -292,6 +314,7 @@ fn run(ctx: &mut PhaseContext, radios: &Radios, h: Handles) -> Result<()> {
         restores.push(restore);
     }
     detects.sort_by(f64::total_cmp);
+    counted.sort_by(f64::total_cmp);
     restores.sort_by(f64::total_cmp);
     let list = |v: &[f64]| {
         v.iter()
@@ -302,6 +325,8 @@ fn run(ctx: &mut PhaseContext, radios: &Radios, h: Handles) -> Result<()> {
     ctx.record(h.p50, quantile(&detects, 0.50));
     ctx.record(h.p95, quantile(&detects, 0.95));
     ctx.annotate(h.p95, &format!("sorted, s: {}", list(&detects)));
+    ctx.record(h.counted_p95, quantile(&counted, 0.95));
+    ctx.annotate(h.counted_p95, &format!("sorted, s: {}", list(&counted)));
     ctx.record(h.restore_p95, quantile(&restores, 0.95));
     ctx.annotate(h.restore_p95, &format!("sorted, s: {}", list(&restores)));
     let (up, down) = monitoring_cost(radios)?;

@@ -262,9 +262,11 @@ fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
     let (lat, _) =
         c2_latency::measure_with(&radios, harness_sim::CommandPlan::default(), Some(1)).unwrap();
     let p99_ground_only = quantile(&lat, 0.99);
+    // The ground's own 1.5 s retries: the slowest 1 % needed a third copy (or, at 19 %
+    // round-trip loss, now and then a fourth: 0.7 % of commands).
     assert!(
-        (3000.0..3500.0).contains(&p99_ground_only),
-        "p99 {p99_ground_only} without the router's resends: third copy expected"
+        p99_ground_only >= 3000.0,
+        "p99 {p99_ground_only} without the router's resends: a third copy expected"
     );
     let third = lat.iter().filter(|&&l| l > 3000.0).count() as f64 / lat.len() as f64;
     assert!((0.01..0.08).contains(&third), "{third}");
@@ -319,7 +321,20 @@ fn blind_drone_is_seen_from_the_ground() {
             seed,
             ..Radios::paper_defaults()
         };
-        let d = blind_drone::detect(&radios).unwrap();
+        // Radios that report their noise floor: within issue 12's 5 s, both ways.
+        let d = blind_drone::detect(&radios, true).unwrap();
+        assert_eq!(d.false_alarms, 0, "seed {seed}: {d:?}");
+        assert!(
+            d.detect_s.is_some_and(|s| s < blind_drone::DETECT_TARGET_S),
+            "seed {seed}: {d:?}"
+        );
+        assert!(
+            d.restore_s
+                .is_some_and(|s| s < blind_drone::RESTORE_TARGET_S),
+            "seed {seed}: {d:?}"
+        );
+        // Radios that do not: counted from the uplink's frames, still while it is deaf.
+        let d = blind_drone::detect(&radios, false).unwrap();
         assert_eq!(d.false_alarms, 0, "seed {seed}: {d:?}");
         assert!(
             d.detect_s.is_some_and(|s| s < blind_drone::NOISE_S),
@@ -392,14 +407,14 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
 #[test]
 fn runs_are_deterministic_for_a_seed() {
     let radios = Radios::paper_defaults();
-    let a = blind_drone::detect(&radios).unwrap();
-    let b = blind_drone::detect(&radios).unwrap();
+    let a = blind_drone::detect(&radios, false).unwrap();
+    let b = blind_drone::detect(&radios, false).unwrap();
     assert_eq!(a, b);
     let other = Radios {
         seed: 2,
         ..radios.clone()
     };
-    let c = blind_drone::detect(&other).unwrap();
+    let c = blind_drone::detect(&other, false).unwrap();
     assert_ne!(a.views, c.views);
     let m1 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true, None).unwrap();
     let m2 = mission::upload(&radios, &radios.seeded(&radios.mission[0].1), true, None).unwrap();
@@ -495,6 +510,7 @@ fn flat_names_are_the_ones_readers_know() {
     expected.extend([
         "mavlora.blind_drone.detect_p50_s".into(),
         "mavlora.blind_drone.detect_p95_s".into(),
+        "mavlora.blind_drone.detect_p95_counting_only_s".into(),
         "mavlora.blind_drone.restore_p95_s".into(),
         "mavlora.lora_sf7.monitor_uplink_bytes_per_s".into(),
         "mavlora.lora_sf7.monitor_downlink_bytes_per_s".into(),
