@@ -3,17 +3,20 @@
 //! back (`DownloadOptions::verify`; the default does not), and an image that
 //! would land in the region a UF2 bootloader's BOOTPROT fuse protects is
 //! refused before anything is erased, with what to do instead.
+//!
+//! probe-rs is the `flash` feature (on by default): the emulated rig and CI need no probe
+//! and skip its build (a third of the rig's compile time); a rig built without it says so
+//! when asked to flash.
 
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use probe_rs::flashing::{DownloadOptions, ElfLoader, ElfOptions};
-use probe_rs::probe::DebugProbeSelector;
-use probe_rs::probe::list::Lister;
-use probe_rs::{MemoryInterface, Permissions};
 
 use crate::rigfile::ProbeSelector;
+
+#[cfg(feature = "flash")]
+mod session;
 
 /// What was flashed, for the run record.
 #[derive(Debug, Clone)]
@@ -30,79 +33,25 @@ pub struct ProbeDriver {
 }
 
 impl ProbeDriver {
-    /// Writes `elf` to the chip and restarts it.
+    /// Writes `elf` to the chip, reads it back and restarts the chip.
+    #[cfg(feature = "flash")]
     pub fn flash(&self, elf: &Path) -> Result<Flashed> {
-        let started = Instant::now();
-        let lister = Lister::new();
-        let probes = lister.list_all();
-        let probe = match &self.selector {
-            ProbeSelector::Auto => match probes.as_slice() {
-                [] => bail!(
-                    "no debug probe found (is it plugged in, and may this user open it? see udev rules for probe-rs)"
-                ),
-                [one] => one
-                    .open()
-                    .with_context(|| format!("cannot open probe {}", one.identifier))?,
-                many => bail!(
-                    "{} debug probes found ({}); name one in [multirx.device] probe = \"VID:PID[:SERIAL]\"",
-                    many.len(),
-                    many.iter()
-                        .map(|p| format!(
-                            "{:04x}:{:04x} {}",
-                            p.vendor_id, p.product_id, p.identifier
-                        ))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            },
-            selector => {
-                let wanted: DebugProbeSelector = selector
-                    .to_string()
-                    .parse()
-                    .with_context(|| format!("probe selector {selector}"))?;
-                lister.open(wanted).with_context(|| {
-                    format!(
-                        "cannot open debug probe {selector} ({} probes attached)",
-                        probes.len()
-                    )
-                })?
-            }
-        };
-        let name = probe.get_name();
-        let mut session = probe
-            .attach(self.chip.as_str(), Permissions::default())
-            .with_context(|| format!("probe {name} cannot attach to {}", self.chip))?;
-        let user_row = session
-            .core(0)
-            .and_then(|mut core| core.read_word_32(SAMD21_USER_ROW))
-            .context("cannot read the chip's NVM user row (BOOTPROT)")?;
-        check_bootprot(elf, lowest_load_address(elf)?, user_row)?;
-        let mut options = DownloadOptions::default();
-        options.verify = true;
-        probe_rs::flashing::download_file_with_options(
-            &mut session,
-            elf,
-            ElfLoader(ElfOptions::default()),
-            options,
+        session::flash(self, elf)
+    }
+
+    /// Built without probe-rs: says so, and how to get it.
+    #[cfg(not(feature = "flash"))]
+    pub fn flash(&self, elf: &Path) -> Result<Flashed> {
+        bail!(
+            "cannot flash {}: this rig was built without its `flash` feature (probe-rs); \
+             build it with default features: cargo build --release -p harness",
+            elf.display()
         )
-        .with_context(|| {
-            format!(
-                "flashing {} failed (written and read back: a verify error means the flash does not hold the image)",
-                elf.display()
-            )
-        })?;
-        session
-            .core(0)
-            .and_then(|mut core| core.reset())
-            .context("cannot restart the chip after flashing")?;
-        Ok(Flashed {
-            probe: name,
-            duration: started.elapsed(),
-        })
     }
 }
 
 /// The SAMD21's NVM user row; BOOTPROT is bits 2:0 of its first word.
+#[cfg(feature = "flash")]
 const SAMD21_USER_ROW: u64 = 0x0080_4000;
 
 /// Bytes at the start of flash that BOOTPROT protects from erase and write
