@@ -141,6 +141,11 @@ impl RadioEmulator {
         self.b.path()
     }
 
+    /// The model's time zero on the rig's clock: scheduled silences count from it.
+    pub fn epoch(&self) -> Mono {
+        self.shared.epoch
+    }
+
     /// The model's time now: the emulator's epoch is its start.
     pub fn now(&self) -> Instant {
         model_time(self.shared.epoch)

@@ -110,6 +110,32 @@ impl ReceiverFixture {
         )
     }
 
+    /// Switches the receiver's power; returns the fixture's event.
+    pub fn set_power(&self, on: bool) -> Result<ReceiverEvent, FixtureError> {
+        let since = Mono::now();
+        self.send(if on { "power on" } else { "power off" })?;
+        self.wait_for(
+            since,
+            "power event",
+            Duration::from_secs(2),
+            |e| matches!(e, ReceiverEvent::Power { on: now, .. } if *now == on),
+        )
+    }
+
+    /// What the wire between this receiver and MultiRX does from now on: `clean`,
+    /// `garbage`, `stutter` or `flood` (fixtures/sbus_receiver.py); returns the fixture's
+    /// event.
+    pub fn set_line(&self, fault: &str) -> Result<ReceiverEvent, FixtureError> {
+        let since = Mono::now();
+        self.send(&format!("line {fault}"))?;
+        self.wait_for(
+            since,
+            "line event",
+            Duration::from_secs(2),
+            |e| matches!(e, ReceiverEvent::Line { fault: f, .. } if f == fault),
+        )
+    }
+
     /// Sets channels (1-based); returns the fixture's event.
     pub fn set_channels(&self, channels: &[(u8, u16)]) -> Result<ReceiverEvent, FixtureError> {
         let since = Mono::now();

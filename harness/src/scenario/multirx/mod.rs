@@ -1,11 +1,14 @@
 //! MultiRX scenarios: the paper's A–D (§VI-B), the handover variants that
-//! matter for an SLA (failsafe flag vs silence), a six-pilot route, and the
-//! independent fail-safe override. Each runs in both modes on its own
+//! matter for an SLA (failsafe flag vs silence), a six-pilot route, the
+//! independent fail-safe override, and faults (a receiver's wire garbled,
+//! stuttering or flooding; every receiver dead). Each runs in both modes on its own
 //! freshly started device.
 
+mod all_dead;
 mod handover;
 mod idle;
 mod ifs;
+mod line_fault;
 mod loiter;
 mod mission;
 mod route;
@@ -112,6 +115,10 @@ pub fn scenarios() -> Vec<Scenario> {
         mission::SCENARIO,
         route::SCENARIO,
         ifs::SCENARIO,
+        line_fault::GARBAGE,
+        line_fault::STUTTER,
+        line_fault::FLOOD,
+        all_dead::SCENARIO,
     ]
 }
 

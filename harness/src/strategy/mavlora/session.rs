@@ -293,6 +293,7 @@ impl MavloraSession {
             fc_events,
             downlink,
             uplink,
+            radio_epoch: self.radio.epoch(),
             bridge_status,
             router_status,
             exits,

@@ -51,6 +51,8 @@ pub struct SessionReport {
     pub downlink: LinkStats,
     /// Ground → drone, whole session.
     pub uplink: LinkStats,
+    /// The radio model's time zero on the rig's clock (its scheduled silences count from it).
+    pub radio_epoch: crate::clock::Mono,
     /// Last status line of the bridge and the router, when they ran.
     pub bridge_status: Option<String>,
     pub router_status: Option<String>,

@@ -9,10 +9,13 @@
 //!   filtering (paper Table II), loss-free SiK;
 //! - [`mission`]: a mission upload through the relay over SiK with bursty loss;
 //! - [`c2_latency`]: command-to-ack latency over SiK with bursty loss (SORA
-//!   TMPR: < 3 s for medium robustness).
+//!   TMPR: < 3 s for medium robustness);
+//! - [`radio_silence`]: 10 s of silence both ways, then telemetry and commands
+//!   back within the same TMPR.
 
 pub mod c2_latency;
 pub mod mission;
+pub mod radio_silence;
 pub mod table_ii;
 
 use anyhow::{Result, bail};
@@ -39,7 +42,12 @@ pub type Script = Box<dyn FnOnce(&mut PhaseContext, &SessionDefaults) -> Result<
 
 /// Every real-time scenario, in the order they run.
 pub fn scenarios() -> Vec<Scenario> {
-    vec![table_ii::SCENARIO, mission::SCENARIO, c2_latency::SCENARIO]
+    vec![
+        table_ii::SCENARIO,
+        mission::SCENARIO,
+        c2_latency::SCENARIO,
+        radio_silence::SCENARIO,
+    ]
 }
 
 /// A measurement of the MavLora programs over ptys (`mavlora.pty.<base>`).
