@@ -51,8 +51,8 @@ collect_clippy() {
 }
 step "build everything once (release: tests, benchmarks, rig programs)"
 cargo build --release --locked --workspace --all-targets "${features[@]}"
-step "cargo test --workspace (release)"
-cargo test --release --locked --workspace "${features[@]}" -- \
+step "cargo test --workspace (release; test binaries two at a time: ci/run-tests.sh)"
+bash ci/run-tests.sh "${features[@]}" -- \
     --skip table_ii_compact_and_limit_filter_bandwidth \
     --skip mission_upload_over_lossy_sik_arrives_intact \
     --skip c2_latency_over_lossy_sik

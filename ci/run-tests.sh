@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Runs the workspace's test binaries (already built in release), two at a
+# time, each in its package's folder as `cargo test` would, then the doc tests.
+#
+# `cargo test` runs one test binary after another; most of ours wait on real
+# time (end-to-end runs over ptys, a 12 s scripted link cut), so on a 2-core
+# machine two binaries side by side take half the wall time for the same CPU.
+# Each binary's output goes to target/test-logs/<name>.log and is printed when
+# it fails; a summary line per binary says how long it took.
+#
+# Usage: ci/run-tests.sh [CARGO ARGS...] -- [TEST ARGS...]
+#   e.g. ci/run-tests.sh --no-default-features --features mavlora/cli -- --skip slow_one
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+cargo_args=()
+while [ $# -gt 0 ] && [ "$1" != "--" ]; do
+    cargo_args+=("$1")
+    shift
+done
+[ "${1:-}" = "--" ] && shift
+test_args=("$@")
+
+logs=target/test-logs
+rm -rf "$logs"
+mkdir -p "$logs"
+
+# Every test executable with its package folder, from cargo's own build plan.
+cargo test --release --locked --workspace "${cargo_args[@]}" --no-run --message-format=json \
+    | python3 -c '
+import json, os, sys
+found = []
+for line in sys.stdin:
+    m = json.loads(line)
+    if m.get("reason") == "compiler-artifact" and m.get("executable") and m["profile"]["test"]:
+        found.append((os.path.dirname(m["manifest_path"]), m["executable"], m["target"]["name"]))
+# The long real-time ones first, so the two lanes end together.
+slow = ("e2e_", "firmware", "cli")
+found.sort(key=lambda f: not f[2].startswith(slow))
+for d, exe, _ in found:
+    print(d + "\t" + exe)
+' > "$logs/binaries.tsv"
+echo "run-tests: $(wc -l < "$logs/binaries.tsv") test binaries, two at a time (logs: $logs/)"
+lanes_started=$SECONDS
+
+run_one() {
+    local dir=$1 exe=$2 name started status extra
+    read -ra extra <<< "$RUN_TESTS_ARGS"
+    name=$(basename "$exe")
+    started=$SECONDS
+    status=0
+    (cd "$dir" && "$exe" "${extra[@]}") > "$logs/$name.log" 2>&1 || status=$?
+    if [ "$status" -ne 0 ]; then
+        cat "$logs/$name.log"
+        echo "run-tests: FAILED $name (exit $status, $((SECONDS - started)) s, log $logs/$name.log)"
+        return 1
+    fi
+    echo "run-tests: ok $name ($((SECONDS - started)) s; $(grep -h '^test result' "$logs/$name.log" | tail -1))"
+}
+export -f run_one
+export logs
+# Test arguments never hold spaces (test names, flags): one string through xargs.
+export RUN_TESTS_ARGS="${test_args[*]}"
+
+# xargs exits non-zero when any run failed, after all have run.
+tr '\t' '\n' < "$logs/binaries.tsv" \
+    | xargs -d '\n' -n 2 -P 2 bash -c 'run_one "$@"' _ \
+    || { echo "run-tests: some test binaries failed (above)" >&2; exit 1; }
+echo "run-tests: every binary passed in $((SECONDS - lanes_started)) s"
+
+cargo test --release --locked --workspace "${cargo_args[@]}" --doc -q
