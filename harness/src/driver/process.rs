@@ -160,6 +160,12 @@ impl Process {
         Ok(None)
     }
 
+    /// Kills the program at once (SIGKILL: a crash) and reaps it.
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
     /// Asks the program to stop (SIGTERM), then kills it after `grace`.
     pub fn stop(&mut self, grace: Duration) {
         if let Ok(Some(_)) = self.child.try_wait() {

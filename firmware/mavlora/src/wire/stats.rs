@@ -17,8 +17,13 @@ pub struct StreamCounters {
     /// Frames accepted (checked or forwarded unchecked).
     pub received: u64,
     /// Frames missing, from sequence gaps (pymavlink's rule: `(seq - expected) mod 256`, so a
-    /// duplicate or reordered frame counts as 255 lost, as in MAVProxy's link statistics).
+    /// duplicate or reordered frame counts as 255 lost, as in MAVProxy's link statistics),
+    /// except a restart (see [`StreamCounters::restarts`]).
     pub lost: u64,
+    /// Times the stream came back at sequence 0 after a gap: its sender restarted (a
+    /// restarted bridge or autopilot numbers from 0 again), not up to 255 frames lost. A
+    /// real burst of loss that happens to end at 0 goes uncounted: 1 burst in 256.
+    pub restarts: u64,
     /// Frames whose header named this stream but whose checksum failed. Counted only once the
     /// stream has been seen in a good frame, so garbage cannot create streams.
     pub bad_crc: u64,
@@ -36,6 +41,8 @@ pub struct ReaderStats {
     pub bad_crc: u64,
     /// Frames missing from sequence gaps, all streams.
     pub lost: u64,
+    /// Stream restarts, all streams (see [`StreamCounters::restarts`]).
+    pub restarts: u64,
     /// Bytes discarded while resynchronising (not part of any accepted frame).
     pub garbage_bytes: u64,
     /// Partial frames given up by [`FrameReader::flush_partial`](super::FrameReader::flush_partial)
@@ -70,8 +77,13 @@ impl ReaderStats {
         stream.received += 1;
         if let Some(last) = stream.last_sequence {
             let gap = u64::from(sequence.wrapping_sub(last.wrapping_add(1)));
-            stream.lost += gap;
-            self.lost += gap;
+            if gap > 0 && sequence == 0 {
+                stream.restarts += 1;
+                self.restarts += 1;
+            } else {
+                stream.lost += gap;
+                self.lost += gap;
+            }
         }
         stream.last_sequence = Some(sequence);
     }
@@ -103,6 +115,21 @@ mod tests {
         assert_eq!(stats.stream(S).unwrap().lost, 4);
         assert_eq!(stats.lost, 4);
         assert_eq!(stats.stream(S).unwrap().received, 6);
+    }
+
+    #[test]
+    fn a_sender_that_starts_again_at_zero_restarted_and_lost_nothing() {
+        let mut stats = ReaderStats::default();
+        for seq in [7, 8, 9, 0, 1, 3] {
+            stats.record_frame(S, seq, true);
+        }
+        // 9 → 0: a restart, not 246 lost; 1 → 3: one lost
+        assert_eq!(stats.stream(S).unwrap().restarts, 1);
+        assert_eq!(stats.lost, 1);
+        // 255 → 0 is the plain wrap of a running stream
+        stats.record_frame(S, 255, true);
+        stats.record_frame(S, 0, true);
+        assert_eq!((stats.restarts, stats.lost), (1, 252));
     }
 
     #[test]

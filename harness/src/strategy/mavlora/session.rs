@@ -29,6 +29,10 @@ pub struct MavloraSession {
     radio: Arc<RadioEmulator>,
     fc: Fixture<FcEvent>,
     bridge: Option<Process>,
+    /// How to start the bridge again (a crash and restart).
+    bridge_spawn: Option<BridgeSpawn>,
+    /// Logs of bridges that were crashed on purpose.
+    crashed_logs: Vec<PathBuf>,
     router: Option<Process>,
     gcs: Fixture<GcsEvent, RadioCounters>,
     fc_summary: PathBuf,
@@ -86,35 +90,20 @@ impl MavloraSession {
         tracing::debug!(port = %fc_port, "FC fixture ready");
 
         let mut bridge = None;
+        let mut bridge_spawn = None;
         let mut router = None;
         let gcs_target: Vec<String>;
         if bridged {
             // The radio leg is signed in every phase: a fresh key per session, owner-only
             // (the binaries refuse others-readable keys), each end with its own state file.
             let key = write_radio_key(dir)?;
-            let mut command = Command::new(&options.bridge_program);
-            command
-                .args(["--fc", &fc_port, "--radio", radio.air_path()])
-                .arg("--profile")
-                .arg(&options.bridge_profile)
-                .args(["--rate", &options.rate.to_string()])
-                .args(["--status-interval", "2"])
-                .arg("--key")
-                .arg(&key)
-                .arg("--signing-state")
-                .arg(dir.join("bridge.signing-state"))
-                .env("NO_COLOR", "1");
-            if options.compact {
-                command.arg("--compact");
-            }
-            if let Some(period) = options.link_quality_period {
-                command.args(["--link-quality-period", &period.to_string()]);
-            }
-            bridge = Some(Process::spawn(
-                "mavlora-bridge",
-                command,
-                &dir.join("bridge.log"),
-            )?);
+            let mut spawn = BridgeSpawn {
+                fc_port: fc_port.clone(),
+                key: key.clone(),
+                starts: 0,
+            };
+            bridge = Some(spawn.start(&options, radio.air_path())?);
+            bridge_spawn = Some(spawn);
             let port = free_udp_port(dir)?;
             let mut command = Command::new(&options.router_program);
             command
@@ -172,6 +161,8 @@ impl MavloraSession {
             radio,
             fc,
             bridge,
+            bridge_spawn,
+            crashed_logs: Vec::new(),
             router,
             gcs,
             fc_summary,
@@ -209,6 +200,21 @@ impl MavloraSession {
             "telemetry at the GCS"
         );
         Ok(session)
+    }
+
+    /// Kills the bridge outright (SIGKILL: a crash, nothing flushed), waits `down`, and
+    /// starts it again with the same ports, key and signing-state file; returns when the
+    /// new one was started. Its log is `bridge-<n>.log`; the crashed one's is kept.
+    pub fn crash_and_restart_bridge(&mut self, down: Duration) -> Result<Mono> {
+        let (Some(bridge), Some(spawn)) = (self.bridge.as_mut(), self.bridge_spawn.as_mut()) else {
+            return Err(anyhow::anyhow!("this session runs no bridge to restart").into());
+        };
+        bridge.kill();
+        self.crashed_logs.push(bridge.log_path().to_path_buf());
+        std::thread::sleep(down);
+        let started = Mono::now();
+        self.bridge = Some(spawn.start(&self.options, self.radio.air_path())?);
+        Ok(started)
     }
 
     /// The radio's counters now: (downlink, uplink).
@@ -276,6 +282,7 @@ impl MavloraSession {
         let bridge_status = self.bridge.as_ref().and_then(|p| last_status(p.log_path()));
         let router_status = self.router.as_ref().and_then(|p| last_status(p.log_path()));
         let mut files: Vec<PathBuf> = exits.iter().map(|e| e.log.clone()).collect();
+        files.extend(self.crashed_logs.iter().cloned());
         files.push(self.fc_summary.clone());
         let tlog = dir.join("router.tlog");
         if tlog.exists() {
@@ -349,4 +356,44 @@ fn free_udp_port(dir: &Path) -> Result<u16> {
             path: dir.to_path_buf(),
             source,
         })
+}
+
+/// What starting the bridge takes, kept to start it again.
+struct BridgeSpawn {
+    fc_port: String,
+    key: PathBuf,
+    /// Bridges started so far.
+    starts: u32,
+}
+
+impl BridgeSpawn {
+    /// Starts a bridge between the FC fixture's port and `radio_port`; the first logs to
+    /// `bridge.log`, later ones to `bridge-<n>.log`. Every one shares the signing-state file.
+    fn start(&mut self, options: &SessionOptions, radio_port: &str) -> Result<Process> {
+        let dir = &options.out_dir;
+        let mut command = Command::new(&options.bridge_program);
+        command
+            .args(["--fc", &self.fc_port, "--radio", radio_port])
+            .arg("--profile")
+            .arg(&options.bridge_profile)
+            .args(["--rate", &options.rate.to_string()])
+            .args(["--status-interval", "2"])
+            .arg("--key")
+            .arg(&self.key)
+            .arg("--signing-state")
+            .arg(dir.join("bridge.signing-state"))
+            .env("NO_COLOR", "1");
+        if options.compact {
+            command.arg("--compact");
+        }
+        if let Some(period) = options.link_quality_period {
+            command.args(["--link-quality-period", &period.to_string()]);
+        }
+        self.starts += 1;
+        let log = match self.starts {
+            1 => dir.join("bridge.log"),
+            n => dir.join(format!("bridge-{n}.log")),
+        };
+        Ok(Process::spawn("mavlora-bridge", command, &log)?)
+    }
 }

@@ -11,8 +11,10 @@
 //! - [`c2_latency`]: command-to-ack latency over SiK with bursty loss (SORA
 //!   TMPR: < 3 s for medium robustness);
 //! - [`radio_silence`]: 10 s of silence both ways, then telemetry and commands
-//!   back within the same TMPR.
+//!   back within the same TMPR;
+//! - [`bridge_crash`]: the bridge killed and restarted, the same.
 
+pub mod bridge_crash;
 pub mod c2_latency;
 pub mod mission;
 pub mod radio_silence;
@@ -47,6 +49,7 @@ pub fn scenarios() -> Vec<Scenario> {
         mission::SCENARIO,
         c2_latency::SCENARIO,
         radio_silence::SCENARIO,
+        bridge_crash::SCENARIO,
     ]
 }
 
