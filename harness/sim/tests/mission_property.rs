@@ -125,24 +125,23 @@ fn ground_accepted_iff_the_autopilot_holds_its_last_plan_and_types_stay_apart() 
     assert!(accepted >= 28, "{accepted} of 30 uploads accepted");
 }
 
-/// The property is exercised at the loss it names: over a minute of telemetry and
-/// heartbeats, each direction loses 6-15 % of its packets.
+/// The property is exercised at the loss it names: over two minutes of telemetry and
+/// heartbeats on each of 8 seeds, each direction loses 6-15 % of its packets. Pooled: the
+/// uplink carries ~15 packets a minute, too few for one seed's share to say anything.
 #[test]
 fn packet_loss_is_about_ten_percent() {
-    for seed in [1, 2, 3] {
-        let mut w = world(seed);
-        w.run_until(Instant::from_millis(60_000));
-        for direction in [Direction::Downlink, Direction::Uplink] {
+    for direction in [Direction::Downlink, Direction::Uplink] {
+        let (mut sent, mut lost) = (0, 0);
+        for seed in 1..=8 {
+            let mut w = world(seed);
+            w.run_until(Instant::from_millis(120_000));
             let s = w.link_stats(direction).unwrap();
-            let share = s.packets_lost as f64 / s.packets_sent.max(1) as f64;
-            println!(
-                "seed {seed} {direction:?}: {share:.3} of {} packets lost",
-                s.packets_sent
-            );
-            assert!(
-                (0.06..=0.15).contains(&share),
-                "seed {seed} {direction:?}: {share:.3}"
-            );
+            sent += s.packets_sent;
+            lost += s.packets_lost;
         }
+        let share = lost as f64 / sent.max(1) as f64;
+        println!("{direction:?}: {share:.3} of {sent} packets lost");
+        assert!(sent >= 200, "{direction:?}: only {sent} packets");
+        assert!((0.06..=0.15).contains(&share), "{direction:?}: {share:.3}");
     }
 }

@@ -143,7 +143,11 @@ fn run(o: Options) -> Result<()> {
         while let Some(f) = bridge.poll_fc_transmit(now) {
             fc.write(f.as_bytes());
         }
-        while let Some(f) = bridge.poll_radio_transmit(now, usize::MAX) {
+        // Only into an open port: a frame leaves the engine numbered and signed, and one
+        // dropped at a closed port would read as radio loss at the far end.
+        while radio.is_open()
+            && let Some(f) = bridge.poll_radio_transmit(now, usize::MAX)
+        {
             radio.write(f.as_bytes());
         }
         if let Some(file) = &mut signing.state_file {

@@ -228,7 +228,11 @@ fn run(o: Options) -> Result<()> {
                 tcp.send(f.as_bytes());
             }
         }
-        while let Some(f) = router.poll_radio_transmit(now, usize::MAX) {
+        // Only into an open port: a frame leaves the engine numbered and signed, and one
+        // dropped at a closed port would read as radio loss at the far end.
+        while radio.is_open()
+            && let Some(f) = router.poll_radio_transmit(now, usize::MAX)
+        {
             radio.write(f.as_bytes());
         }
         if let Some(file) = &mut signing.state_file {

@@ -21,7 +21,7 @@ use crate::quality::LinkQuality;
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
 use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, ids, to_v1};
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, StreamId, ids, to_v1};
 
 /// Counters of one bridge, for the status line and tests.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -446,6 +446,12 @@ impl Bridge {
             return;
         };
         self.quality.handle_frame(now, &frame);
+        if self.quality.take_peer_restart() {
+            self.radio_reader.expect_restart(StreamId {
+                system: frame.system_id(),
+                component: frame.component_id(),
+            });
+        }
         let id = frame.message_id();
         match id {
             // LINK_QUALITY is for us; the flight controller does not know it.

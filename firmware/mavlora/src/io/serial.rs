@@ -78,6 +78,8 @@ pub struct SerialCounters {
 struct Shared {
     /// The writer's handle on the open port; `None` while closed.
     port: Mutex<Option<Box<dyn SerialPort>>>,
+    /// `port` is `Some`, readable without waiting for a write in progress.
+    open: AtomicBool,
     /// Set by the writer when a write failed: the reader closes and reopens the port.
     broken: AtomicBool,
     /// A write succeeded since the port was last opened (resets the backoff).
@@ -148,6 +150,13 @@ impl SerialLink {
             _ => Lane::Bulk,
         };
         self.out.push(bytes.to_vec(), bytes.len(), lane)
+    }
+
+    /// Whether the port is open and not waiting to be reopened: frames handed over now can
+    /// reach it. While it is not, callers keep their frames (a frame renumbered for the
+    /// radio and then dropped here would read as radio loss at the far end).
+    pub fn is_open(&self) -> bool {
+        self.shared.open.load(Ordering::Relaxed) && !self.shared.broken.load(Ordering::Relaxed)
     }
 
     /// The counters now (never blocks). While the writer runs, the frame it is writing is
@@ -307,11 +316,13 @@ fn reader(
         s.wrote.store(false, Ordering::Relaxed);
         s.stalled.store(false, Ordering::Relaxed);
         *s.port.lock().unwrap_or_else(|e| e.into_inner()) = Some(writer);
+        s.open.store(true, Ordering::Relaxed);
         s.opens.fetch_add(1, Ordering::Relaxed);
         info!(port = name, path, baud, "serial port open");
         inbox.send(Event::Serial(name, SerialEvent::Opened));
         let stalled = read_until_failure(name, &mut port, inbox, stop, s);
         vanished = !(stalled && s.stalled.load(Ordering::Relaxed));
+        s.open.store(false, Ordering::Relaxed);
         *s.port.lock().unwrap_or_else(|e| e.into_inner()) = None;
         drop(port);
         if stop.load(Ordering::Relaxed) {

@@ -163,6 +163,8 @@ pub struct LinkQuality {
     peer_noise_floor: Option<i8>,
     /// The peer's noise floor when its loss estimate last started afresh.
     peer_regime_noise: Option<i8>,
+    /// The peer's uptime went back since [`take_peer_restart`](Self::take_peer_restart).
+    peer_restarted: bool,
     /// The local radio's `RADIO_STATUS` frames the reader counted: taken out of what we
     /// report received, which is the peer's frames.
     local_frames: u64,
@@ -204,6 +206,7 @@ impl LinkQuality {
             peer_noise_floor: None,
             peer_regime_noise: None,
             local_frames: 0,
+            peer_restarted: false,
             peer_window: LossWindow::new(config.window),
             peer_totals: (0, 0),
             own_window: LossWindow::new(config.window),
@@ -292,7 +295,18 @@ impl LinkQuality {
     }
 
     fn peer_report(&mut self, report: LINK_QUALITY_DATA, now: Instant) {
-        let prev = self.peer.as_ref();
+        // Its uptime went back: the peer restarted. Its counters and its frames' numbering
+        // start again, and the sequence jump its first frames made is not loss.
+        let restarted = self
+            .peer
+            .as_ref()
+            .is_some_and(|p| report.time_boot_ms < p.report.time_boot_ms);
+        if restarted {
+            debug!("peer restarted");
+            self.peer_restarted = true;
+            self.own_window = LossWindow::new(self.config.window);
+        }
+        let prev = self.peer.as_ref().filter(|_| !restarted);
         let deltas = prev.map(|p| {
             (
                 report.rx_packets.wrapping_sub(p.report.rx_packets),
@@ -393,6 +407,13 @@ impl LinkQuality {
         self.noise
     }
 
+    /// Whether the peer restarted (its report's uptime went back) since the last call: the
+    /// caller's reader should take the next gap of each stream as new numbering
+    /// ([`ReaderStats::expect_restart`](crate::wire::ReaderStats::expect_restart)).
+    pub fn take_peer_restart(&mut self) -> bool {
+        std::mem::take(&mut self.peer_restarted)
+    }
+
     /// When we last heard the peer.
     pub fn last_heard(&self) -> Option<Instant> {
         self.heard
@@ -419,8 +440,11 @@ impl LinkQuality {
         &self.stats
     }
 
+    /// The first report goes out at once: a restarted end tells its peer so (its uptime went
+    /// back) before its other frames' new numbering reads as loss there.
     fn keepalive_at(&self) -> Instant {
-        self.last_report.unwrap_or(self.started) + self.config.period
+        self.last_report
+            .map_or(self.started, |t| t + self.config.period)
     }
 
     fn early_ok_at(&self) -> Instant {

@@ -18,7 +18,7 @@ use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, Sche
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
 use crate::wire::{
-    FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, encode, ids, known, to_v1,
+    FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, StreamId, encode, ids, known, to_v1,
 };
 
 /// Router settings.
@@ -404,6 +404,12 @@ impl Router {
                 continue;
             };
             self.quality.handle_frame(now, &frame);
+            if self.quality.take_peer_restart() {
+                self.radio_reader.expect_restart(StreamId {
+                    system: frame.system_id(),
+                    component: frame.component_id(),
+                });
+            }
             if self.vehicle.is_none() || frame.message_id() == ids::LINK_QUALITY {
                 self.vehicle = Some(frame.system_id());
             }

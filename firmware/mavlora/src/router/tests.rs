@@ -362,3 +362,47 @@ fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_ge
             .expect("signed with the ground key");
     }
 }
+
+#[test]
+fn a_restarted_bridge_is_not_read_as_loss_even_when_its_first_frame_is_lost() {
+    use crate::dialect::LINK_QUALITY_DATA;
+    let report = |uptime_ms: u32| {
+        MavMessage::LINK_QUALITY(LINK_QUALITY_DATA {
+            time_boot_ms: uptime_ms,
+            rssi: i8::MAX,
+            remote_rssi: i8::MAX,
+            ..Default::default()
+        })
+    };
+    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
+    let mut r = router();
+    // The first bridge: 40 frames of telemetry and a report.
+    let (mut fc, mut bridge) = (
+        Sender::new(1, 1, MavlinkVersion::V2),
+        Sender::new(1, 191, MavlinkVersion::V2),
+    );
+    for k in 0..40 {
+        r.handle_radio_bytes(ms(100 * k), fc.frame(&pos).as_bytes());
+    }
+    r.handle_radio_bytes(ms(4000), bridge.frame(&report(60_000)).as_bytes());
+    // Killed; a new one numbers from 0 again. Its report (sent first) arrives; its first
+    // telemetry frame is lost with the old one's torn last frame: seq 1 comes first.
+    let (mut fc, mut bridge) = (
+        Sender::new(1, 1, MavlinkVersion::V2),
+        Sender::new(1, 191, MavlinkVersion::V2),
+    );
+    bridge.set_next_sequence(0);
+    r.handle_radio_bytes(ms(8000), bridge.frame(&report(30)).as_bytes());
+    fc.set_next_sequence(1);
+    for k in 0..10 {
+        r.handle_radio_bytes(ms(8100 + 100 * k), fc.frame(&pos).as_bytes());
+    }
+    let stats = r.quality().reader_stats();
+    // both streams started again: the report's at 0, the telemetry's told by the report
+    assert_eq!((stats.lost, stats.restarts), (0, 2), "{stats:?}");
+    r.handle_timeout(ms(9100));
+    assert_ne!(
+        r.monitor().health(crate::quality::Direction::Downlink),
+        Some(crate::quality::Health::Degraded)
+    );
+}

@@ -142,6 +142,11 @@ impl FrameReader {
         &self.stats
     }
 
+    /// See [`ReaderStats::expect_restart`].
+    pub fn expect_restart(&mut self, said_by: StreamId) {
+        self.stats.expect_restart(said_by);
+    }
+
     /// The next complete frame, or `None` until more bytes arrive.
     pub fn next_frame(&mut self) -> Option<Received> {
         loop {

@@ -20,14 +20,18 @@ pub struct StreamCounters {
     /// duplicate or reordered frame counts as 255 lost, as in MAVProxy's link statistics),
     /// except a restart (see [`StreamCounters::restarts`]).
     pub lost: u64,
-    /// Times the stream came back at sequence 0 after a gap: its sender restarted (a
-    /// restarted bridge or autopilot numbers from 0 again), not up to 255 frames lost. A
-    /// real burst of loss that happens to end at 0 goes uncounted: 1 burst in 256.
+    /// Times the stream's numbering started again: a gap landing at sequence 0, or the first
+    /// gap after its sender said it restarted ([`ReaderStats::expect_restart`]). A restarted
+    /// bridge or autopilot numbers from 0 again (and its first frame may be lost): that is
+    /// not up to 255 frames lost. A real burst of loss that happens to end at 0 goes
+    /// uncounted: 1 burst in 256.
     pub restarts: u64,
     /// Frames whose header named this stream but whose checksum failed. Counted only once the
     /// stream has been seen in a good frame, so garbage cannot create streams.
     pub bad_crc: u64,
     last_sequence: Option<u8>,
+    /// The sender said it restarted: the next gap is its new numbering.
+    restart_expected: bool,
 }
 
 /// Counters for everything a [`FrameReader`](super::FrameReader) has read.
@@ -77,7 +81,16 @@ impl ReaderStats {
         stream.received += 1;
         if let Some(last) = stream.last_sequence {
             let gap = u64::from(sequence.wrapping_sub(last.wrapping_add(1)));
-            if gap > 0 && sequence == 0 {
+            if gap > 0 {
+                tracing::debug!(
+                    ?id,
+                    last,
+                    sequence,
+                    expected = stream.restart_expected,
+                    "sequence gap"
+                );
+            }
+            if gap > 0 && (sequence == 0 || stream.restart_expected) {
                 stream.restarts += 1;
                 self.restarts += 1;
             } else {
@@ -85,7 +98,17 @@ impl ReaderStats {
                 self.lost += gap;
             }
         }
+        stream.restart_expected = false;
         stream.last_sequence = Some(sequence);
+    }
+
+    /// The far end says it restarted (its `LINK_QUALITY` uptime went back, in a frame of
+    /// stream `said_by`, already counted): the next gap of each other stream seen so far is
+    /// its new numbering, not loss.
+    pub fn expect_restart(&mut self, said_by: StreamId) {
+        for (id, stream) in self.streams.iter_mut() {
+            stream.restart_expected = *id != said_by;
+        }
     }
 
     pub(crate) fn record_bad_crc(&mut self, id: StreamId) {
@@ -130,6 +153,15 @@ mod tests {
         stats.record_frame(S, 255, true);
         stats.record_frame(S, 0, true);
         assert_eq!((stats.restarts, stats.lost), (1, 252));
+        // Told of a restart, its first frame lost too: 0 → 2 is the new numbering; only that
+        // one gap, after it gaps are loss again.
+        stats.expect_restart(StreamId {
+            system: 1,
+            component: 191,
+        });
+        stats.record_frame(S, 2, true);
+        stats.record_frame(S, 4, true);
+        assert_eq!((stats.restarts, stats.lost), (2, 253));
     }
 
     #[test]

@@ -10,15 +10,17 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 
-use super::{Scenario, Script, ensure_clean, keep_evidence, spec};
+use super::{Scenario, Script, Unsigned, ensure_clean, keep_evidence, spec};
 use crate::clock::Mono;
 use crate::driver::fixture::mavlora_gcs::GcsEvent;
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{GcsPlan, MavloraSession, SessionDefaults};
 
+const SCENARIO_NAME: &str = "bridge_crash";
+
 pub const SCENARIO: Scenario = Scenario {
-    name: "bridge_crash",
+    name: SCENARIO_NAME,
     summary: "The bridge is killed in flight and restarted 3 s later: telemetry back within 3 s of the restart, the outage within PX4's 10 s data-link-loss timeout, commands acked after",
     plan,
 };
@@ -36,6 +38,7 @@ const TMPR_S: f64 = 3.0;
 const DL_LOSS_S: f64 = 10.0;
 
 struct Measured {
+    unsigned: Unsigned,
     false_alarms: Handle,
     recovery: Handle,
     outage: Handle,
@@ -45,6 +48,7 @@ struct Measured {
 
 fn plan(d: &mut Declarations) -> Script {
     let m = Measured {
+        unsigned: Unsigned::declare(d, SCENARIO_NAME),
         false_alarms: d.declare(
             spec("bridge_crash_loss_alarms", "")
                 .describe(
@@ -161,5 +165,6 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     ctx.record(m.false_alarms, alarms.len() as f64);
     ctx.record(m.latency_max, c.latency().max);
     ctx.record(m.lost, f64::from(c.lost));
+    m.unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)
 }

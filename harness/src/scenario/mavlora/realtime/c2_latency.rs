@@ -5,13 +5,15 @@
 
 use anyhow::{Context, Result};
 
-use super::{Scenario, Script, ensure_clean, run_session, spec};
+use super::{Scenario, Script, Unsigned, ensure_clean, run_session, spec};
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{GcsPlan, SessionDefaults};
 
+const SCENARIO_NAME: &str = "c2_latency";
+
 pub const SCENARIO: Scenario = Scenario {
-    name: "c2_latency",
+    name: SCENARIO_NAME,
     summary: "30 commands (DO_SET_MODE, REQUEST_MESSAGE) through bridge and router over SiK with 10 % bursty loss: ack latency",
     plan,
 };
@@ -23,6 +25,7 @@ const HOW: &str = "pymavlink GCS: COMMAND_LONG first send to the first matching 
 
 /// The measurements [`run`] records.
 struct Measured {
+    unsigned: Unsigned,
     p50_ms: Handle,
     p99_ms: Handle,
     max_ms: Handle,
@@ -31,6 +34,7 @@ struct Measured {
 
 fn plan(d: &mut Declarations) -> Script {
     let m = Measured {
+        unsigned: Unsigned::declare(d, SCENARIO_NAME),
         p50_ms: d.declare(
             spec("c2_latency_p50_ms", "ms")
                 .describe(format!("median, {COMMANDS} commands; {HOW}"))
@@ -95,5 +99,6 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     ctx.record(m.p99_ms, latency.p99);
     ctx.record(m.max_ms, latency.max);
     ctx.record(m.lost, f64::from(c.lost));
+    m.unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)
 }

@@ -5,14 +5,16 @@
 
 use anyhow::Result;
 
-use super::{Scenario, Script, ensure_clean, run_session, spec};
+use super::{Scenario, Script, Unsigned, ensure_clean, run_session, spec};
 use crate::driver::fixture::mavlora_gcs::MissionItem;
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{GcsPlan, SessionDefaults};
 
+const SCENARIO_NAME: &str = "mission";
+
 pub const SCENARIO: Scenario = Scenario {
-    name: "mission",
+    name: SCENARIO_NAME,
     summary: "40-item mission upload through bridge and router over SiK with 10 % bursty loss; items intact at the FC",
     plan,
 };
@@ -36,7 +38,8 @@ fn plan(d: &mut Declarations) -> Script {
             )
             .equal_to(1.0),
     );
-    Box::new(move |ctx, defaults| run(ctx, defaults, upload_s, intact))
+    let unsigned = Unsigned::declare(d, SCENARIO_NAME);
+    Box::new(move |ctx, defaults| run(ctx, defaults, upload_s, intact, unsigned))
 }
 
 fn run(
@@ -44,6 +47,7 @@ fn run(
     d: &SessionDefaults,
     upload_time: Handle,
     items_intact: Handle,
+    unsigned: Unsigned,
 ) -> Result<()> {
     let mut o = d.options("mission", &d.lossy_radio, &ctx.dir.join("mission"));
     o.gcs = GcsPlan {
@@ -69,6 +73,7 @@ fn run(
         ctx.log(format!("mission differs: {why}"));
     }
     ctx.record(items_intact, if intact { 1.0 } else { 0.0 });
+    unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)
 }
 

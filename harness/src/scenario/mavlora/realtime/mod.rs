@@ -20,11 +20,11 @@ pub mod mission;
 pub mod radio_silence;
 pub mod table_ii;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 
-use crate::measurement::{Declarations, Dimension, PTY, Spec};
+use crate::measurement::{Declarations, Dimension, Handle, PTY, Spec};
 use crate::scenario::PhaseContext;
-use crate::strategy::mavlora::{MavloraSession, SessionOptions, SessionReport};
+use crate::strategy::mavlora::{MavloraSession, SessionOptions, SessionReport, status_field};
 
 pub use crate::strategy::mavlora::SessionDefaults;
 
@@ -116,6 +116,43 @@ fn keep_evidence(ctx: &mut PhaseContext, label: &str, report: &SessionReport) {
         if let Some(line) = line {
             ctx.log(format!("{label}: {who} {line}"));
         }
+    }
+}
+
+/// `mavlora.pty.<scenario>.unsigned_frames_on_radio` (= 0, issue 9): every radio leg of
+/// every phase is signed, so neither program may put an unsigned frame on the air.
+pub struct Unsigned(Handle);
+
+impl Unsigned {
+    pub fn declare(d: &mut Declarations, scenario: &str) -> Unsigned {
+        Unsigned(
+            d.declare(
+                spec("unsigned_frames_on_radio", "")
+                    .dim(Dimension::Scenario, scenario)
+                    .describe(
+                        "frames the bridge and the router sent on the radio unsigned \
+                         (radio_tx_unsigned of their last status lines), every session of the \
+                         scenario",
+                    )
+                    .equal_to(0.0),
+            ),
+        )
+    }
+
+    /// Records the sum over `reports`' bridges and routers; a bridged session whose status
+    /// line is missing cannot tell, and fails the phase.
+    pub fn record(&self, ctx: &mut PhaseContext, reports: &[&SessionReport]) -> Result<()> {
+        let mut total = 0.0;
+        for r in reports {
+            for (who, line) in [("bridge", &r.bridge_status), ("router", &r.router_status)] {
+                let Some(line) = line else { continue };
+                total += status_field(line, "radio_tx_unsigned").with_context(|| {
+                    format!("the {who}'s status line has no radio_tx_unsigned: {line}")
+                })?;
+            }
+        }
+        ctx.record(self.0, total);
+        Ok(())
     }
 }
 

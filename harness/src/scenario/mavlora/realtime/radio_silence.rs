@@ -7,14 +7,16 @@
 use anyhow::{Context, Result, bail};
 use harness_radio::Silence;
 
-use super::{Scenario, Script, ensure_clean, run_session, spec};
+use super::{Scenario, Script, Unsigned, ensure_clean, run_session, spec};
 use crate::driver::fixture::mavlora_gcs::GcsEvent;
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{GcsPlan, SessionDefaults};
 
+const SCENARIO_NAME: &str = "radio_silence";
+
 pub const SCENARIO: Scenario = Scenario {
-    name: "radio_silence",
+    name: SCENARIO_NAME,
     summary: "10 s of radio silence both ways in flight, then 5 commands: telemetry back and commands acked within SORA's TMPR (3 s)",
     plan,
 };
@@ -31,6 +33,7 @@ const COMMANDS: u32 = 5;
 const TMPR_S: f64 = 3.0;
 
 struct Measured {
+    unsigned: Unsigned,
     recovery: Handle,
     latency_max: Handle,
     lost: Handle,
@@ -38,6 +41,7 @@ struct Measured {
 
 fn plan(d: &mut Declarations) -> Script {
     let m = Measured {
+        unsigned: Unsigned::declare(d, SCENARIO_NAME),
         recovery: d.declare(
             spec("radio_silence_telemetry_recovery_s", "s")
                 .describe(
@@ -114,5 +118,6 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     ));
     ctx.record(m.latency_max, c.latency().max);
     ctx.record(m.lost, f64::from(c.lost));
+    m.unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)
 }

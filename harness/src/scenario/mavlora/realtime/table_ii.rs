@@ -5,14 +5,16 @@
 
 use anyhow::{Context, Result};
 
-use super::{Scenario, Script, ensure_clean, run_sessions, spec};
+use super::{Scenario, Script, Unsigned, ensure_clean, run_sessions, spec};
 use crate::driver::fixture::mavlora_fc::FcEvent;
 use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{FcProfile, GcsPlan, SessionDefaults};
 
+const SCENARIO_NAME: &str = "table_ii";
+
 pub const SCENARIO: Scenario = Scenario {
-    name: "table_ii",
+    name: SCENARIO_NAME,
     summary: "Table II over ptys, radio signed: radio B/s of compact telemetry (<= 68.4, 10 % of LoRa SF7; marginal above our 50) and of limiting + filtering (<= 951), loss-free SiK",
     plan,
 };
@@ -74,13 +76,19 @@ fn plan(d: &mut Declarations) -> Script {
             }
         })
         .collect();
-    Box::new(move |ctx, defaults| run(ctx, defaults, &measured))
+    let unsigned = Unsigned::declare(d, SCENARIO_NAME);
+    Box::new(move |ctx, defaults| run(ctx, defaults, &measured, &unsigned))
 }
 
 /// LoRa SF7's channel rate, as the engines' default link monitoring assumes.
 const LORA_SF7_BYTES_PER_S: u32 = 683;
 
-fn run(ctx: &mut PhaseContext, d: &SessionDefaults, measured: &[Measured]) -> Result<()> {
+fn run(
+    ctx: &mut PhaseContext,
+    d: &SessionDefaults,
+    measured: &[Measured],
+    unsigned: &Unsigned,
+) -> Result<()> {
     let mut options = Vec::new();
     for (variant, profile, compact, ..) in VARIANTS {
         let mut o = d.options(
@@ -148,6 +156,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, measured: &[Measured]) -> Re
         }
         ctx.record(m.msgs_per_s, msgs);
     }
+    unsigned.record(ctx, &reports.iter().collect::<Vec<_>>())?;
     for r in &reports {
         ensure_clean(ctx, r)?;
     }
