@@ -205,7 +205,7 @@ impl MissionRelay {
     fn radio_count(&mut self, now: Instant, from: (u8, u8), c: &MISSION_COUNT_DATA) {
         match &mut self.radio {
             Radio::Receiving { id, heard, .. } if *id == c.opaque_id => {
-                debug!(id = c.opaque_id, "router polls the transfer");
+                debug!(id = c.opaque_id, %now, "router polls the transfer");
                 *heard = now;
                 self.repair(now, true);
                 return;
@@ -571,7 +571,7 @@ impl MissionRelay {
             } else {
                 *rounds += 1;
                 *heard = now;
-                debug!(rto = ?self.rtt.rto(), "no item for one timeout, repairing");
+                debug!(rto = ?self.rtt.rto(), %now, "no item for one timeout, repairing");
                 // Repair first: the requests it repeats are one (un-backed-off) timeout old.
                 self.repair(now, true);
                 self.rtt.backoff();

@@ -346,7 +346,12 @@ fn a_stopped_device_is_held_and_keeps_its_cadence_in_device_time() {
         host_gap >= STOP.as_secs_f64(),
         "the stops show in host time: {host_gap}"
     );
-    assert!(held >= 3.0 * STOP.as_secs_f64(), "held {held} s in all");
+    // Each stop is held but for the part that fell in the device's own wait for its next
+    // frame (up to one 7 ms period): that time the device was idle anyway.
+    assert!(
+        held >= 3.0 * (STOP.as_secs_f64() - 0.007),
+        "held {held} s in all"
+    );
     // 1.5 frame periods of the default config's 7 ms.
     assert!(
         device_gap <= 0.0105,
