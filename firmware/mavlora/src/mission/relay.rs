@@ -204,9 +204,18 @@ impl MissionRelay {
 
     fn radio_count(&mut self, now: Instant, from: (u8, u8), c: &MISSION_COUNT_DATA) {
         match &mut self.radio {
-            Radio::Receiving { id, heard, .. } if *id == c.opaque_id => {
+            Radio::Receiving {
+                id,
+                heard,
+                horizon,
+                slots,
+                ..
+            } if *id == c.opaque_id => {
                 debug!(id = c.opaque_id, %now, "router polls the transfer");
                 *heard = now;
+                // The router polls once its whole stream has left: whatever is missing was
+                // lost, none of it is still on the way, so every answer may fetch the next.
+                *horizon = slots.len() as u16;
                 self.repair(now, true);
                 return;
             }
@@ -296,16 +305,17 @@ impl MissionRelay {
         *slot = Some(item.clone());
         *rounds = 0;
         self.stats.radio_items += 1;
-        if let Some((at, sends)) = requested.remove(&seq)
-            && sends == 1
-        {
+        let answered = requested.remove(&seq);
+        if let Some((at, 1)) = answered {
             // Karn's rule: only unambiguous round trips are samples.
             self.rtt.sample(now.saturating_duration_since(at));
         }
         let gap = seq > *horizon;
         *horizon = (*horizon).max(seq + 1);
-        if gap {
-            // The radio keeps order: what the stream skipped was lost.
+        if gap || answered.is_some() {
+            // The radio keeps order: what the stream skipped was lost. And an answered
+            // request makes room for the next one: repairs flow at the round trip, a batch
+            // in flight, rather than a batch per timeout.
             self.repair(now, false);
         }
         self.check_complete(now);

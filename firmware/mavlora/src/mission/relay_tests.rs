@@ -307,3 +307,37 @@ fn items_whose_count_was_lost_are_kept_for_it_and_not_sent_again() {
     let got = wire_upload(&mut r, 3, ms(2600));
     assert!(super::super::plan::same_plan(&got, &items));
 }
+
+/// The count got through but every item of the stream was lost (a fade): the router's poll
+/// says the stream has left, and from then on each answered request fetches the next, at
+/// the round trip, with no timeout between batches.
+#[test]
+fn after_a_poll_repairs_flow_at_the_round_trip_not_a_batch_per_timeout() {
+    let items = plan(&(0..100).collect::<Vec<_>>());
+    let mut r = MissionRelay::new(MissionConfig::default());
+    r.handle_radio(ms(0), ROUTER, &count_for(&items, 1));
+    radio_out(&mut r);
+    // 2 s later, nothing else arrived; the router polls.
+    r.handle_radio(ms(2000), ROUTER, &count_for(&items, 1));
+    let mut asked = requested(&radio_out(&mut r));
+    assert!(!asked.is_empty() && asked.len() <= 8, "{asked:?}");
+    // A router that answers each request 100 ms later, and never a timeout in between.
+    let mut now = 2000;
+    let mut rounds = 0;
+    while let Some(&seq) = asked.first() {
+        asked.remove(0);
+        now += 10;
+        r.handle_radio(
+            ms(now),
+            ROUTER,
+            &MavMessage::MISSION_ITEM_INT(items[usize::from(seq)].clone()),
+        );
+        asked.extend(requested(&radio_out(&mut r)));
+        rounds += 1;
+        assert!(rounds <= 100, "asked again: {asked:?}");
+    }
+    assert_eq!(rounds, 100, "each item once");
+    // Every item in, well within one retransmission timeout of the poll.
+    assert!(now - 2000 <= 1000, "{now}");
+    assert!(matches!(&fc_out(&mut r)[..], [MavMessage::MISSION_COUNT(c)] if c.count == 100));
+}
