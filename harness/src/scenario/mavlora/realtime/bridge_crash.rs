@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 
-use super::{Scenario, Script, Unsigned, ensure_clean, keep_evidence, spec};
+use super::{CommandsAfter, Scenario, Script, TMPR_S, Unsigned, ensure_clean, keep_evidence, spec};
 use crate::clock::Mono;
 use crate::driver::fixture::mavlora_gcs::GcsEvent;
 use crate::measurement::{Declarations, Handle};
@@ -30,10 +30,6 @@ const BEFORE: Duration = Duration::from_secs(5);
 /// The bridge is down this long: a service manager's restart delay (and longer than the
 /// ground station's 2 s telemetry-hole report, so the hole shows).
 const DOWN: Duration = Duration::from_secs(3);
-/// Commands sent after the restart.
-const COMMANDS: u32 = 5;
-/// SORA TMPR, medium robustness: C2 latency under 3 s.
-const TMPR_S: f64 = 3.0;
 /// PX4's `COM_DL_LOSS_T` default: no ground heartbeat for this long starts its failsafe.
 const DL_LOSS_S: f64 = 10.0;
 
@@ -42,8 +38,7 @@ struct Measured {
     false_alarms: Handle,
     recovery: Handle,
     outage: Handle,
-    latency_max: Handle,
-    lost: Handle,
+    commands: CommandsAfter,
 }
 
 fn plan(d: &mut Declarations) -> Script {
@@ -74,22 +69,7 @@ fn plan(d: &mut Declarations) -> Script {
                 )
                 .at_most(DL_LOSS_S),
         ),
-        latency_max: d.declare(
-            spec("bridge_crash_c2_latency_max_ms", "ms")
-                .describe(format!(
-                    "slowest of {COMMANDS} commands sent after the restart (first send to its \
-                     COMMAND_ACK): the restarted bridge's signed frames are accepted; limit: \
-                     SORA TMPR medium (3 s)"
-                ))
-                .at_most(TMPR_S * 1000.0),
-        ),
-        lost: d.declare(
-            spec("bridge_crash_commands_lost", "")
-                .describe(format!(
-                    "commands of {COMMANDS} sent after the restart never acked after 5 sends"
-                ))
-                .equal_to(0.0),
-        ),
+        commands: CommandsAfter::declare(d, "bridge_crash", "the restart"),
     };
     Box::new(move |ctx, defaults| run(ctx, defaults, &m))
 }
@@ -103,7 +83,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     o.gcs = GcsPlan {
         // The crash and restart, then time for telemetry to settle.
         listen_s: (BEFORE + DOWN).as_secs_f64() + 8.0,
-        commands: COMMANDS,
+        commands: CommandsAfter::COMMANDS,
         ..GcsPlan::default()
     };
     let mut session = MavloraSession::start(o)?;
@@ -136,15 +116,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     ));
     ctx.record(m.recovery, back.since(restarted).as_secs_f64());
     ctx.record(m.outage, back.since(since).as_secs_f64());
-    let c = report
-        .gcs
-        .commands
-        .as_ref()
-        .context("the GCS fixture ran no command phase")?;
-    ctx.log(format!(
-        "after the restart: {} commands acked, {} lost, {} sends, latencies {:?} ms",
-        c.acked, c.lost, c.sends, c.latency_ms
-    ));
+    m.commands.record(ctx, &report)?;
     let router_log = report
         .exits
         .iter()
@@ -163,8 +135,6 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
         ctx.log(format!("router: {a}"));
     }
     ctx.record(m.false_alarms, alarms.len() as f64);
-    ctx.record(m.latency_max, c.latency().max);
-    ctx.record(m.lost, f64::from(c.lost));
     m.unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)
 }

@@ -156,6 +156,61 @@ impl Unsigned {
     }
 }
 
+/// SORA TMPR, medium robustness: C2 latency under 3 s (the fault scenarios' bound).
+pub const TMPR_S: f64 = 3.0;
+
+/// Commands a fault scenario sends once the link is back, and how they fared:
+/// `mavlora.pty.<prefix>_c2_latency_max_ms` (≤ TMPR) and `<prefix>_commands_lost` (= 0).
+pub struct CommandsAfter {
+    latency_max: Handle,
+    lost: Handle,
+    after: &'static str,
+}
+
+impl CommandsAfter {
+    /// Commands the GCS sends after the fault.
+    pub const COMMANDS: u32 = 5;
+
+    /// `after`: what they follow, for the texts ("the silence", "the restart").
+    pub fn declare(d: &mut Declarations, prefix: &str, after: &'static str) -> CommandsAfter {
+        let n = Self::COMMANDS;
+        CommandsAfter {
+            latency_max: d.declare(
+                spec(&format!("{prefix}_c2_latency_max_ms"), "ms")
+                    .describe(format!(
+                        "slowest of {n} commands sent after {after} (first send to its \
+                         COMMAND_ACK); limit: SORA TMPR medium (3 s)"
+                    ))
+                    .at_most(TMPR_S * 1000.0),
+            ),
+            lost: d.declare(
+                spec(&format!("{prefix}_commands_lost"), "")
+                    .describe(format!(
+                        "commands of {n} sent after {after} never acked after 5 sends"
+                    ))
+                    .equal_to(0.0),
+            ),
+            after,
+        }
+    }
+
+    /// Records them from the GCS fixture's command phase.
+    pub fn record(&self, ctx: &mut PhaseContext, report: &SessionReport) -> Result<()> {
+        let c = report
+            .gcs
+            .commands
+            .as_ref()
+            .context("the GCS fixture ran no command phase")?;
+        ctx.log(format!(
+            "after {}: {} commands acked, {} lost, {} sends, latencies {:?} ms",
+            self.after, c.acked, c.lost, c.sends, c.latency_ms
+        ));
+        ctx.record(self.latency_max, c.latency().max);
+        ctx.record(self.lost, f64::from(c.lost));
+        Ok(())
+    }
+}
+
 /// Fails the phase when a program did not stop cleanly (status 0 on
 /// SIGTERM, or the GCS's own status): called after the measurements are
 /// recorded, so they are kept either way.

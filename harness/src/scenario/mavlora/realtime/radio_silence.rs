@@ -4,10 +4,10 @@
 //! after it must be acked as on a fresh link: both within SORA's TMPR for medium robustness
 //! (C2 latency < 3 s), the bound the C2 scenarios use.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use harness_radio::Silence;
 
-use super::{Scenario, Script, Unsigned, ensure_clean, run_session, spec};
+use super::{CommandsAfter, Scenario, Script, TMPR_S, Unsigned, ensure_clean, run_session, spec};
 use crate::driver::fixture::mavlora_gcs::GcsEvent;
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
@@ -27,16 +27,11 @@ const SILENCE: Silence = Silence {
     for_s: 10.0,
     every_s: None,
 };
-/// Commands sent once telemetry has been back for a while.
-const COMMANDS: u32 = 5;
-/// SORA TMPR, medium robustness: C2 latency under 3 s.
-const TMPR_S: f64 = 3.0;
 
 struct Measured {
     unsigned: Unsigned,
     recovery: Handle,
-    latency_max: Handle,
-    lost: Handle,
+    commands: CommandsAfter,
 }
 
 fn plan(d: &mut Declarations) -> Script {
@@ -50,21 +45,7 @@ fn plan(d: &mut Declarations) -> Script {
                 )
                 .at_most(TMPR_S),
         ),
-        latency_max: d.declare(
-            spec("radio_silence_c2_latency_max_ms", "ms")
-                .describe(format!(
-                    "slowest of {COMMANDS} commands sent after the silence (first send to its \
-                     COMMAND_ACK); limit: SORA TMPR medium (3 s)"
-                ))
-                .at_most(TMPR_S * 1000.0),
-        ),
-        lost: d.declare(
-            spec("radio_silence_commands_lost", "")
-                .describe(format!(
-                    "commands of {COMMANDS} sent after the silence never acked after 5 sends"
-                ))
-                .equal_to(0.0),
-        ),
+        commands: CommandsAfter::declare(d, "radio_silence", "the silence"),
     };
     Box::new(move |ctx, defaults| run(ctx, defaults, &m))
 }
@@ -77,7 +58,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     o.gcs = GcsPlan {
         // Until 6 s after the silence ends (the session takes ~1-2 s to bring telemetry up).
         listen_s: SILENCE.at_s + SILENCE.for_s + 4.0,
-        commands: COMMANDS,
+        commands: CommandsAfter::COMMANDS,
         ..GcsPlan::default()
     };
     let report = run_session(ctx, o)?;
@@ -107,17 +88,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
         back - end
     ));
     ctx.record(m.recovery, back - end);
-    let c = report
-        .gcs
-        .commands
-        .as_ref()
-        .context("the GCS fixture ran no command phase")?;
-    ctx.log(format!(
-        "after the silence: {} commands acked, {} lost, {} sends, latencies {:?} ms",
-        c.acked, c.lost, c.sends, c.latency_ms
-    ));
-    ctx.record(m.latency_max, c.latency().max);
-    ctx.record(m.lost, f64::from(c.lost));
+    m.commands.record(ctx, &report)?;
     m.unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)
 }
