@@ -172,6 +172,13 @@ impl Faults {
         self.config.silences.iter().any(|s| s.overlaps(start, end))
     }
 
+    /// Adds a silence to those configured (a fault a test schedules while the link runs).
+    pub(crate) fn add_silence(&mut self, silence: Silence) -> Result<(), ConfigError> {
+        silence.validate()?;
+        self.config.silences.push(silence);
+        Ok(())
+    }
+
     /// End of the silence covering `t`, if one does.
     pub(crate) fn silence_end(&self, t: Instant) -> Option<Instant> {
         self.config

@@ -309,6 +309,12 @@ impl Link {
         self.buffer.len() + self.on_air.as_ref().map_or(0, |a| a.data.len()) + received
     }
 
+    /// Schedules one more silence while the link runs: a test that starts the fault when
+    /// the traffic is up, not at a time fixed before the programs started.
+    pub fn add_silence(&mut self, silence: Silence) -> Result<(), ConfigError> {
+        self.faults.add_silence(silence)
+    }
+
     /// Whether `t` falls inside a scheduled silence, and until when.
     pub fn silence_at(&self, t: Instant) -> Option<Instant> {
         self.faults.silence_end(t)
@@ -810,6 +816,27 @@ mod tests {
             out.iter().flat_map(|(_, b)| b.clone()).collect();
         assert!((50..100).all(|k| seen.contains(&k)));
         assert!(!seen.contains(&30));
+    }
+
+    #[test]
+    fn a_silence_added_while_running_takes_and_a_bad_one_is_refused() {
+        let mut link = Link::new(&Preset::sik_64k(), &LinkConfig::default(), Slot::A).unwrap();
+        let before = send_every(&mut link, 100 * MS, 20, |k| vec![k as u8; 20]);
+        assert!(!before.is_empty());
+        let bad = Silence {
+            at_s: 3.0,
+            for_s: -1.0,
+            every_s: None,
+        };
+        assert!(link.add_silence(bad).is_err());
+        let silence = Silence {
+            at_s: 3.0,
+            for_s: 2.0,
+            every_s: None,
+        };
+        link.add_silence(silence).unwrap();
+        assert_eq!(link.silence_at(at(4000 * MS)), Some(at(5000 * MS)));
+        assert_eq!(link.silence_at(at(2500 * MS)), None);
     }
 
     #[test]

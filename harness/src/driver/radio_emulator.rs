@@ -24,7 +24,7 @@ use serialport::{SerialPort, TTYPort};
 
 use crate::clock::Mono;
 use crate::driver::pty::PtyPair;
-use harness_radio::{Direction, LinkStats, Radio};
+use harness_radio::{Direction, LinkStats, Radio, Silence};
 use timebase::Instant;
 
 /// Longest the loop sleeps without looking for input.
@@ -149,6 +149,25 @@ impl RadioEmulator {
     /// The model's time now: the emulator's epoch is its start.
     pub fn now(&self) -> Instant {
         model_time(self.shared.epoch)
+    }
+
+    /// Silences the air both ways from now for `length` (a hill, a hangar, a radio that
+    /// browned out); returns when it began on the rig's clock.
+    pub fn silence_now(&self, length: Duration) -> Result<Mono> {
+        let mut radio = self.radio();
+        let at = Mono::now();
+        let silence = Silence {
+            at_s: at.since(self.shared.epoch).as_secs_f64(),
+            for_s: length.as_secs_f64(),
+            every_s: None,
+        };
+        for direction in [Direction::Downlink, Direction::Uplink] {
+            radio
+                .link_mut(direction)
+                .add_silence(silence)
+                .context("radio emulator: cannot schedule the silence")?;
+        }
+        Ok(at)
     }
 
     /// Counters of one direction so far.

@@ -217,6 +217,11 @@ impl MavloraSession {
         Ok(started)
     }
 
+    /// Silences the radio both ways from now for `length`; returns when it began.
+    pub fn silence_radio(&self, length: Duration) -> Result<Mono> {
+        Ok(self.radio.silence_now(length)?)
+    }
+
     /// The radio's counters now: (downlink, uplink).
     pub fn radio_stats(&self) -> (LinkStats, LinkStats) {
         (

@@ -5,13 +5,14 @@
 //! (C2 latency < 3 s), the bound the C2 scenarios use.
 
 use anyhow::{Result, bail};
-use harness_radio::Silence;
+use std::time::Duration;
 
-use super::{CommandsAfter, Scenario, Script, TMPR_S, Unsigned, ensure_clean, run_session, spec};
+use super::{CommandsAfter, Scenario, Script, TMPR_S, Unsigned, ensure_clean, keep_evidence, spec};
+use crate::clock::Mono;
 use crate::driver::fixture::mavlora_gcs::GcsEvent;
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
-use crate::strategy::mavlora::{GcsPlan, SessionDefaults};
+use crate::strategy::mavlora::{GcsPlan, MavloraSession, SessionDefaults};
 
 const SCENARIO_NAME: &str = "radio_silence";
 
@@ -21,12 +22,11 @@ pub const SCENARIO: Scenario = Scenario {
     plan,
 };
 
-/// When the silence starts, s on the radio's clock, and how long it lasts.
-const SILENCE: Silence = Silence {
-    at_s: 8.0,
-    for_s: 10.0,
-    every_s: None,
-};
+/// How long the telemetry flows before the silence, and how long the silence lasts. The
+/// silence starts from when telemetry reached the ground, not at a fixed time on the radio's
+/// clock: a slow start on a loaded machine must not move it before the traffic.
+const BEFORE: Duration = Duration::from_secs(5);
+const SILENCE: Duration = Duration::from_secs(10);
 
 struct Measured {
     unsigned: Unsigned,
@@ -51,43 +51,52 @@ fn plan(d: &mut Declarations) -> Script {
 }
 
 fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> {
-    let mut radio = d.clean_radio.clone();
-    radio.uplink.silences.push(SILENCE);
-    radio.downlink.silences.push(SILENCE);
-    let mut o = d.options("radio_silence", &radio, &ctx.dir.join("radio_silence"));
+    let mut o = d.options(
+        "radio_silence",
+        &d.clean_radio,
+        &ctx.dir.join("radio_silence"),
+    );
     o.gcs = GcsPlan {
-        // Until 6 s after the silence ends (the session takes ~1-2 s to bring telemetry up).
-        listen_s: SILENCE.at_s + SILENCE.for_s + 4.0,
+        // The silence, then time for telemetry to come back and settle.
+        listen_s: (BEFORE + SILENCE).as_secs_f64() + 6.0,
         commands: CommandsAfter::COMMANDS,
         ..GcsPlan::default()
     };
-    let report = run_session(ctx, o)?;
-    let start = report.radio_epoch.as_secs_f64() + SILENCE.at_s;
-    let end = start + SILENCE.for_s;
+    let session = MavloraSession::start(o)?;
+    std::thread::sleep(BEFORE.saturating_sub(Mono::now().since(session.telemetry_at)));
+    let start = session.silence_radio(SILENCE)?;
+    let end = start + SILENCE;
+    ctx.log(format!(
+        "radio silent both ways from {:.1} s after telemetry began, for {} s",
+        start.since(session.telemetry_at).as_secs_f64(),
+        SILENCE.as_secs()
+    ));
+    let report = session.finish()?;
+    keep_evidence(ctx, "radio_silence", &report);
     // The hole the silence made: it began inside the silence (a frame on air at its start
-    // may still land) and ended after it.
+    // may still land, and the ground's gap starts at the last frame before it) and ended
+    // after it.
     let gap = report.gcs_events.iter().find_map(|l| match &l.event {
-        GcsEvent::TelemetryGap { t, since, message } => {
-            let (t, since) = (t.as_secs_f64(), since.as_secs_f64());
-            (since >= start - 1.0 && since <= end && t >= end).then(|| (since, t, message.clone()))
+        GcsEvent::TelemetryGap { t, since, message }
+            if *since + Duration::from_secs(1) >= start && *since <= end && *t >= end =>
+        {
+            Some((*since, *t, message.clone()))
         }
         _ => None,
     });
     let Some((since, back, message)) = gap else {
         bail!(
-            "the ground station reported no telemetry hole across the radio's silence \
-             ({:.1}..{:.1} s after the radio started): the silence did not take, or telemetry \
-             never came back",
-            SILENCE.at_s,
-            SILENCE.at_s + SILENCE.for_s
+            "the ground station reported no telemetry hole across the radio's {} s silence: \
+             the silence did not take, or telemetry never came back",
+            SILENCE.as_secs()
         );
     };
     ctx.log(format!(
         "telemetry stopped {:.2} s into the silence, came back {:.2} s after it ended ({message})",
-        since - start,
-        back - end
+        since.as_secs_f64() - start.as_secs_f64(),
+        back.since(end).as_secs_f64()
     ));
-    ctx.record(m.recovery, back - end);
+    ctx.record(m.recovery, back.since(end).as_secs_f64());
     m.commands.record(ctx, &report)?;
     m.unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)
