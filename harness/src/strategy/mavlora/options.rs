@@ -108,6 +108,8 @@ pub struct SessionOptions {
     pub out_dir: PathBuf,
     /// Longest wait for the first telemetry at the GCS.
     pub ready_timeout: Duration,
+    /// Sign the ground side too: the router's `--ground-key`, the GCS fixture's `--key`.
+    pub ground_key: bool,
 }
 
 /// What comes from the rig file, shared by every real-time scenario.
@@ -163,6 +165,7 @@ impl SessionDefaults {
             gcs: GcsPlan::default(),
             out_dir: out_dir.to_path_buf(),
             ready_timeout: Duration::from_secs(15),
+            ground_key: false,
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Bringing the chain up and down: FC fixture, bridge, radio emulator, router,
 //! GCS fixture.
 
-use std::net::UdpSocket;
+use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Arc;
@@ -12,6 +12,7 @@ use super::{Result, SessionError, SessionOptions, Variant};
 use crate::clock::Mono;
 use crate::driver::fixture::mavlora_fc::FcEvent;
 use crate::driver::fixture::mavlora_gcs::GcsEvent;
+use crate::driver::fixture::mavlora_intruder::IntruderEvent;
 use crate::driver::fixture::{Fixture, FixtureError};
 use crate::driver::process::Process;
 use crate::driver::program::MAVLORA_BRIDGE;
@@ -34,6 +35,8 @@ pub struct MavloraSession {
     /// Logs of bridges that were crashed on purpose.
     crashed_logs: Vec<PathBuf>,
     router: Option<Process>,
+    /// Where the router takes ground stations' datagrams.
+    router_ground: Option<SocketAddr>,
     gcs: Fixture<GcsEvent, RadioCounters>,
     fc_summary: PathBuf,
     /// When the first telemetry reached the GCS.
@@ -93,10 +96,12 @@ impl MavloraSession {
         let mut bridge_spawn = None;
         let mut router = None;
         let gcs_target: Vec<String>;
+        let mut router_ground = None;
+        let mut gcs_key = None;
         if bridged {
             // The radio leg is signed in every phase: a fresh key per session, owner-only
             // (the binaries refuse others-readable keys), each end with its own state file.
-            let key = write_radio_key(dir)?;
+            let key = write_key(dir, "radio.key")?;
             let mut spawn = BridgeSpawn {
                 fc_port: fc_port.clone(),
                 key: key.clone(),
@@ -105,11 +110,13 @@ impl MavloraSession {
             bridge = Some(spawn.start(&options, radio.air_path())?);
             bridge_spawn = Some(spawn);
             let port = free_udp_port(dir)?;
+            let bind = SocketAddr::from(([127, 0, 0, 1], free_udp_port(dir)?));
+            router_ground = Some(bind);
             let mut command = Command::new(&options.router_program);
             command
                 .args(["--radio", radio.ground_path()])
                 .args(["--udp", &format!("127.0.0.1:{port}")])
-                .args(["--udp-bind", "127.0.0.1:0", "--status-interval", "2"])
+                .args(["--udp-bind", &bind.to_string(), "--status-interval", "2"])
                 .arg("--tlog")
                 .arg(dir.join("router.tlog"))
                 .arg("--key")
@@ -119,6 +126,11 @@ impl MavloraSession {
                 .env("NO_COLOR", "1");
             if let Some(period) = options.link_quality_period {
                 command.args(["--link-quality-period", &period.to_string()]);
+            }
+            if options.ground_key {
+                let key = write_key(dir, "ground.key")?;
+                command.arg("--ground-key").arg(&key);
+                gcs_key = Some(key);
             }
             router = Some(Process::spawn(
                 "mavlora-router",
@@ -145,6 +157,9 @@ impl MavloraSession {
             .args(["--items", &p.items.to_string()])
             .args(["--item-timeout", &p.item_timeout_s.to_string()])
             .args(["--upload-timeout", &p.upload_timeout_s.to_string()]);
+        if let Some(key) = &gcs_key {
+            command.arg("--key").arg(key);
+        }
         // Each line carries the radio's counters when it was read, so a
         // rate taken from the radio covers the GCS's own window.
         let counters = radio.clone();
@@ -164,6 +179,7 @@ impl MavloraSession {
             bridge_spawn,
             crashed_logs: Vec::new(),
             router,
+            router_ground,
             gcs,
             fc_summary,
             options,
@@ -215,6 +231,46 @@ impl MavloraSession {
         let started = Mono::now();
         self.bridge = Some(spawn.start(&self.options, self.radio.air_path())?);
         Ok(started)
+    }
+
+    /// Starts `mavlora_intruder.py` against the router's ground port: from `source` (an
+    /// address of this host, 127.0.0.2 plays another host), as system `sysid`, its frames
+    /// signed with `sign_key` (64 hex characters) if given, for `duration`. Logs to
+    /// `<label>.log`; returns once its socket is bound.
+    pub fn start_intruder(
+        &self,
+        label: &str,
+        source: &str,
+        sysid: u8,
+        sign_key: Option<&str>,
+        duration: Duration,
+    ) -> Result<Fixture<IntruderEvent>> {
+        let Some(router) = self.router_ground else {
+            return Err(anyhow::anyhow!("this session runs no router to attack").into());
+        };
+        let mut command = Command::new(&self.options.python);
+        command
+            .arg(self.options.fixtures_dir.join("mavlora_intruder.py"))
+            .args(["--router", &router.to_string(), "--source", source])
+            .args(["--sysid", &sysid.to_string()])
+            .args(["--duration", &duration.as_secs_f64().to_string()]);
+        if let Some(key) = sign_key {
+            command.args(["--sign-key", key]);
+        }
+        let log = self.options.out_dir.join(format!("{label}.log"));
+        let intruder = Fixture::start(label, command, &log)?;
+        let timeout = Duration::from_secs(10);
+        intruder
+            .wait_for("ready", timeout, |l| {
+                matches!(l.event, IntruderEvent::Ready { .. })
+            })
+            .map_err(|e| SessionError::FixtureStart {
+                name: "mavlora_intruder.py".into(),
+                timeout,
+                log,
+                reason: e.to_string(),
+            })?;
+        Ok(intruder)
     }
 
     /// Silences the radio both ways from now for `length`; returns when it began.
@@ -328,10 +384,10 @@ impl MavloraSession {
 
 /// Writes a fresh radio signing key (64 hex characters, mode 600) into `dir`. Not a secret
 /// worth keeping: it lives as long as the session's evidence.
-fn write_radio_key(dir: &Path) -> Result<PathBuf> {
+fn write_key(dir: &Path, name: &str) -> Result<PathBuf> {
     use std::io::Write as _;
     use std::os::unix::fs::OpenOptionsExt as _;
-    let path = dir.join("radio.key");
+    let path = dir.join(name);
     let io = |source| SessionError::Io {
         path: path.clone(),
         source,

@@ -12,10 +12,13 @@
 //!   TMPR: < 3 s for medium robustness);
 //! - [`radio_silence`]: 10 s of silence both ways, then telemetry and commands
 //!   back within the same TMPR;
-//! - [`bridge_crash`]: the bridge killed and restarted, the same.
+//! - [`bridge_crash`]: the bridge killed and restarted, the same;
+//! - [`ground_hijack`]: hostile senders on the ground side while the pilot flies:
+//!   nothing of theirs on the radio, the pilot's commands acked.
 
 pub mod bridge_crash;
 pub mod c2_latency;
+pub mod ground_hijack;
 pub mod mission;
 pub mod radio_silence;
 pub mod table_ii;
@@ -50,6 +53,7 @@ pub fn scenarios() -> Vec<Scenario> {
         c2_latency::SCENARIO,
         radio_silence::SCENARIO,
         bridge_crash::SCENARIO,
+        ground_hijack::SCENARIO,
     ]
 }
 
