@@ -34,7 +34,7 @@ pub use options::{
     FcProfile, GcsPlan, SessionDefaults, SessionOptions, Variant, sik_with_independent_loss,
     sik_with_loss,
 };
-pub use session::{GcsLine, MavloraSession, RadioCounters};
+pub use session::{GcsLine, MavloraSession, Program, RadioCounters};
 pub use session_report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status, status_field};
 
 /// Why a session could not be brought up or finished.

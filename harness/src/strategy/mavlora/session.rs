@@ -35,6 +35,8 @@ pub struct MavloraSession {
     /// Logs of bridges that were crashed on purpose.
     crashed_logs: Vec<PathBuf>,
     router: Option<Process>,
+    /// How to start the router again.
+    router_spawn: Option<RouterSpawn>,
     /// Where the router takes ground stations' datagrams.
     router_ground: Option<SocketAddr>,
     gcs: Fixture<GcsEvent, RadioCounters>,
@@ -95,6 +97,7 @@ impl MavloraSession {
         let mut bridge = None;
         let mut bridge_spawn = None;
         let mut router = None;
+        let mut router_spawn = None;
         let gcs_target: Vec<String>;
         let mut router_ground = None;
         let mut gcs_key = None;
@@ -112,31 +115,18 @@ impl MavloraSession {
             let port = free_udp_port(dir)?;
             let bind = SocketAddr::from(([127, 0, 0, 1], free_udp_port(dir)?));
             router_ground = Some(bind);
-            let mut command = Command::new(&options.router_program);
-            command
-                .args(["--radio", radio.ground_path()])
-                .args(["--udp", &format!("127.0.0.1:{port}")])
-                .args(["--udp-bind", &bind.to_string(), "--status-interval", "2"])
-                .arg("--tlog")
-                .arg(dir.join("router.tlog"))
-                .arg("--key")
-                .arg(&key)
-                .arg("--signing-state")
-                .arg(dir.join("router.signing-state"))
-                .env("NO_COLOR", "1");
-            if let Some(period) = options.link_quality_period {
-                command.args(["--link-quality-period", &period.to_string()]);
-            }
             if options.ground_key {
-                let key = write_key(dir, "ground.key")?;
-                command.arg("--ground-key").arg(&key);
-                gcs_key = Some(key);
+                gcs_key = Some(write_key(dir, "ground.key")?);
             }
-            router = Some(Process::spawn(
-                "mavlora-router",
-                command,
-                &dir.join("router.log"),
-            )?);
+            let mut spawn = RouterSpawn {
+                key,
+                ground_key: gcs_key.clone(),
+                send_to: port,
+                bind,
+                starts: 0,
+            };
+            router = Some(spawn.start(&options, radio.ground_path())?);
+            router_spawn = Some(spawn);
             gcs_target = vec!["--udp".into(), format!("127.0.0.1:{port}")];
         } else {
             gcs_target = vec!["--serial".into(), radio.ground_path().to_string()];
@@ -179,6 +169,7 @@ impl MavloraSession {
             bridge_spawn,
             crashed_logs: Vec::new(),
             router,
+            router_spawn,
             router_ground,
             gcs,
             fc_summary,
@@ -218,19 +209,41 @@ impl MavloraSession {
         Ok(session)
     }
 
-    /// Kills the bridge outright (SIGKILL: a crash, nothing flushed), waits `down`, and
-    /// starts it again with the same ports, key and signing-state file; returns when the
-    /// new one was started. Its log is `bridge-<n>.log`; the crashed one's is kept.
-    pub fn crash_and_restart_bridge(&mut self, down: Duration) -> Result<Mono> {
-        let (Some(bridge), Some(spawn)) = (self.bridge.as_mut(), self.bridge_spawn.as_mut()) else {
-            return Err(anyhow::anyhow!("this session runs no bridge to restart").into());
+    /// Kills `which` program outright (SIGKILL: a crash, nothing flushed), waits `down`, and
+    /// starts it again with the same ports, keys and signing-state file; returns when the
+    /// new one was started. Its log is `<program>-<n>.log`; the crashed one's is kept.
+    pub fn crash_and_restart(&mut self, which: Program, down: Duration) -> Result<Mono> {
+        let process = match which {
+            Program::Bridge => self.bridge.as_mut(),
+            Program::Router => self.router.as_mut(),
         };
-        bridge.kill();
-        self.crashed_logs.push(bridge.log_path().to_path_buf());
+        let Some(process) = process else {
+            return Err(anyhow::anyhow!("this session runs no {which} to restart").into());
+        };
+        process.kill();
+        self.crashed_logs.push(process.log_path().to_path_buf());
         std::thread::sleep(down);
         let started = Mono::now();
-        self.bridge = Some(spawn.start(&self.options, self.radio.air_path())?);
+        match which {
+            Program::Bridge => {
+                let spawn = self.bridge_spawn.as_mut().expect("a bridge has its spawn");
+                self.bridge = Some(spawn.start(&self.options, self.radio.air_path())?);
+            }
+            Program::Router => {
+                let spawn = self.router_spawn.as_mut().expect("a router has its spawn");
+                self.router = Some(spawn.start(&self.options, self.radio.ground_path())?);
+            }
+        }
         Ok(started)
+    }
+
+    /// The log the running `which` writes to.
+    pub fn log_of(&self, which: Program) -> Option<&Path> {
+        match which {
+            Program::Bridge => self.bridge.as_ref(),
+            Program::Router => self.router.as_ref(),
+        }
+        .map(Process::log_path)
     }
 
     /// Starts `mavlora_intruder.py` against the router's ground port: from `source` (an
@@ -345,10 +358,12 @@ impl MavloraSession {
         let mut files: Vec<PathBuf> = exits.iter().map(|e| e.log.clone()).collect();
         files.extend(self.crashed_logs.iter().cloned());
         files.push(self.fc_summary.clone());
-        let tlog = dir.join("router.tlog");
-        if tlog.exists() {
-            files.push(tlog);
-        }
+        let starts = self.router_spawn.as_ref().map_or(0, |r| r.starts);
+        files.extend(
+            (1..=starts)
+                .map(|n| nth(&dir, "router", "tlog", n))
+                .filter(|t| t.exists()),
+        );
         for e in &exits {
             if !e.clean() {
                 tracing::warn!(program = %e.name, status = ?e.status, "did not exit cleanly");
@@ -419,6 +434,72 @@ fn free_udp_port(dir: &Path) -> Result<u16> {
         })
 }
 
+/// One of the two MavLora programs of a session.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Program {
+    /// `mavlora-bridge`, on the drone.
+    Bridge,
+    /// `mavlora-router`, on the ground.
+    Router,
+}
+
+impl std::fmt::Display for Program {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Program::Bridge => "bridge",
+            Program::Router => "router",
+        })
+    }
+}
+
+/// The log of a program's `n`th start: `<stem>.<ext>`, then `<stem>-<n>.<ext>`.
+fn nth(dir: &Path, stem: &str, ext: &str, n: u32) -> PathBuf {
+    match n {
+        1 => dir.join(format!("{stem}.{ext}")),
+        n => dir.join(format!("{stem}-{n}.{ext}")),
+    }
+}
+
+/// What starting the router takes, kept to start it again.
+struct RouterSpawn {
+    key: PathBuf,
+    ground_key: Option<PathBuf>,
+    /// The GCS fixture's port, where the router sends until a ground station talks.
+    send_to: u16,
+    bind: SocketAddr,
+    /// Routers started so far.
+    starts: u32,
+}
+
+impl RouterSpawn {
+    /// Starts a router on `radio_port`; the first logs to `router.log` and `router.tlog`,
+    /// later ones to `router-<n>.log`/`.tlog`. Every one shares the signing-state file.
+    fn start(&mut self, options: &SessionOptions, radio_port: &str) -> Result<Process> {
+        let dir = &options.out_dir;
+        self.starts += 1;
+        let mut command = Command::new(&options.router_program);
+        command
+            .args(["--radio", radio_port])
+            .args(["--udp", &format!("127.0.0.1:{}", self.send_to)])
+            .args(["--udp-bind", &self.bind.to_string(), "--status-interval", "2"])
+            .arg("--tlog")
+            .arg(nth(dir, "router", "tlog", self.starts))
+            .arg("--key")
+            .arg(&self.key)
+            .arg("--signing-state")
+            .arg(dir.join("router.signing-state"))
+            .env("NO_COLOR", "1");
+        if let Some(period) = options.link_quality_period {
+            command.args(["--link-quality-period", &period.to_string()]);
+        }
+        if let Some(key) = &self.ground_key {
+            command.arg("--ground-key").arg(key);
+        }
+        let log = nth(dir, "router", "log", self.starts);
+        Ok(Process::spawn("mavlora-router", command, &log)?)
+    }
+}
+
 /// What starting the bridge takes, kept to start it again.
 struct BridgeSpawn {
     fc_port: String,
@@ -451,10 +532,7 @@ impl BridgeSpawn {
             command.args(["--link-quality-period", &period.to_string()]);
         }
         self.starts += 1;
-        let log = match self.starts {
-            1 => dir.join("bridge.log"),
-            n => dir.join(format!("bridge-{n}.log")),
-        };
+        let log = nth(dir, "bridge", "log", self.starts);
         Ok(Process::spawn("mavlora-bridge", command, &log)?)
     }
 }

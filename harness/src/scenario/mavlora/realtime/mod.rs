@@ -12,14 +12,14 @@
 //!   TMPR: < 3 s for medium robustness);
 //! - [`radio_silence`]: 10 s of silence both ways, then telemetry and commands
 //!   back within the same TMPR;
-//! - [`bridge_crash`]: the bridge killed and restarted, the same;
+//! - [`process_crash`]: the bridge, or the router, killed and restarted, the same;
 //! - [`ground_hijack`]: hostile senders on the ground side while the pilot flies:
 //!   nothing of theirs on the radio, the pilot's commands acked.
 
-pub mod bridge_crash;
 pub mod c2_latency;
 pub mod ground_hijack;
 pub mod mission;
+pub mod process_crash;
 pub mod radio_silence;
 pub mod table_ii;
 
@@ -52,7 +52,8 @@ pub fn scenarios() -> Vec<Scenario> {
         mission::SCENARIO,
         c2_latency::SCENARIO,
         radio_silence::SCENARIO,
-        bridge_crash::SCENARIO,
+        process_crash::BRIDGE,
+        process_crash::ROUTER,
         ground_hijack::SCENARIO,
     ]
 }
