@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use libtest_mimic::Trial;
 
+use super::side_by_side::SideBySide;
 use super::{Phases, phase_trial, run_phase};
 use crate::driver::program::{MAVLORA_BRIDGE, MAVLORA_ROUTER};
 use crate::measurement::Declarations;
@@ -34,12 +35,20 @@ pub fn simulated_radios(section: &MavloraSection) -> Radios {
     }
 }
 
-/// Adds the trials of every suite the rig file asks for; returns the measurement names they
-/// may record (for the `[limits]` check).
+/// Real-time phases running at once: each is a session of four programs and a radio
+/// thread on ptys of its own, mostly waiting on scripted seconds of flight. Four keep a
+/// 2-core machine busy without starving the sessions' timers (their figures are latencies
+/// of hundreds of ms against limits of seconds).
+pub const REALTIME_SIDE_BY_SIDE: usize = 4;
+
+/// Adds the trials of every suite the rig file asks for, the real-time ones in the
+/// side-by-side group `realtime`; returns the measurement names they may record (for the
+/// `[limits]` check).
 pub fn add_trials(
     rig: &Arc<RigFile>,
     phases: &Phases,
     out_dir: &Path,
+    realtime: &Arc<SideBySide>,
     trials: &mut Vec<Trial>,
 ) -> Vec<String> {
     let Some(section) = &rig.mavlora else {
@@ -69,11 +78,13 @@ pub fn add_trials(
             names.extend(super::names(&declared));
             let name = format!("mavlora::realtime::{}", scenario.name);
             let (rig, out_dir, defaults) = (rig.clone(), out_dir.to_path_buf(), defaults.clone());
-            trials.push(phase_trial(phases, name.clone(), move || {
-                run_phase(&rig, &out_dir, &name, scenario.summary, declared, |ctx| {
+            let phase = name.clone();
+            let body = realtime.add(name.clone(), move || {
+                run_phase(&rig, &out_dir, &phase, scenario.summary, declared, |ctx| {
                     script(ctx, &defaults)
                 })
-            }));
+            });
+            trials.push(phase_trial(phases, name, body));
         }
     }
     names

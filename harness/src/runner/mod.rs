@@ -28,10 +28,12 @@ use crate::scenario::PhaseContext;
 use crate::scenario::multirx::{self, ModeLimits, Scenario, SessionFigures, SessionMeasurements};
 use crate::strategy::firmware::{self, FirmwareImage};
 use crate::strategy::multirx::MultirxSession;
+use side_by_side::SideBySide;
 
 pub mod interrupt;
 pub mod lock;
 mod mavlora;
+mod side_by_side;
 
 /// What to run and where to write.
 pub struct RunOptions {
@@ -192,7 +194,7 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
         &out_dir,
     );
     let images: Images = Arc::default();
-    let (trials, known_names) = plan(&rig, &phases, &out_dir, &images)?;
+    let (trials, known_names, groups) = plan(&rig, &phases, &out_dir, &images)?;
     rig.check_limit_names(known_names.iter().map(String::as_str))?;
 
     let args = Arguments {
@@ -211,7 +213,15 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
             paths: None,
         });
     }
-    if !trials.iter().any(|t| !args.is_filtered_out(t)) {
+    let selected: Vec<&str> = trials
+        .iter()
+        .filter(|t| !args.is_filtered_out(t))
+        .map(Trial::name)
+        .collect();
+    for group in &groups {
+        group.select(selected.iter().copied());
+    }
+    if selected.is_empty() {
         return Err(NothingSelected {
             what: match &options.filter {
                 Some(f) => format!(
@@ -257,13 +267,13 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
 }
 
 /// Every phase the rig file describes as a trial, with the flat names of the measurements they
-/// declare.
+/// declare and the groups of phases that run side by side.
 fn plan(
     rig: &Arc<RigFile>,
     phases: &Phases,
     out_dir: &Path,
     images: &Images,
-) -> Result<(Vec<Trial>, Vec<String>)> {
+) -> Result<(Vec<Trial>, Vec<String>, Vec<Arc<SideBySide>>)> {
     let mut trials = Vec::new();
     let mut known_names = Vec::new();
     if let Some(section) = &rig.multirx {
@@ -294,8 +304,15 @@ fn plan(
             trials.push(whole_run_trial(rig, phases, mode, limits, whole_run));
         }
     }
-    known_names.extend(mavlora::add_trials(rig, phases, out_dir, &mut trials));
-    Ok((trials, known_names))
+    let realtime = SideBySide::new(mavlora::REALTIME_SIDE_BY_SIDE);
+    known_names.extend(mavlora::add_trials(
+        rig,
+        phases,
+        out_dir,
+        &realtime,
+        &mut trials,
+    ));
+    Ok((trials, known_names, vec![realtime]))
 }
 
 /// The flat names of every measurement the phases of `rig` declare (the trace matrix checks its
@@ -314,7 +331,7 @@ pub fn declared_names(rig: RigFile) -> Result<Vec<String>> {
         },
         Path::new(""),
     );
-    let (_, mut names) = plan(&rig, &phases, Path::new(""), &Images::default())?;
+    let (_, mut names, _) = plan(&rig, &phases, Path::new(""), &Images::default())?;
     names.sort();
     names.dedup();
     Ok(names)
