@@ -194,7 +194,11 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
         &out_dir,
     );
     let images: Images = Arc::default();
-    let (trials, known_names, groups) = plan(&rig, &phases, &out_dir, &images)?;
+    let Plan {
+        trials,
+        known_names,
+        groups,
+    } = plan(&rig, &phases, &out_dir, &images)?;
     rig.check_limit_names(known_names.iter().map(String::as_str))?;
 
     let args = Arguments {
@@ -266,14 +270,18 @@ pub fn run(rig: RigFile, options: RunOptions) -> Result<RunResult> {
     })
 }
 
-/// Every phase the rig file describes as a trial, with the flat names of the measurements they
-/// declare and the groups of phases that run side by side.
-fn plan(
-    rig: &Arc<RigFile>,
-    phases: &Phases,
-    out_dir: &Path,
-    images: &Images,
-) -> Result<(Vec<Trial>, Vec<String>, Vec<Arc<SideBySide>>)> {
+/// What a rig file asks to run.
+struct Plan {
+    /// Every phase, as a trial.
+    trials: Vec<Trial>,
+    /// The flat names of the measurements they declare.
+    known_names: Vec<String>,
+    /// The groups of phases that run side by side.
+    groups: Vec<Arc<SideBySide>>,
+}
+
+/// Every phase the rig file describes.
+fn plan(rig: &Arc<RigFile>, phases: &Phases, out_dir: &Path, images: &Images) -> Result<Plan> {
     let mut trials = Vec::new();
     let mut known_names = Vec::new();
     if let Some(section) = &rig.multirx {
@@ -312,7 +320,11 @@ fn plan(
         &realtime,
         &mut trials,
     ));
-    Ok((trials, known_names, vec![realtime]))
+    Ok(Plan {
+        trials,
+        known_names,
+        groups: vec![realtime],
+    })
 }
 
 /// The flat names of every measurement the phases of `rig` declare (the trace matrix checks its
@@ -331,7 +343,7 @@ pub fn declared_names(rig: RigFile) -> Result<Vec<String>> {
         },
         Path::new(""),
     );
-    let (_, mut names, _) = plan(&rig, &phases, Path::new(""), &Images::default())?;
+    let mut names = plan(&rig, &phases, Path::new(""), &Images::default())?.known_names;
     names.sort();
     names.dedup();
     Ok(names)
