@@ -481,7 +481,12 @@ impl RouterSpawn {
         command
             .args(["--radio", radio_port])
             .args(["--udp", &format!("127.0.0.1:{}", self.send_to)])
-            .args(["--udp-bind", &self.bind.to_string(), "--status-interval", "2"])
+            .args([
+                "--udp-bind",
+                &self.bind.to_string(),
+                "--status-interval",
+                "2",
+            ])
             .arg("--tlog")
             .arg(nth(dir, "router", "tlog", self.starts))
             .arg("--key")
