@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs what a fresh Debian machine needs to build and test everything:
 # libudev (serialport, probe-rs), Chromium (the evidence report's headless
-# browser test), Python fixtures' packages, the firmware's Rust target. Safe to run again: it skips what is already there.
+# browser test), Python fixtures' packages (and MAVProxy), the firmware's Rust target. Safe to run again: it skips what is already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -20,6 +20,15 @@ fi
 if ! python3 -c "import serial, pymavlink, pytest" 2>/dev/null; then
     echo "setup: pip install -r fixtures/requirements.txt"
     python3 -m pip install -q --disable-pip-version-check -r fixtures/requirements.txt
+fi
+# MAVProxy, the real ground station of firmware/mavlora/tests/e2e_mavproxy.rs, without its
+# declared dependencies (vtk, opencv, matplotlib, numpy: its GUI, maps and terrain); the
+# console modules the test loads need only pymavlink and pyserial, installed just above.
+if ! { command -v mavproxy.py >/dev/null && python3 -c "import MAVProxy" 2>/dev/null; }; then
+    echo "setup: pip install --no-deps -r fixtures/requirements-mavproxy.txt"
+    python3 -m pip install -q --disable-pip-version-check --no-deps -r fixtures/requirements-mavproxy.txt
+    command -v mavproxy.py >/dev/null \
+        || echo "setup: warning: mavproxy.py is installed but not on PATH (pip's scripts folder): e2e_mavproxy will fail" >&2
 fi
 
 # rust-toolchain.toml names the toolchain and the thumbv6m target; this makes
