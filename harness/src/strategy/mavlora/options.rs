@@ -110,6 +110,8 @@ pub struct SessionOptions {
     pub ready_timeout: Duration,
     /// Sign the ground side too: the router's `--ground-key`, the GCS fixture's `--key`.
     pub ground_key: bool,
+    /// The FC fixture reboots when this item of an upload reaches it (`--reboot-at-item`).
+    pub fc_reboot_at_item: Option<u32>,
 }
 
 /// What comes from the rig file, shared by every real-time scenario.
@@ -166,6 +168,7 @@ impl SessionDefaults {
             out_dir: out_dir.to_path_buf(),
             ready_timeout: Duration::from_secs(15),
             ground_key: false,
+            fc_reboot_at_item: None,
         }
     }
 }

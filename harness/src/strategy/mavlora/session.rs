@@ -74,6 +74,9 @@ impl MavloraSession {
             .arg("--summary")
             .arg(&fc_summary)
             .args(["--profile", options.fc_profile.as_str(), "--path", "route"]);
+        if let Some(item) = options.fc_reboot_at_item {
+            command.args(["--reboot-at-item", &item.to_string()]);
+        }
         if !bridged {
             command.args(["--port", radio.air_path()]);
         }

@@ -12,11 +12,14 @@
 //!   TMPR: < 3 s for medium robustness);
 //! - [`radio_silence`]: 10 s of silence both ways, then telemetry and commands
 //!   back within the same TMPR;
+//! - [`fc_reboot_mission`]: the autopilot reboots mid-upload: ACCEPTED only with the
+//!   exact plan, an error otherwise, never silence;
 //! - [`process_crash`]: the bridge, or the router, killed and restarted, the same;
 //! - [`ground_hijack`]: hostile senders on the ground side while the pilot flies:
 //!   nothing of theirs on the radio, the pilot's commands acked.
 
 pub mod c2_latency;
+pub mod fc_reboot_mission;
 pub mod ground_hijack;
 pub mod mission;
 pub mod process_crash;
@@ -54,6 +57,7 @@ pub fn scenarios() -> Vec<Scenario> {
         radio_silence::SCENARIO,
         process_crash::BRIDGE,
         process_crash::ROUTER,
+        fc_reboot_mission::SCENARIO,
         ground_hijack::SCENARIO,
     ]
 }
