@@ -39,8 +39,8 @@ fn a_lora_message_crosses_after_its_airtime() {
     let cfg = LinkConfig::default();
     let radio = Radio::new(&Preset::lora_sf7(), &cfg, &cfg).unwrap();
     let emulator = RadioEmulator::new("lora-test", radio).unwrap();
-    let mut a = open(emulator.air_path());
-    let mut b = open(emulator.ground_path());
+    let mut a = open(&emulator.air_path());
+    let mut b = open(&emulator.ground_path());
     let message: Vec<u8> = (0u8..17)
         .map(|i| i.wrapping_mul(15).wrapping_add(0x0a))
         .collect();
@@ -72,8 +72,8 @@ fn sik_carries_both_directions_at_no_more_than_its_air_rate() {
     let cfg = LinkConfig::default();
     let radio = Radio::new(&Preset::sik_64k(), &cfg, &cfg).unwrap();
     let emulator = RadioEmulator::new("sik-test", radio).unwrap();
-    let mut a = open(emulator.air_path());
-    let mut b = open(emulator.ground_path());
+    let mut a = open(&emulator.air_path());
+    let mut b = open(&emulator.ground_path());
     let start = Instant::now();
     let payload: Vec<u8> = (0..6000u32).map(|i| (i % 251) as u8).collect();
     // Written at once: far more than the 1850-byte buffer takes.
@@ -129,8 +129,8 @@ fn a_deep_fade_loses_the_packets() {
     };
     let radio = Radio::new(&Preset::sik_64k(), &LinkConfig::default(), &lossy).unwrap();
     let emulator = RadioEmulator::new("fade-test", radio).unwrap();
-    let mut a = open(emulator.air_path());
-    let mut b = open(emulator.ground_path());
+    let mut a = open(&emulator.air_path());
+    let mut b = open(&emulator.ground_path());
     for _ in 0..10 {
         a.write_all(&[0x42; 21]).unwrap();
         std::thread::sleep(Duration::from_millis(30));
@@ -180,4 +180,59 @@ fn between_two_devices_carries_both_ways() {
         .err()
         .unwrap();
     assert!(format!("{err:#}").contains("/dev/ttyNOPE0"), "{err:#}");
+}
+
+/// A replugged air side: the program's open port hangs up, the stable name leads nowhere
+/// while it is out, what the ground sends meanwhile is counted as unwritten, and the same
+/// name opens a new pty that carries bytes both ways again.
+#[test]
+fn a_replugged_side_hangs_up_and_comes_back_under_its_stable_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = LinkConfig::default();
+    let radio = Radio::new(&Preset::sik_64k(), &cfg, &cfg).unwrap();
+    let emulator = std::sync::Arc::new(
+        RadioEmulator::with_stable_names("replug-test", radio, dir.path()).unwrap(),
+    );
+    let air_name = emulator.air_path();
+    assert!(air_name.ends_with("radio-air"), "{air_name}");
+    let mut a = open(&air_name);
+    let mut b = open(&emulator.ground_path());
+    a.write_all(b"before").unwrap();
+    assert_eq!(read_for(&mut b, 6, Duration::from_secs(3)), b"before");
+
+    let replugger = {
+        let emulator = emulator.clone();
+        std::thread::spawn(move || {
+            emulator
+                .replug(
+                    harness::driver::radio_emulator::End::Air,
+                    Duration::from_millis(600),
+                )
+                .unwrap()
+        })
+    };
+    std::thread::sleep(Duration::from_millis(200));
+    // Out: the old port hangs up, the name leads nowhere, the ground's bytes go nowhere.
+    let mut buf = [0u8; 16];
+    let hung_up = matches!(a.read(&mut buf), Ok(0) | Err(_))
+        && !matches!(a.read(&mut buf), Err(e) if e.kind() == std::io::ErrorKind::TimedOut);
+    assert!(
+        hung_up,
+        "the unplugged side's port still reads as a live line"
+    );
+    assert!(serialport::new(&air_name, 57_600).open_native().is_err());
+    b.write_all(b"lost").unwrap();
+    let back = replugger.join().unwrap();
+    assert!(harness::clock::Mono::now().since(back) < Duration::from_secs(1));
+    assert!(
+        emulator.unwritten() >= 4,
+        "unwritten {}",
+        emulator.unwritten()
+    );
+
+    let mut a = open(&air_name);
+    a.write_all(b"after").unwrap();
+    assert_eq!(read_for(&mut b, 5, Duration::from_secs(3)), b"after");
+    b.write_all(b"down").unwrap();
+    assert_eq!(read_for(&mut a, 4, Duration::from_secs(3)), b"down");
 }

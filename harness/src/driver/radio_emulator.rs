@@ -14,8 +14,9 @@
 //! arrival time is known to within that, on top of host scheduling.
 
 use std::io::{Read, Write};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
@@ -33,6 +34,11 @@ pub const POLL: Duration = Duration::from_millis(1);
 struct Shared {
     radio: Mutex<Radio>,
     stop: AtomicBool,
+    /// Master ends for the worker to take up (a replugged side) or `None` to let go of
+    /// (an unplugged side), by side: 0 air, 1 ground.
+    swaps: Mutex<Vec<(usize, Option<TTYPort>)>>,
+    /// Swaps the worker has applied.
+    swapped: AtomicU64,
     /// Delivered bytes the far port would not take (nobody reading).
     unwritten: AtomicU64,
     epoch: Mono,
@@ -40,10 +46,32 @@ struct Shared {
 
 /// A running emulated radio between two pty paths.
 pub struct RadioEmulator {
-    a: Side,
-    b: Side,
+    /// Air side, ground side; a replug replaces one.
+    sides: Mutex<[Side; 2]>,
+    /// The stable names (symlinks) the programs open, when made: [air, ground].
+    links: Option<[String; 2]>,
+    /// Swaps handed to the worker.
+    swaps_sent: AtomicU64,
     shared: Arc<Shared>,
     worker: Option<JoinHandle<()>>,
+}
+
+/// One end of the radio, for [`RadioEmulator::replug`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum End {
+    /// The drone's radio, the bridge's port.
+    Air,
+    /// The ground's radio, the router's port.
+    Ground,
+}
+
+impl End {
+    fn index(self) -> usize {
+        match self {
+            End::Air => 0,
+            End::Ground => 1,
+        }
+    }
 }
 
 /// Where one side's program connects.
@@ -71,6 +99,24 @@ impl RadioEmulator {
         let a_master = a.take_master()?;
         let b_master = b.take_master()?;
         Self::start(name, radio, Side::Pty(a), Side::Pty(b), a_master, b_master)
+    }
+
+    /// As [`RadioEmulator::new`], with stable names for the programs to open: symlinks
+    /// `<dir>/radio-air` and `<dir>/radio-ground` to the ptys (what `/dev/serial/by-id` is
+    /// to a USB radio), so a side can be unplugged and plugged in again
+    /// ([`RadioEmulator::replug`]) as a new pty under the same name.
+    pub fn with_stable_names(name: &str, radio: Radio, dir: &Path) -> Result<RadioEmulator> {
+        let mut emulator = Self::new(name, radio)?;
+        let links = [dir.join("radio-air"), dir.join("radio-ground")];
+        let sides = emulator
+            .sides
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner);
+        for (link, side) in links.iter().zip(sides.iter()) {
+            relink(link, side.path())?;
+        }
+        emulator.links = Some(links.map(|l| l.display().to_string()));
+        Ok(emulator)
     }
 
     /// Starts `radio` between two serial devices at `baud` (8N1): `air_device` is
@@ -114,6 +160,8 @@ impl RadioEmulator {
         let shared = Arc::new(Shared {
             radio: Mutex::new(radio),
             stop: AtomicBool::new(false),
+            swaps: Mutex::new(Vec::new()),
+            swapped: AtomicU64::new(0),
             unwritten: AtomicU64::new(0),
             epoch: Mono::now(),
         });
@@ -121,24 +169,75 @@ impl RadioEmulator {
         let label = name.to_string();
         let worker = std::thread::Builder::new()
             .name(format!("radio-{name}"))
-            .spawn(move || run(&label, &state, &mut a_master, &mut b_master))
+            .spawn(move || run(&label, &state, [Some(a_master), Some(b_master)]))
             .context("cannot start the radio emulator thread")?;
         Ok(RadioEmulator {
-            a,
-            b,
+            sides: Mutex::new([a, b]),
+            links: None,
+            swaps_sent: AtomicU64::new(0),
             shared,
             worker: Some(worker),
         })
     }
 
-    /// The serial port the drone's program opens (a pty), or is wired to (a device).
-    pub fn air_path(&self) -> &str {
-        self.a.path()
+    /// The serial port the drone's program opens (its stable name, else a pty), or is
+    /// wired to (a device).
+    pub fn air_path(&self) -> String {
+        self.path(End::Air)
     }
 
     /// As [`RadioEmulator::air_path`], for the ground's program.
-    pub fn ground_path(&self) -> &str {
-        self.b.path()
+    pub fn ground_path(&self) -> String {
+        self.path(End::Ground)
+    }
+
+    fn path(&self, end: End) -> String {
+        match &self.links {
+            Some(links) => links[end.index()].clone(),
+            None => self.sides.lock().unwrap_or_else(PoisonError::into_inner)[end.index()]
+                .path()
+                .to_string(),
+        }
+    }
+
+    /// Unplugs one side's radio (its pty goes away: the program's port hangs up and its
+    /// stable name leads nowhere), waits `down`, and plugs a new one in under the same
+    /// name: a USB radio pulled and put back. What the far radio delivers meanwhile is lost
+    /// (counted in [`RadioEmulator::unwritten`]). Returns when the new one was plugged in.
+    /// Needs [`RadioEmulator::with_stable_names`].
+    pub fn replug(&self, end: End, down: Duration) -> Result<Mono> {
+        let links = self.links.as_ref().context(
+            "this radio emulator has no stable names to replug under (with_stable_names)",
+        )?;
+        let link = Path::new(&links[end.index()]);
+        let _ = std::fs::remove_file(link);
+        self.swap(end, None);
+        // The old pair (its slave) goes with the worker's master: the node is gone.
+        let old = std::mem::replace(
+            &mut self.sides.lock().unwrap_or_else(PoisonError::into_inner)[end.index()],
+            Side::Device(String::new()),
+        );
+        drop(old);
+        std::thread::sleep(down);
+        let mut pair = PtyPair::new()?;
+        let master = pair.take_master()?;
+        relink(link, pair.path())?;
+        self.sides.lock().unwrap_or_else(PoisonError::into_inner)[end.index()] = Side::Pty(pair);
+        self.swap(end, Some(master));
+        Ok(Mono::now())
+    }
+
+    /// Hands the worker a new master for `end` (or none) and waits until it took it.
+    fn swap(&self, end: End, master: Option<TTYPort>) {
+        let n = self.swaps_sent.fetch_add(1, Ordering::SeqCst) + 1;
+        self.shared
+            .swaps
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .push((end.index(), master));
+        while self.shared.swapped.load(Ordering::SeqCst) < n && self.worker.is_some() {
+            std::thread::sleep(POLL);
+        }
     }
 
     /// The model's time zero on the rig's clock: scheduled silences count from it.
@@ -214,11 +313,22 @@ impl Drop for RadioEmulator {
     }
 }
 
-fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
+fn run(name: &str, shared: &Shared, mut ports: [Option<TTYPort>; 2]) {
     // Airtime is the point of this thread: ask for the CPU when it is due.
     hostio::realtime::request("radio-emulator");
     let mut buf = vec![0u8; 4096];
     while !shared.stop.load(Ordering::Relaxed) {
+        for (side, master) in shared
+            .swaps
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .drain(..)
+        {
+            // The old master closes here: the program on that side sees its port hang up.
+            ports[side] = master;
+            shared.swapped.fetch_add(1, Ordering::SeqCst);
+        }
+        let [a, b] = &mut ports;
         let next = {
             let mut radio = shared
                 .radio
@@ -226,6 +336,8 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
                 .unwrap_or_else(|poisoned| poisoned.into_inner());
             let now = model_time(shared.epoch);
             for (port, from) in [(&mut *a, Direction::Downlink), (&mut *b, Direction::Uplink)] {
+                // An unplugged side sends nothing.
+                let Some(port) = port else { continue };
                 match read_available(port, &mut buf) {
                     Ok(0) => {}
                     Ok(n) => radio.handle_input(now, from, &buf[..n]),
@@ -238,7 +350,8 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
             radio.handle_timeout(now);
             for (port, to) in [(&mut *b, Direction::Downlink), (&mut *a, Direction::Uplink)] {
                 while let Some(bytes) = radio.poll_output(to) {
-                    if port.write_all(&bytes).is_err() {
+                    let written = port.as_mut().is_some_and(|p| p.write_all(&bytes).is_ok());
+                    if !written {
                         shared
                             .unwritten
                             .fetch_add(bytes.len() as u64, Ordering::Relaxed);
@@ -263,6 +376,13 @@ fn run(name: &str, shared: &Shared, a: &mut TTYPort, b: &mut TTYPort) {
             "radio emulator delivered bytes nobody read"
         );
     }
+}
+
+/// Points the symlink `link` at `target`, replacing what was there.
+fn relink(link: &Path, target: &str) -> Result<()> {
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(target, link)
+        .with_context(|| format!("cannot link {} to {target}", link.display()))
 }
 
 /// The radio model's time: microseconds on the rig's monotonic clock since `epoch` (the

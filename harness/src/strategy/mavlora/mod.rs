@@ -30,6 +30,7 @@ use std::time::Duration;
 
 use crate::driver::fixture::FixtureError;
 use crate::driver::program::ProgramMissing;
+pub use crate::driver::radio_emulator::End;
 pub use options::{
     FcProfile, GcsPlan, SessionDefaults, SessionOptions, Variant, sik_with_independent_loss,
     sik_with_loss,

@@ -16,7 +16,7 @@ use crate::driver::fixture::mavlora_intruder::IntruderEvent;
 use crate::driver::fixture::{Fixture, FixtureError};
 use crate::driver::process::Process;
 use crate::driver::program::MAVLORA_BRIDGE;
-use crate::driver::radio_emulator::RadioEmulator;
+use crate::driver::radio_emulator::{End, RadioEmulator};
 use harness_radio::{Direction, LinkStats};
 
 /// The radio's (downlink, uplink) counters when a GCS line was read.
@@ -64,7 +64,11 @@ impl MavloraSession {
             }
         }
         let started = Mono::now();
-        let radio = Arc::new(RadioEmulator::new(&options.name, options.radio.radio()?)?);
+        let radio = Arc::new(RadioEmulator::with_stable_names(
+            &options.name,
+            options.radio.radio()?,
+            dir,
+        )?);
 
         // Flight controller: its own pty behind a bridge; the radio's port when naive.
         let fc_summary = dir.join("fc.json");
@@ -78,7 +82,7 @@ impl MavloraSession {
             command.args(["--reboot-at-item", &item.to_string()]);
         }
         if !bridged {
-            command.args(["--port", radio.air_path()]);
+            command.args(["--port", &radio.air_path()]);
         }
         let fc = Fixture::start("mavlora_fc", command, &dir.join("fc.log"))?;
         let fixture_timeout = Duration::from_secs(10);
@@ -113,7 +117,7 @@ impl MavloraSession {
                 key: key.clone(),
                 starts: 0,
             };
-            bridge = Some(spawn.start(&options, radio.air_path())?);
+            bridge = Some(spawn.start(&options, &radio.air_path())?);
             bridge_spawn = Some(spawn);
             let port = free_udp_port(dir)?;
             let bind = SocketAddr::from(([127, 0, 0, 1], free_udp_port(dir)?));
@@ -128,11 +132,11 @@ impl MavloraSession {
                 bind,
                 starts: 0,
             };
-            router = Some(spawn.start(&options, radio.ground_path())?);
+            router = Some(spawn.start(&options, &radio.ground_path())?);
             router_spawn = Some(spawn);
             gcs_target = vec!["--udp".into(), format!("127.0.0.1:{port}")];
         } else {
-            gcs_target = vec!["--serial".into(), radio.ground_path().to_string()];
+            gcs_target = vec!["--serial".into(), radio.ground_path()];
         }
 
         let p = &options.gcs;
@@ -230,11 +234,11 @@ impl MavloraSession {
         match which {
             Program::Bridge => {
                 let spawn = self.bridge_spawn.as_mut().expect("a bridge has its spawn");
-                self.bridge = Some(spawn.start(&self.options, self.radio.air_path())?);
+                self.bridge = Some(spawn.start(&self.options, &self.radio.air_path())?);
             }
             Program::Router => {
                 let spawn = self.router_spawn.as_mut().expect("a router has its spawn");
-                self.router = Some(spawn.start(&self.options, self.radio.ground_path())?);
+                self.router = Some(spawn.start(&self.options, &self.radio.ground_path())?);
             }
         }
         Ok(started)
@@ -287,6 +291,12 @@ impl MavloraSession {
                 reason: e.to_string(),
             })?;
         Ok(intruder)
+    }
+
+    /// Unplugs one side's radio for `down` and plugs a new one in under the same stable
+    /// name (a USB radio pulled and put back); returns when it was back.
+    pub fn replug_radio(&self, end: End, down: Duration) -> Result<Mono> {
+        Ok(self.radio.replug(end, down)?)
     }
 
     /// Silences the radio both ways from now for `length`; returns when it began.

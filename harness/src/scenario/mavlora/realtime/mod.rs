@@ -14,7 +14,8 @@
 //!   back within the same TMPR;
 //! - [`fc_reboot_mission`]: the autopilot reboots mid-upload: ACCEPTED only with the
 //!   exact plan, an error otherwise, never silence;
-//! - [`process_crash`]: the bridge, or the router, killed and restarted, the same;
+//! - [`outage`]: the bridge or the router killed and restarted, the drone's or the
+//!   ground's radio unplugged and plugged in again: the same;
 //! - [`ground_hijack`]: hostile senders on the ground side while the pilot flies:
 //!   nothing of theirs on the radio, the pilot's commands acked.
 
@@ -22,7 +23,7 @@ pub mod c2_latency;
 pub mod fc_reboot_mission;
 pub mod ground_hijack;
 pub mod mission;
-pub mod process_crash;
+pub mod outage;
 pub mod radio_silence;
 pub mod table_ii;
 
@@ -55,8 +56,10 @@ pub fn scenarios() -> Vec<Scenario> {
         mission::SCENARIO,
         c2_latency::SCENARIO,
         radio_silence::SCENARIO,
-        process_crash::BRIDGE,
-        process_crash::ROUTER,
+        outage::BRIDGE_CRASH,
+        outage::ROUTER_CRASH,
+        outage::AIR_REPLUG,
+        outage::GROUND_REPLUG,
         fc_reboot_mission::SCENARIO,
         ground_hijack::SCENARIO,
     ]
