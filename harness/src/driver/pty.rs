@@ -9,12 +9,15 @@
 //! adapter) would never hang the line up for the device on the other end.
 
 use std::io::{self, Read, Write};
-use std::sync::Arc;
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
+
+use crate::clock::Mono;
 use serialport::{SerialPort, TTYPort};
 
 /// One pty pair: the rig holds the master; a program opens [`PtyPair::path`].
@@ -71,7 +74,11 @@ fn set_cloexec(port: &TTYPort) -> io::Result<()> {
 /// bytes written at [`PtyLink::input_path`] come out at [`PtyLink::output_path`].
 pub struct PtyLink {
     input: PtyPair,
-    output: PtyPair,
+    output: Mutex<PtyPair>,
+    /// The stable name (a symlink) the reading program opens, when made.
+    output_link: Option<String>,
+    /// A new output master for the relay to take up, or `None` to let go of the one it has.
+    swap: Arc<Mutex<Option<Option<TTYPort>>>>,
     stop: Arc<AtomicBool>,
     relay: Option<JoinHandle<()>>,
 }
@@ -86,38 +93,126 @@ impl PtyLink {
         // A reader that stopped must not stall the writer for long.
         to.set_timeout(Duration::from_millis(20))?;
         let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
+        let swap = Arc::new(Mutex::new(None));
+        let (flag, slot) = (stop.clone(), swap.clone());
         let name = name.to_string();
         let relay = std::thread::Builder::new()
             .name(format!("pty-link-{name}"))
-            .spawn(move || relay(&name, &mut from, &mut to, &flag))?;
+            .spawn(move || relay(&name, &mut from, Some(to), &flag, &slot))?;
         Ok(PtyLink {
             input,
-            output,
+            output: Mutex::new(output),
+            output_link: None,
+            swap,
             stop,
             relay: Some(relay),
         })
+    }
+
+    /// As [`PtyLink::new`], with a stable name for the reading end: the symlink `link` to
+    /// its pty (what `/dev/serial/by-id` is to a USB adapter), so it can be unplugged and
+    /// plugged in again ([`PtyLink::replug_output`]) as a new pty under the same name.
+    pub fn with_stable_output(name: &str, link: &Path) -> Result<PtyLink> {
+        let mut cable = Self::new(name)?;
+        relink(
+            link,
+            cable
+                .output
+                .get_mut()
+                .unwrap_or_else(PoisonError::into_inner)
+                .path(),
+        )?;
+        cable.output_link = Some(link.display().to_string());
+        Ok(cable)
     }
 
     pub fn input_path(&self) -> &str {
         self.input.path()
     }
 
-    pub fn output_path(&self) -> &str {
-        self.output.path()
+    /// What the reading program opens: the stable name if there is one, else the pty.
+    pub fn output_path(&self) -> String {
+        match &self.output_link {
+            Some(link) => link.clone(),
+            None => self
+                .output
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .path()
+                .to_string(),
+        }
+    }
+
+    /// Unplugs the reading end (its pty goes away: the reader's port hangs up and the
+    /// stable name leads nowhere; what is written meanwhile is dropped), waits `down`, and
+    /// plugs a new pty in under the same name. Returns when it is back. Needs
+    /// [`PtyLink::with_stable_output`].
+    pub fn replug_output(&self, down: Duration) -> Result<Mono> {
+        let link = self
+            .output_link
+            .as_deref()
+            .context("this cable has no stable name to replug under (with_stable_output)")?;
+        let _ = std::fs::remove_file(link);
+        self.hand_over(None);
+        let new = PtyPair::new()?;
+        // The old pair's slave closes with it: its node is gone.
+        drop(std::mem::replace(
+            &mut *self.output.lock().unwrap_or_else(PoisonError::into_inner),
+            new,
+        ));
+        std::thread::sleep(down);
+        let mut output = self.output.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut master = output.take_master()?;
+        master.set_timeout(Duration::from_millis(20))?;
+        relink(Path::new(link), output.path())?;
+        drop(output);
+        self.hand_over(Some(master));
+        Ok(Mono::now())
+    }
+
+    /// Gives the relay a new output master (or none) and waits until it took it.
+    fn hand_over(&self, master: Option<TTYPort>) {
+        *self.swap.lock().unwrap_or_else(PoisonError::into_inner) = Some(master);
+        while self
+            .swap
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .is_some()
+            && self.relay.as_ref().is_some_and(|r| !r.is_finished())
+        {
+            std::thread::sleep(Duration::from_millis(1));
+        }
     }
 }
 
-fn relay(name: &str, from: &mut TTYPort, to: &mut TTYPort, stop: &AtomicBool) {
+/// Points the symlink `link` at `target`, replacing what was there.
+pub fn relink(link: &Path, target: &str) -> Result<()> {
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(target, link)
+        .with_context(|| format!("cannot link {} to {target}", link.display()))
+}
+
+fn relay(
+    name: &str,
+    from: &mut TTYPort,
+    mut to: Option<TTYPort>,
+    stop: &AtomicBool,
+    swap: &Mutex<Option<Option<TTYPort>>>,
+) {
     // A cable adds no delay; neither should the relay standing in for one.
     hostio::realtime::request("pty-link");
     let mut buf = [0u8; 1024];
     let mut dropped = 0u64;
     while !stop.load(Ordering::Relaxed) {
+        if let Some(next) = swap.lock().unwrap_or_else(PoisonError::into_inner).take() {
+            // The old master closes here: the reader on that end sees its line hang up.
+            to = next;
+        }
         match from.read(&mut buf) {
             Ok(0) => {}
             Ok(n) => {
-                if to.write_all(&buf[..n]).is_err() {
+                let written = to.as_mut().is_some_and(|t| t.write_all(&buf[..n]).is_ok());
+                if !written {
                     dropped += n as u64;
                 }
             }
@@ -165,6 +260,48 @@ mod tests {
         let mut got = [0u8; 6];
         reader.read_exact(&mut got).unwrap();
         assert_eq!(&got, b"\x0fhello");
+    }
+
+    /// A replugged reading end: the reader's port hangs up, the stable name leads nowhere
+    /// while it is out, and the same name opens a new pty that carries the bytes again.
+    #[test]
+    fn a_replugged_output_hangs_up_and_comes_back_under_its_stable_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let name = dir.path().join("rx0-device");
+        let link = Arc::new(PtyLink::with_stable_output("test", &name).unwrap());
+        assert_eq!(link.output_path(), name.display().to_string());
+        let open = |path: &str| {
+            serialport::new(path, 100_000)
+                .timeout(Duration::from_millis(300))
+                .open_native()
+        };
+        let mut writer = open(link.input_path()).unwrap();
+        let mut reader = open(&link.output_path()).unwrap();
+        writer.write_all(b"one").unwrap();
+        let mut got = [0u8; 3];
+        reader.read_exact(&mut got).unwrap();
+        assert_eq!(&got, b"one");
+
+        let replug = {
+            let link = link.clone();
+            std::thread::spawn(move || link.replug_output(Duration::from_millis(500)).unwrap())
+        };
+        std::thread::sleep(Duration::from_millis(250));
+        let mut buf = [0u8; 8];
+        assert!(
+            matches!(reader.read(&mut buf), Ok(0) | Err(_))
+                && !matches!(reader.read(&mut buf), Err(e) if e.kind() == io::ErrorKind::TimedOut),
+            "the unplugged end still reads as a live line"
+        );
+        assert!(
+            open(&link.output_path()).is_err(),
+            "the name leads somewhere while out"
+        );
+        replug.join().unwrap();
+        let mut reader = open(&link.output_path()).unwrap();
+        writer.write_all(b"two").unwrap();
+        reader.read_exact(&mut got).unwrap();
+        assert_eq!(&got, b"two");
     }
 
     /// Regression: the masters were inherited by every child, so closing one never hung

@@ -24,7 +24,7 @@ use anyhow::{Context, Result};
 use serialport::{SerialPort, TTYPort};
 
 use crate::clock::Mono;
-use crate::driver::pty::PtyPair;
+use crate::driver::pty::{PtyPair, relink};
 use harness_radio::{Direction, LinkStats, Radio, Silence};
 use timebase::Instant;
 
@@ -376,13 +376,6 @@ fn run(name: &str, shared: &Shared, mut ports: [Option<TTYPort>; 2]) {
             "radio emulator delivered bytes nobody read"
         );
     }
-}
-
-/// Points the symlink `link` at `target`, replacing what was there.
-fn relink(link: &Path, target: &str) -> Result<()> {
-    let _ = std::fs::remove_file(link);
-    std::os::unix::fs::symlink(target, link)
-        .with_context(|| format!("cannot link {} to {target}", link.display()))
 }
 
 /// The radio model's time: microseconds on the rig's monotonic clock since `epoch` (the

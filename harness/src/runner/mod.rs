@@ -294,7 +294,11 @@ fn plan(rig: &Arc<RigFile>, phases: &Phases, out_dir: &Path, images: &Images) ->
                 known_names.extend(names(&flash.0));
                 trials.push(flash_trial(rig, phases, images, mode, board.clone(), flash));
             }
-            for scenario in multirx::scenarios() {
+            let mut scenarios = multirx::scenarios();
+            if matches!(section.device.setup, DeviceSetup::Emulated { .. }) {
+                scenarios.extend(multirx::emulated_only());
+            }
+            for scenario in scenarios {
                 let plan = ScenarioPlan::declare(&scenario, &limits);
                 known_names.extend(names(&plan.declared));
                 trials.push(scenario_trial(

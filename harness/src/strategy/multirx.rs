@@ -68,7 +68,8 @@ pub struct MultirxSession {
     device: Option<Process>,
     /// The emulated device's TX probe (see `multirx-emu --tx-log`).
     tx_log: Option<PathBuf>,
-    _links: Vec<PtyLink>,
+    /// The emulated wires into the device: receivers in order, then IFS.
+    links: Vec<PtyLink>,
     _ptys: Vec<PtyPair>,
 }
 
@@ -123,9 +124,12 @@ impl MultirxSession {
         let mut fixture_port = |name: &str, spec: &PortSpec| -> Result<String> {
             match spec {
                 PortSpec::Pty => {
-                    let link = PtyLink::new(name)?;
+                    // The device opens a stable name, as a bench's /dev/serial/by-id: a
+                    // receiver can be unplugged and plugged in again under it.
+                    let link =
+                        PtyLink::with_stable_output(name, &log_dir.join(format!("{name}-device")))?;
                     let fixture_end = link.input_path().to_string();
-                    device_inputs.push(link.output_path().to_string());
+                    device_inputs.push(link.output_path());
                     links.push(link);
                     Ok(fixture_end)
                 }
@@ -258,7 +262,7 @@ impl MultirxSession {
             log_dir: log_dir.to_path_buf(),
             tx_log: device.as_ref().map(|_| log_dir.join(TX_LOG)),
             device,
-            _links: links,
+            links,
             _ptys: ptys,
         };
         // The device is up when its output reaches the flight controller.
@@ -287,6 +291,18 @@ impl MultirxSession {
         );
         session.boot = Some(boot);
         Ok(session)
+    }
+
+    /// Unplugs receiver `rx`'s wire into the device for `down` and plugs a new one in
+    /// under the same stable name (a USB adapter pulled and put back); returns when it is
+    /// back. Emulated rigs only: a bench's wires are real.
+    pub fn replug_receiver(&self, rx: u8, down: Duration) -> Result<Mono> {
+        let link = self.links.get(usize::from(rx)).with_context(|| {
+            format!(
+                "receiver {rx} has no emulated wire to replug (a bench rig, or no such receiver)"
+            )
+        })?;
+        link.replug_output(down)
     }
 
     pub fn receiver(&self, rx: u8) -> &ReceiverFixture {

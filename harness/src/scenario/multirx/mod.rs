@@ -1,7 +1,7 @@
 //! MultiRX scenarios: the paper's A–D (§VI-B), the handover variants that
 //! matter for an SLA (failsafe flag vs silence), a six-pilot route, the
 //! independent fail-safe override, and faults (a receiver's wire garbled,
-//! stuttering or flooding; every receiver dead). Each runs in both modes on its own
+//! stuttering or flooding, or unplugged and back on an emulated rig; every receiver dead). Each runs in both modes on its own
 //! freshly started device.
 
 mod all_dead;
@@ -11,6 +11,7 @@ mod ifs;
 mod line_fault;
 mod loiter;
 mod mission;
+mod port_replug;
 mod route;
 
 use std::time::Duration;
@@ -120,6 +121,11 @@ pub fn scenarios() -> Vec<Scenario> {
         line_fault::FLOOD,
         all_dead::SCENARIO,
     ]
+}
+
+/// Scenarios only an emulated device can run: the rig pulls out wires it made.
+pub fn emulated_only() -> Vec<Scenario> {
+    vec![port_replug::SCENARIO]
 }
 
 /// What every scenario records about its whole session, and the whole-run
