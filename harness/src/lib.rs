@@ -18,6 +18,7 @@
 pub mod clock;
 pub mod driver;
 pub mod evidence;
+pub mod heap;
 pub mod measurement;
 pub mod px4;
 pub mod record;

@@ -14,6 +14,10 @@ use harness::rigfile::{DeviceSetup, Mode, RigFile};
 use harness::runner::{self, RunOptions};
 use harness::strategy::firmware;
 
+/// Every allocation counted, so the soak can show its memory stays flat.
+#[global_allocator]
+static HEAP: harness::heap::HeapMeter = harness::heap::HeapMeter;
+
 /// The exit codes, as `rig --help` lists them.
 const EXIT_CODES: &str = "\
 Exit codes:

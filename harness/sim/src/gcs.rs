@@ -82,6 +82,8 @@ pub struct CommandStats {
     pub failed: u64,
     /// First copy sent → first matching ack, per acknowledged command, in order.
     pub latencies: Vec<Duration>,
+    /// Serial numbers (see [`GcsMock::planned_command`]) of the commands given up.
+    pub given_up: Vec<u64>,
 }
 
 #[derive(Debug)]
@@ -171,6 +173,15 @@ impl GcsMock {
         });
     }
 
+    /// Makes room up front for `n` commands in the command loop's records (latencies, given
+    /// up), so a long run's records do not grow the heap while it is measured (a soak).
+    pub fn reserve_command_records(&mut self, n: usize) {
+        if let Some(c) = &mut self.commands {
+            c.stats.latencies.reserve(n);
+            c.stats.given_up.reserve(n);
+        }
+    }
+
     /// Stops starting new commands; one in flight still waits for its ack.
     pub fn stop_commands(&mut self) {
         if let Some(c) = &mut self.commands {
@@ -227,6 +238,8 @@ impl GcsMock {
             if now >= p.last_sent + c.plan.retry {
                 if p.copies >= c.plan.attempts {
                     c.stats.failed += 1;
+                    // One command at a time: the pending one is the last started.
+                    c.stats.given_up.push(c.stats.started - 1);
                     c.pending = None;
                     c.next_at = now + c.plan.period;
                 } else {

@@ -254,6 +254,22 @@ impl<A: Autopilot> World<A> {
         }
     }
 
+    /// The router, to feed it directly (a flood on the ground side).
+    pub fn router_mut(&mut self) -> Option<&mut Router> {
+        match &mut self.relay {
+            Relay::MavLora(_, r) => Some(r),
+            Relay::Transparent => None,
+        }
+    }
+
+    /// The radio, to change it while the world runs (a silence scheduled mid-flight).
+    pub fn radio_mut(&mut self) -> Option<&mut Radio> {
+        match &mut self.carrier {
+            Carrier::Radio(r) => Some(r),
+            Carrier::Wire => None,
+        }
+    }
+
     /// Steps taken so far (one per distinct deadline), for profiling.
     pub fn steps(&self) -> u64 {
         self.steps

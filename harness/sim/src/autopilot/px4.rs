@@ -333,6 +333,13 @@ impl Px4Fc {
     }
 
     /// Every command executed so far (each copy that reached it counts), in order.
+    /// Makes room up front for `n` executions in its record, so a long run's record does not
+    /// grow the heap while it is being measured (a soak).
+    pub fn reserve_executed(&mut self, n: usize) {
+        self.executed.reserve(n);
+    }
+
+    /// Every command it executed, in order (retries it recognised as such excluded).
     pub fn executed(&self) -> &[Executed] {
         &self.executed
     }

@@ -174,7 +174,19 @@ pub struct Integrity {
 }
 
 impl Integrity {
-    fn of(stats: &CommandStats, executed: &[Executed]) -> Self {
+    /// Counted from the ground's command stats and the autopilot's executions (the mix).
+    pub fn of(stats: &CommandStats, executed: &[Executed]) -> Self {
+        let (runs, unknown) = Self::runs(stats, executed);
+        Self {
+            lost: runs.iter().filter(|&&n| n == 0).count() as u64,
+            executed_twice: runs.iter().filter(|&&n| n > 1).count() as u64,
+            unknown,
+        }
+    }
+
+    /// How often the autopilot executed each command the ground started (by serial), and
+    /// the executions that match none.
+    pub fn runs(stats: &CommandStats, executed: &[Executed]) -> (Vec<u64>, u64) {
         let mut runs = vec![0u64; stats.started as usize];
         let mut unknown = 0;
         for e in executed {
@@ -191,11 +203,7 @@ impl Integrity {
                 unknown += 1;
             }
         }
-        Self {
-            lost: runs.iter().filter(|&&n| n == 0).count() as u64,
-            executed_twice: runs.iter().filter(|&&n| n > 1).count() as u64,
-            unknown,
-        }
+        (runs, unknown)
     }
 }
 
