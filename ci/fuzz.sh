@@ -6,6 +6,20 @@
 #
 # Needs the nightly toolchain (sanitizers) and cargo-fuzz: installs cargo-fuzz from crates.io
 # if it is missing. Long runs: FUZZ_SECONDS=600 bash ci/fuzz.sh
+#
+# Not part of CI (ci/test.sh): nightly and sanitizer builds do not fit its time. What CI checks
+# instead, on stable, with the same code: each target's body lives in
+# <crate>/fuzz/bodies/<target>.rs, which both fuzz_targets/<target>.rs (libFuzzer) and the
+# crate's tests/fuzz_corpus.rs (an ordinary test binary) compile. That test replays every file
+# of fuzz/corpus/<target>/ and fuzz/artifacts/<target>/ (a missing or empty corpus fails it),
+# then inputs mutated from them (bit flips, truncation, splices, garbage), fixed seed plus
+# FUZZ_SEED if set, about 10 s per crate (ci/fuzz_replay.rs). It finds what is near the kept
+# corpus; this script explores (coverage-guided) and grows the corpus. A failure there writes
+# the input to target/fuzz-failures/<target>/, which `cargo fuzz run <target> <file>` replays.
+# Inputs this script finds (fuzz/artifacts/<target>/) and adds to the corpus (SHA-1 names) are
+# git-ignored: the test replays them on this machine only. Once a crash is fixed, copy its
+# input into fuzz/corpus/<target>/ under a name that says what it is, and commit it: CI then
+# replays it on every run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${FUZZ_SECONDS:-20}

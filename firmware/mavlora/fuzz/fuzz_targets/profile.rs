@@ -1,27 +1,8 @@
-//! Profile files (TOML, from the operator): any text either parses into a profile whose
-//! rules all name a message id and a rate that is finite and positive, or is refused with an
-//! error that names the origin and a line; never a panic.
+//! cargo-fuzz target `profile`: the body (its invariants, in `../bodies/profile.rs`) also runs on
+//! stable in `cargo test` (`tests/fuzz_corpus.rs`: corpus replay and mutations).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
-use mavlora::filter::Profile;
+#[path = "../bodies/profile.rs"]
+mod body;
 
-fuzz_target!(|data: &[u8]| {
-    let Ok(text) = std::str::from_utf8(data) else {
-        return;
-    };
-    match Profile::parse(text, "fuzz.toml") {
-        Ok(profile) => {
-            for (_, rule) in profile.rules() {
-                let _ = format!("{rule:?}");
-            }
-        }
-        Err(e) => {
-            let message = e.to_string();
-            assert!(
-                message.contains("fuzz.toml"),
-                "error without its origin: {message}"
-            );
-        }
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| body::run(data));

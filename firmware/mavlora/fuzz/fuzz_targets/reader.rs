@@ -1,35 +1,8 @@
-//! Stream reader on arbitrary bytes: no panic, checked frames really are valid, and the output
-//! does not depend on how the input is split into chunks.
+//! cargo-fuzz target `reader`: the body (its invariants, in `../bodies/reader.rs`) also runs on
+//! stable in `cargo test` (`tests/fuzz_corpus.rs`: corpus replay and mutations).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
-use mavlora::wire::{Frame, FrameReader, Integrity, known};
+#[path = "../bodies/reader.rs"]
+mod body;
 
-fn read(input: &[u8], chunk: usize) -> Vec<Vec<u8>> {
-    let mut reader = FrameReader::new();
-    let mut out = Vec::new();
-    for piece in input.chunks(chunk.max(1)) {
-        reader.push(piece);
-        while let Some(received) = reader.next_frame() {
-            if received.integrity == Integrity::Checked {
-                let frame = Frame::new_checked(received.frame.as_bytes()).expect("well-formed");
-                let extra = known::crc_extra(frame.message_id()).expect("checked means known");
-                assert!(frame.crc_matches(extra));
-            }
-            out.push(received.frame.into_inner());
-        }
-    }
-    reader.finish();
-    while let Some(received) = reader.next_frame() {
-        out.push(received.frame.into_inner());
-    }
-    out
-}
-
-fuzz_target!(|data: &[u8]| {
-    let Some((&chunk, input)) = data.split_first() else {
-        return;
-    };
-    let whole = read(input, input.len());
-    assert_eq!(read(input, usize::from(chunk)), whole);
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| body::run(data));

@@ -1,12 +1,8 @@
-//! Arbitrary text as a configuration file: an error or a valid config, never a panic.
+//! cargo-fuzz target `config_toml`: the body (its invariants, in `../bodies/config_toml.rs`) also runs on
+//! stable in `cargo test` (`tests/fuzz_corpus.rs`: corpus replay and mutations).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
+#[path = "../bodies/config_toml.rs"]
+mod body;
 
-fuzz_target!(|data: &[u8]| {
-    if let Ok(text) = std::str::from_utf8(data)
-        && let Ok(config) = multirx_core::Config::from_toml(text)
-    {
-        config.validate().expect("from_toml returns only valid configs");
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| body::run(data));
