@@ -60,6 +60,8 @@ run_one() {
         return 1
     fi
     echo "run-tests: ok $name ($((SECONDS - started)) s; $(grep -h '^test result' "$logs/$name.log" | tail -1))"
+    # What the fuzz-corpus replays covered (inputs, seconds: tests/fuzz_corpus.rs).
+    grep -o 'fuzz-corpus: .*' "$logs/$name.log" | sed 's/^/run-tests:   /' || true
 }
 export -f run_one
 export logs
