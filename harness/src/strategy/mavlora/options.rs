@@ -20,10 +20,13 @@ pub enum Variant {
 /// PX4 stream profile the FC fixture boots with (`mavlora_fc.py --profile`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FcProfile {
-    /// Telemetry-radio default.
+    /// PX4, telemetry-radio default (`mavlora_fc.py`).
     Normal,
-    /// USB default, closest to the paper's wired 11,440 B/s.
+    /// PX4, USB default, closest to the paper's wired 11,440 B/s (`mavlora_fc.py`).
     Config,
+    /// ArduPilot Copter on a MAVLink 1 telemetry port, every stream group at 4 Hz, that
+    /// ignores stream requests (`ardupilot_fc.py --ignore-stream-requests`).
+    ArduPilot,
 }
 
 impl FcProfile {
@@ -31,6 +34,25 @@ impl FcProfile {
         match self {
             FcProfile::Normal => "normal",
             FcProfile::Config => "config",
+            FcProfile::ArduPilot => "ardupilot",
+        }
+    }
+
+    /// The fixture program that plays it, in the fixtures folder.
+    pub fn fixture(self) -> &'static str {
+        match self {
+            FcProfile::Normal | FcProfile::Config => "mavlora_fc.py",
+            FcProfile::ArduPilot => "ardupilot_fc.py",
+        }
+    }
+
+    /// The fixture's arguments for it (flying the paper's route).
+    pub fn fixture_args(self) -> Vec<&'static str> {
+        match self {
+            FcProfile::Normal | FcProfile::Config => {
+                vec!["--profile", self.as_str(), "--path", "route"]
+            }
+            FcProfile::ArduPilot => vec!["--ignore-stream-requests", "--path", "route"],
         }
     }
 }

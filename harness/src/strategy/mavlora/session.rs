@@ -74,10 +74,10 @@ impl MavloraSession {
         let fc_summary = dir.join("fc.json");
         let mut command = Command::new(&options.python);
         command
-            .arg(options.fixtures_dir.join("mavlora_fc.py"))
+            .arg(options.fixtures_dir.join(options.fc_profile.fixture()))
             .arg("--summary")
             .arg(&fc_summary)
-            .args(["--profile", options.fc_profile.as_str(), "--path", "route"]);
+            .args(options.fc_profile.fixture_args());
         if let Some(item) = options.fc_reboot_at_item {
             command.args(["--reboot-at-item", &item.to_string()]);
         }
@@ -91,7 +91,7 @@ impl MavloraSession {
                 matches!(l.event, FcEvent::Ready { .. })
             })
             .map_err(|e| SessionError::FixtureStart {
-                name: "mavlora_fc.py".into(),
+                name: options.fc_profile.fixture().into(),
                 timeout: fixture_timeout,
                 log: fc.log_path().to_path_buf(),
                 reason: e.to_string(),

@@ -7,6 +7,8 @@
 //!
 //! - [`table_ii`]: radio bandwidth of compact telemetry and of limiting +
 //!   filtering (paper Table II), loss-free SiK;
+//! - [`ardupilot`]: an ArduPilot-like autopilot (MAVLink 1, stream requests ignored)
+//!   through compact and limiting + filtering: budgets, position rate, commands;
 //! - [`mission`]: a mission upload through the relay over SiK with bursty loss;
 //! - [`c2_latency`]: command-to-ack latency over SiK with bursty loss (SORA
 //!   TMPR: < 3 s for medium robustness);
@@ -19,6 +21,7 @@
 //! - [`ground_hijack`]: hostile senders on the ground side while the pilot flies:
 //!   nothing of theirs on the radio, the pilot's commands acked.
 
+pub mod ardupilot;
 pub mod c2_latency;
 pub mod fc_reboot_mission;
 pub mod ground_hijack;
@@ -53,6 +56,7 @@ pub type Script = Box<dyn FnOnce(&mut PhaseContext, &SessionDefaults) -> Result<
 pub fn scenarios() -> Vec<Scenario> {
     vec![
         table_ii::SCENARIO,
+        ardupilot::SCENARIO,
         mission::SCENARIO,
         c2_latency::SCENARIO,
         radio_silence::SCENARIO,
