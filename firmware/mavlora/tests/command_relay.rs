@@ -6,7 +6,10 @@
 //!
 //! Properties: each command the ground sends reaches the autopilot exactly once, in order,
 //! even when it repeats an earlier one with identical parameters; every ack the ground
-//! sees answers the command it is waiting on.
+//! sees answers the command it is waiting on. Both hold with the redundant copies of a
+//! lossy link (the router's extra copies of each command, the bridge's repeat of each ack)
+//! off, as configured by default, or forced on with gaps drawn against the link's latency,
+//! so that copies, repeats and the next command cross on the way.
 
 use mavlora::Duration;
 use std::collections::{HashMap, VecDeque};
@@ -16,6 +19,7 @@ use proptest::prelude::*;
 
 use mavlora::Instant;
 use mavlora::bridge::{Bridge, BridgeConfig};
+use mavlora::command::Redundancy;
 use mavlora::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd, MavMessage, MavResult};
 use mavlora::filter::Profile;
 use mavlora::router::{Router, RouterConfig};
@@ -105,11 +109,46 @@ struct Outcome {
     gave_up: HashMap<u16, usize>,
 }
 
+/// How the relay's redundant copies are set up for a run.
+#[derive(Debug, Clone, Copy)]
+enum Copies {
+    /// The defaults (on until the link is measured clean).
+    Default,
+    /// None: only timeouts and the ground's retries resend.
+    Off,
+    /// Always on (no loss is low enough), with these gaps.
+    Forced(Redundancy),
+}
+
 fn run(plan: &[Planned], loss: f64, burst_at_ms: u64, burst_ms: u64, seed: u64) -> Outcome {
+    run_with(plan, loss, burst_at_ms, burst_ms, seed, Copies::Default)
+}
+
+fn run_with(
+    plan: &[Planned],
+    loss: f64,
+    burst_at_ms: u64,
+    burst_ms: u64,
+    seed: u64,
+    copies: Copies,
+) -> Outcome {
     let t0 = Instant::ZERO;
-    let mut router = Router::new(RouterConfig::new(budget()), t0).unwrap();
+    let mut router_config = RouterConfig::new(budget());
     let profile = Profile::parse("", "test").unwrap();
-    let mut bridge = Bridge::new(BridgeConfig::new(profile, budget()), t0).unwrap();
+    let mut bridge_config = BridgeConfig::new(profile, budget());
+    match copies {
+        Copies::Default => {}
+        Copies::Off => {
+            router_config.command_redundancy = None;
+            bridge_config.command_redundancy = None;
+        }
+        Copies::Forced(r) => {
+            router_config.command_redundancy = Some(r);
+            bridge_config.command_redundancy = Some(r);
+        }
+    }
+    let mut router = Router::new(router_config, t0).unwrap();
+    let mut bridge = Bridge::new(bridge_config, t0).unwrap();
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
     let mut rng = Rng(seed | 1);
@@ -360,6 +399,45 @@ fn set_mode_4_then_5_200_ms_later_both_run_in_order_each_acked_as_itself() {
     assert_eq!(out.acked, 2);
 }
 
+/// Redundant copies off, default, or forced on with a pair gap and a spacing from 1 ms to
+/// beyond the link's 240 ms round trip.
+fn copies() -> impl Strategy<Value = Copies> {
+    prop_oneof![
+        Just(Copies::Off),
+        Just(Copies::Default),
+        (1u64..200, 1u64..400).prop_map(|(gap, spacing)| Copies::Forced(Redundancy {
+            min_loss: 0.0,
+            pair_gap: Duration::from_millis(gap),
+            spacing: Duration::from_millis(spacing),
+            ..Redundancy::SIK_64K
+        })),
+    ]
+}
+
+#[test]
+fn forced_copies_and_ack_repeats_under_ack_loss_run_each_command_once() {
+    // every command three times more and every ack twice, the acks lost for 8 s over the
+    // second trigger: the copies are answered from the cache, the repeats never answer the
+    // next command
+    let trigger = |gap_ms| Planned {
+        id: 1,
+        param: 1,
+        gap_ms,
+        eager: false,
+    };
+    let forced = Copies::Forced(Redundancy {
+        min_loss: 0.0,
+        ..Redundancy::SIK_64K
+    });
+    let plan = [trigger(0), trigger(2500), trigger(2500), trigger(0)];
+    let out = run_with(&plan, 0.1, 3000, 8000, 11, forced);
+    check(&out).unwrap();
+    assert_eq!(
+        out.executed[&(MavCmd::MAV_CMD_DO_DIGICAM_CONTROL as u16)].len(),
+        4
+    );
+}
+
 fn plans(eager: bool) -> impl Strategy<Value = Vec<Planned>> {
     prop::collection::vec(
         (0..IDS.len(), 0u8..2, 0u64..4000, any::<bool>()).prop_map(
@@ -387,8 +465,9 @@ proptest! {
         burst_at_ms in 0u64..20_000,
         burst_ms in 0u64..12_000,
         seed in any::<u64>(),
+        copies in copies(),
     ) {
-        let out = run(&plan, loss, burst_at_ms, burst_ms, seed);
+        let out = run_with(&plan, loss, burst_at_ms, burst_ms, seed, copies);
         prop_assert!(check(&out).is_ok(), "{}", check(&out).unwrap_err());
     }
 
@@ -401,8 +480,9 @@ proptest! {
         plan in plans(true),
         loss in 0.0f64..0.3,
         seed in any::<u64>(),
+        copies in copies(),
     ) {
-        let out = run(&plan, loss, 0, 0, seed);
+        let out = run_with(&plan, loss, 0, 0, seed, copies);
         prop_assert!(check(&out).is_ok(), "{}", check(&out).unwrap_err());
     }
 }

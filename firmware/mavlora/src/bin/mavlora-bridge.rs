@@ -204,6 +204,7 @@ fn status(signing: &str, bridge: &Bridge, fc: &SerialLink, radio: &SerialLink, i
         missions = s.mission.completed,
         command_acks_replayed = s.commands.replayed,
         command_copies_dropped = s.commands.dropped,
+        command_acks_repeated = s.commands.repeated,
         rejected_unsigned = s.signing.unsigned,
         rejected_bad_signature = s.signing.bad_signature,
         rejected_replayed = s.signing.replayed,

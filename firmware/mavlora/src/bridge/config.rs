@@ -2,6 +2,7 @@
 
 use crate::time::Duration;
 
+use crate::command::Redundancy;
 use crate::compact::CompactConfig;
 use crate::filter::Profile;
 use crate::mission::MissionConfig;
@@ -41,6 +42,10 @@ pub struct BridgeConfig {
     /// …for this long after the last one heard from the radio (the router sends them sparsely:
     /// PX4 declares data-link loss after `COM_DL_LOSS_T`, 10 s by default).
     pub gcs_heartbeat_hold: Duration,
+    /// Each ack of a command from the radio goes twice on a lossy link (see
+    /// [`AckCache::with_redundancy`](crate::command::AckCache::with_redundancy)); the radio's
+    /// timing (default: SiK 64k). `None`: once, and again only for a copy of the command.
+    pub command_redundancy: Option<Redundancy>,
 }
 
 impl BridgeConfig {
@@ -60,6 +65,7 @@ impl BridgeConfig {
             config_attempts: 3,
             gcs_heartbeat_period: Duration::from_secs(1),
             gcs_heartbeat_hold: Duration::from_secs(7),
+            command_redundancy: Some(Redundancy::SIK_64K),
         }
     }
 }

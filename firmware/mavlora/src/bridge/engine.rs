@@ -9,7 +9,7 @@ use tracing::{debug, info};
 use super::config::BridgeConfig;
 use super::fc_watch::{FcEvent, FcWatch};
 use super::gcs_heartbeat::GcsHeartbeat;
-use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict};
+use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict, link_loss};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
 use crate::dialect::{MavCmd, MavMessage, MavResult, MavType, RADIO_STATUS_DATA};
 use crate::filter::{
@@ -125,7 +125,13 @@ impl Bridge {
             quality: LinkQuality::new(config.quality, now),
             compactor: config.compact.map(Compactor::new),
             mission: MissionRelay::new(config.mission),
-            commands: AckCache::new(ACK_HOLD, Duration::from_secs(1)),
+            commands: {
+                let c = AckCache::new(ACK_HOLD, Duration::from_secs(1));
+                match config.command_redundancy {
+                    Some(r) => c.with_redundancy(r),
+                    None => c,
+                }
+            },
             watch: FcWatch::new(config.fc_silence),
             gcs_heartbeat: GcsHeartbeat::new(
                 config.gcs_heartbeat_period,
@@ -273,10 +279,13 @@ impl Bridge {
                 self.config_ack(ack.result, now);
                 return;
             }
+            if id == ids::COMMAND_ACK {
+                self.commands.set_link_loss(now, self.link_loss(now));
+            }
             if id == ids::COMMAND_ACK
                 && let Some(tagged) =
                     self.commands
-                        .ack(frame.system_id(), frame.component_id(), &frame, msg)
+                        .ack(now, frame.system_id(), frame.component_id(), &frame, msg)
             {
                 // The ack of a command from the radio, tagged with the command it answers.
                 if self.filter.check(&tagged, now) == Verdict::Pass {
@@ -481,6 +490,7 @@ impl Bridge {
             // Commands the router may have resent: each reaches the FC once.
             ids::COMMAND_INT | ids::COMMAND_LONG => {
                 if let Ok(msg) = frame.decode::<MavMessage>() {
+                    self.commands.set_link_loss(now, self.link_loss(now));
                     match self.commands.command(&frame, &msg, now) {
                         CacheVerdict::Forward(f) => return self.forward_to_fc(f),
                         CacheVerdict::Replay(ack) => {
@@ -552,6 +562,15 @@ impl Bridge {
         self.config_tick(now);
         self.mission.handle_timeout(now);
         self.drain_mission(now);
+        self.commands.set_link_loss(now, self.link_loss(now));
+        while let Some(ack) = self.commands.poll_repeat(now) {
+            self.scheduler.push(ack, Class::Priority, now);
+        }
+    }
+
+    /// The loss a command's ack meets on the radio: the worse direction.
+    fn link_loss(&self, now: Instant) -> Option<f64> {
+        link_loss(self.quality.own_loss(now), self.quality.peer_loss(now))
     }
 
     /// Whether compact frames are coalesced and link-quality reports ride with them (only
@@ -606,6 +625,7 @@ impl Bridge {
             self.gcs_heartbeat.poll_timeout(),
             self.config_state.next_retry,
             self.mission.poll_timeout(),
+            self.commands.poll_timeout(),
             // Frames (mission replies) waiting for the flight controller: due at once.
             (!self.to_fc.is_empty()).then_some(Instant::ZERO),
         ]

@@ -1,10 +1,11 @@
-//! The bridge's half of the command relay: at most one execution per command copy.
+//! The bridge's half of the command relay: at most one execution per command copy, and
+//! each ack twice on a lossy link.
 
 use crate::time::Duration;
 
-use super::ack_tag::tag_ack;
-use super::{CommandId, confirmation, split_confirmation, with_confirmation};
-use crate::dialect::{MavMessage, MavResult};
+use super::ack_tag::{AckTag, tag_ack};
+use super::{CommandId, LossGate, Redundancy, confirmation, split_confirmation, with_confirmation};
+use crate::dialect::{COMMAND_ACK_DATA, MavMessage, MavResult};
 use crate::time::Instant;
 use crate::wire::OwnedFrame;
 
@@ -28,6 +29,10 @@ pub struct AckCacheStats {
     pub replayed: u64,
     /// Copies dropped while the first was in progress.
     pub dropped: u64,
+    /// Acks sent a second time of the bridge's own accord (a lossy link).
+    pub repeated: u64,
+    /// Copies that arrived while their ack's repeat was due: the repeat answers them.
+    pub covered: u64,
 }
 
 #[derive(Debug)]
@@ -40,7 +45,34 @@ struct Entry {
     forwarded: Instant,
     /// Times forwarded to the flight controller.
     forwards: u8,
-    ack: Option<OwnedFrame>,
+    /// The radio attempt of the copy last forwarded (`None`: `COMMAND_INT`).
+    attempt: Option<u8>,
+    ack: Option<Cached>,
+    /// When its ack goes again, if it does.
+    repeat_at: Option<Instant>,
+}
+
+/// An ack the flight controller sent for a command from the radio.
+#[derive(Debug)]
+struct Cached {
+    /// As the flight controller sent it.
+    frame: OwnedFrame,
+    ack: COMMAND_ACK_DATA,
+    /// As it first went on the radio (tagged, or as it came).
+    radio: OwnedFrame,
+    /// It carries the tag (a `COMMAND_LONG`'s ack whose value fits beside it).
+    tagged: bool,
+}
+
+impl Cached {
+    /// The ack as it goes on the radio answering the copy `attempt` (`None`: a repeat).
+    fn answer(&self, generation: u8, attempt: Option<u8>) -> OwnedFrame {
+        if !self.tagged {
+            return self.radio.clone();
+        }
+        tag_ack(&self.frame, &self.ack, AckTag::new(generation, attempt))
+            .unwrap_or_else(|| self.radio.clone())
+    }
 }
 
 /// Sans-IO cache of recent commands and their acks.
@@ -48,6 +80,9 @@ struct Entry {
 pub struct AckCache {
     hold: Duration,
     in_flight: Duration,
+    redundancy: Option<Redundancy>,
+    /// Whether the measured loss calls for repeats (see [`AckCache::set_link_loss`]).
+    gate: LossGate,
     entries: Vec<Entry>,
     stats: AckCacheStats,
 }
@@ -61,9 +96,34 @@ impl AckCache {
         Self {
             hold,
             in_flight,
+            redundancy: None,
+            gate: LossGate::default(),
             entries: Vec::new(),
             stats: AckCacheStats::default(),
         }
+    }
+
+    /// On a lossy link (see [`set_link_loss`](Self::set_link_loss)) each tagged ack goes a
+    /// second time `spacing` after the first (see the [module](super) doc); a copy of its
+    /// command that arrives before then is answered by that repeat.
+    pub fn with_redundancy(mut self, redundancy: Redundancy) -> Self {
+        self.redundancy = Some(redundancy);
+        self
+    }
+
+    /// The link's measured loss at `now` (the worse direction; `None`: not measured), as
+    /// often as it is known: acks are repeated unless the link was measured clean for
+    /// [`Redundancy::clean_for`].
+    pub fn set_link_loss(&mut self, now: Instant, loss: Option<f64>) {
+        if let Some(r) = &self.redundancy {
+            self.gate.observe(now, loss, r);
+        }
+    }
+
+    /// When the ack going at `now` goes again, if the link calls for it.
+    fn repeat_after(&self, now: Instant) -> Option<Instant> {
+        let r = self.redundancy.filter(|r| self.gate.lossy(now, r))?;
+        Some(now + r.spacing)
     }
 
     /// Counters so far.
@@ -82,6 +142,8 @@ impl AckCache {
         };
         self.expire(now);
         let (generation, attempt) = confirmation(msg).map_or((0, 1), split_confirmation);
+        let radio_attempt = confirmation(msg).map(|_| attempt);
+        let repeat = self.repeat_after(now);
         if attempt > 0
             && let Some(e) = self
                 .entries
@@ -89,9 +151,18 @@ impl AckCache {
                 .find(|e| e.id == id && e.generation == generation)
         {
             return match &e.ack {
+                // The repeat still to come answers it, in another air packet than the
+                // first ack (an answer now would share the first one's).
+                Some(_) if e.repeat_at.is_some_and(|at| now < at) => {
+                    self.stats.covered += 1;
+                    CacheVerdict::Drop
+                }
                 Some(ack) => {
+                    // The answer (and its own repeat) takes the place of a repeat overdue.
                     self.stats.replayed += 1;
-                    CacheVerdict::Replay(ack.clone())
+                    let out = ack.answer(generation, radio_attempt);
+                    e.repeat_at = repeat.filter(|_| ack.tagged);
+                    CacheVerdict::Replay(out)
                 }
                 None if now.saturating_duration_since(e.forwarded) < self.in_flight => {
                     self.stats.dropped += 1;
@@ -100,6 +171,7 @@ impl AckCache {
                 None => {
                     e.forwarded = now;
                     e.forwards = e.forwards.saturating_add(1);
+                    e.attempt = radio_attempt;
                     self.stats.forwarded += 1;
                     CacheVerdict::Forward(with_confirmation(frame, msg, e.forwards - 1))
                 }
@@ -112,19 +184,24 @@ impl AckCache {
             first: now,
             forwarded: now,
             forwards: 1,
+            attempt: radio_attempt,
             ack: None,
+            repeat_at: None,
         });
         self.stats.forwarded += 1;
         CacheVerdict::Forward(with_confirmation(frame, msg, 0))
     }
 
     /// A `COMMAND_ACK` from the flight controller's (`system`, `component`) on its way to
-    /// the radio: cached for the latest unanswered command it can answer (`IN_PROGRESS` is
-    /// replaced by the final ack). Returns the frame to send on the radio in its place: the
-    /// ack tagged with that command's generation ([`tag_ack`]); `None`: send it as it is
-    /// (it answers no command from the radio, or cannot be tagged).
+    /// the radio at `now`: cached for the latest unanswered command it can answer
+    /// (`IN_PROGRESS` is replaced by the final ack). Returns the frame to send on the radio
+    /// in its place: the ack tagged with that command's generation and the copy forwarded
+    /// ([`tag_ack`]); `None`: send it as it is (it answers no command from the radio, or
+    /// cannot be tagged). A final tagged ack goes again later on a lossy link
+    /// ([`poll_repeat`](Self::poll_repeat)).
     pub fn ack(
         &mut self,
+        now: Instant,
         system: u8,
         component: u8,
         frame: &OwnedFrame,
@@ -134,25 +211,50 @@ impl AckCache {
             return None;
         };
         let command = ack.command as u32;
+        let repeat = self.repeat_after(now);
         let e = self
             .entries
             .iter_mut()
             .filter(|e| e.id.answered_by(system, component, command))
             .filter(|e| {
-                e.ack.as_ref().is_none_or(|a| {
-                    matches!(
-                        a.decode::<MavMessage>(),
-                        Ok(MavMessage::COMMAND_ACK(a)) if a.result == MavResult::MAV_RESULT_IN_PROGRESS
-                    )
-                })
+                e.ack
+                    .as_ref()
+                    .is_none_or(|a| a.ack.result == MavResult::MAV_RESULT_IN_PROGRESS)
             })
             .max_by_key(|e| e.forwarded)?;
         // COMMAND_INT carries no generation: its acks stay as they are.
         let radio = (!e.id.is_int())
-            .then(|| tag_ack(frame, ack, e.generation))
+            .then(|| tag_ack(frame, ack, AckTag::new(e.generation, e.attempt)))
             .flatten();
-        e.ack = Some(radio.clone().unwrap_or_else(|| frame.clone()));
+        let tagged = radio.is_some();
+        e.ack = Some(Cached {
+            frame: frame.clone(),
+            ack: ack.clone(),
+            radio: radio.clone().unwrap_or_else(|| frame.clone()),
+            tagged,
+        });
+        // Only a final, tagged ack is repeated: an untagged one could be taken for the
+        // next command's with the same id.
+        e.repeat_at = repeat.filter(|_| tagged && ack.result != MavResult::MAV_RESULT_IN_PROGRESS);
         radio
+    }
+
+    /// When an ack is next due to go again.
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        self.entries.iter().filter_map(|e| e.repeat_at).min()
+    }
+
+    /// An ack due to go again at `now` (tagged as answering no copy): send it on the radio.
+    pub fn poll_repeat(&mut self, now: Instant) -> Option<OwnedFrame> {
+        self.expire(now);
+        let e = self
+            .entries
+            .iter_mut()
+            .find(|e| e.repeat_at.is_some_and(|at| now >= at))?;
+        e.repeat_at = None;
+        let out = e.ack.as_ref()?.answer(e.generation, None);
+        self.stats.repeated += 1;
+        Some(out)
     }
 
     fn expire(&mut self, now: Instant) {
@@ -167,7 +269,7 @@ mod tests {
     use mavlink::MavlinkVersion;
 
     use super::*;
-    use crate::command::{ACK_HOLD, radio_confirmation};
+    use crate::command::{ACK_HOLD, Redundancy, radio_confirmation};
     use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd};
     use crate::wire::Sender;
 
@@ -194,6 +296,15 @@ mod tests {
         (fc.frame(&msg), msg)
     }
 
+    /// The tag of an ack on the radio and the ack as the autopilot sent it.
+    fn untagged(f: &OwnedFrame) -> (AckTag, Vec<u8>) {
+        let Ok(MavMessage::COMMAND_ACK(a)) = f.decode::<MavMessage>() else {
+            panic!("not an ack");
+        };
+        let (tag, plain, _) = crate::command::ack_tag::untag_ack(f, &a).expect("tagged");
+        (tag, plain.as_bytes().to_vec())
+    }
+
     fn forwarded_confirmation(v: CacheVerdict) -> u8 {
         match v {
             CacheVerdict::Forward(f) => match f.decode::<MavMessage>() {
@@ -217,11 +328,16 @@ mod tests {
         assert_eq!(c.command(&f2, &m2, t0 + MS(300)), CacheVerdict::Drop);
         let (af, am) = ack(&mut fc);
         let radio = c
-            .ack(1, 1, &af, &am)
+            .ack(t0, 1, 1, &af, &am)
             .expect("answers a command from the radio");
         // the ack was lost on the radio: the next copy gets it again, not a second execution
         match c.command(&f2, &m2, t0 + MS(1200)) {
-            CacheVerdict::Replay(a) => assert_eq!(a.as_bytes(), radio.as_bytes()),
+            CacheVerdict::Replay(a) => {
+                // the autopilot's ack again, naming the copy it answers
+                assert_eq!(untagged(&a).1, untagged(&radio).1);
+                assert_eq!(untagged(&radio).0, AckTag::new(0, Some(0)));
+                assert_eq!(untagged(&a).0, AckTag::new(0, Some(1)));
+            }
             other => panic!("{other:?}"),
         }
         // a different command with the same id is new
@@ -235,7 +351,8 @@ mod tests {
             AckCacheStats {
                 forwarded: 2,
                 replayed: 1,
-                dropped: 1
+                dropped: 1,
+                ..Default::default()
             }
         );
     }
@@ -250,7 +367,7 @@ mod tests {
         let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
         c.command(&f, &m, t0);
         let (af, am) = ack(&mut fc);
-        c.ack(1, 1, &af, &am);
+        c.ack(t0, 1, 1, &af, &am);
         let (late, late_m) = command(&mut gcs, radio_confirmation(0, 7), 1.0);
         assert!(matches!(
             c.command(&late, &late_m, t0 + MS(7100)),
@@ -271,14 +388,14 @@ mod tests {
         let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
         c.command(&f, &m, t0);
         let (af, am) = ack(&mut fc);
-        c.ack(1, 1, &af, &am);
+        c.ack(t0, 1, 1, &af, &am);
         // the second trigger, 2.5 s later: its first copy arrives
         let (f2, m2) = command(&mut gcs, radio_confirmation(1, 0), 1.0);
         assert_eq!(
             forwarded_confirmation(c.command(&f2, &m2, t0 + MS(2500))),
             0
         );
-        c.ack(1, 1, &af, &am);
+        c.ack(t0, 1, 1, &af, &am);
         // a third: only its second copy arrives; still a new command here
         let (f3, m3) = command(&mut gcs, radio_confirmation(2, 1), 1.0);
         assert_eq!(
@@ -297,7 +414,7 @@ mod tests {
         let (f, m) = command(&mut gcs, 0, 4.0);
         c.command(&f, &m, t0);
         let (af, am) = ack(&mut fc);
-        c.ack(1, 1, &af, &am);
+        c.ack(t0, 1, 1, &af, &am);
         let (f2, m2) = command(&mut gcs, 1, 4.0);
         // after the hold a copy is unknown: forwarded (the router never sends one that late)
         assert_eq!(
@@ -320,17 +437,159 @@ mod tests {
         let t0 = Instant::from_millis(0);
         let (af, am) = ack(&mut fc);
         // an ack that answers nothing from the radio goes as the autopilot sent it
-        assert!(c.ack(1, 1, &af, &am).is_none());
+        assert!(c.ack(t0, 1, 1, &af, &am).is_none());
         for (k, generation) in [0u8, 1, 31].into_iter().enumerate() {
             let (f, m) = command(&mut gcs, radio_confirmation(generation, 0), 1.0);
             c.command(&f, &m, t0 + MS(3000 * k as u64));
-            let radio = c.ack(1, 1, &af, &am).expect("tagged");
+            let radio = c.ack(t0, 1, 1, &af, &am).expect("tagged");
             let MavMessage::COMMAND_ACK(a) = radio.decode::<MavMessage>().unwrap() else {
                 panic!()
             };
-            let (g, plain, _) = untag_ack(&radio, &a).expect("tag");
-            assert_eq!(g, generation);
+            let (tag, plain, _) = untag_ack(&radio, &a).expect("tag");
+            assert_eq!(tag, AckTag::new(generation, Some(0)));
             assert_eq!(plain.as_bytes(), af.as_bytes());
         }
+    }
+
+    /// A cache with SiK 64k's redundancy, its link at `loss` since `now`.
+    fn redundant(now: Instant, loss: Option<f64>) -> AckCache {
+        let mut c = AckCache::new(ACK_HOLD, MS(1000)).with_redundancy(Redundancy::SIK_64K);
+        c.set_link_loss(now, loss);
+        c
+    }
+
+    fn repeats(c: &mut AckCache, now: Instant) -> Vec<OwnedFrame> {
+        std::iter::from_fn(|| c.poll_repeat(now)).collect()
+    }
+
+    #[test]
+    fn on_a_lossy_link_an_ack_goes_again_half_a_round_later_naming_no_copy() {
+        let t0 = Instant::from_millis(0);
+        let mut c = redundant(t0, Some(0.1));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        let (f, m) = command(&mut gcs, radio_confirmation(4, 0), 1.0);
+        c.command(&f, &m, t0);
+        let (af, am) = ack(&mut fc);
+        let first = c.ack(t0 + MS(10), 1, 1, &af, &am).expect("tagged");
+        assert_eq!(untagged(&first).0, AckTag::new(4, Some(0)));
+        assert_eq!(c.poll_timeout(), Some(t0 + MS(135)));
+        assert!(repeats(&mut c, t0 + MS(134)).is_empty());
+        let again = repeats(&mut c, t0 + MS(135));
+        assert_eq!(again.len(), 1, "once");
+        assert_eq!(
+            untagged(&again[0]),
+            (AckTag::new(4, None), untagged(&first).1)
+        );
+        assert!(repeats(&mut c, t0 + MS(5000)).is_empty());
+        assert_eq!(c.poll_timeout(), None);
+        assert_eq!(c.stats().repeated, 1);
+    }
+
+    #[test]
+    fn a_copy_before_the_repeat_is_answered_by_it_and_one_after_gets_its_own_answer() {
+        let t0 = Instant::from_millis(0);
+        let mut c = redundant(t0, Some(0.1));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+        c.command(&f, &m, t0);
+        let (af, am) = ack(&mut fc);
+        c.ack(t0, 1, 1, &af, &am);
+        // the router's second copy, 40 ms on: the ack would share the first's air packet
+        let (f1, m1) = command(&mut gcs, radio_confirmation(0, 1), 1.0);
+        assert_eq!(c.command(&f1, &m1, t0 + MS(40)), CacheVerdict::Drop);
+        assert_eq!(repeats(&mut c, t0 + MS(125)).len(), 1);
+        // its third copy, a round on: answered, naming that copy, and repeated in turn
+        let (f2, m2) = command(&mut gcs, radio_confirmation(0, 2), 1.0);
+        match c.command(&f2, &m2, t0 + MS(250)) {
+            CacheVerdict::Replay(a) => assert_eq!(untagged(&a).0, AckTag::new(0, Some(2))),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(c.poll_timeout(), Some(t0 + MS(375)));
+        assert_eq!(
+            untagged(&repeats(&mut c, t0 + MS(375))[0]).0,
+            AckTag::new(0, None)
+        );
+        let s = c.stats();
+        assert_eq!(
+            (s.forwarded, s.replayed, s.covered, s.repeated),
+            (1, 1, 1, 2)
+        );
+    }
+
+    #[test]
+    fn a_copy_after_an_overdue_repeat_is_answered_in_its_place() {
+        let t0 = Instant::from_millis(0);
+        let mut c = redundant(t0, None);
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+        c.command(&f, &m, t0);
+        let (af, am) = ack(&mut fc);
+        c.ack(t0, 1, 1, &af, &am);
+        let (f1, m1) = command(&mut gcs, radio_confirmation(0, 1), 1.0);
+        assert!(matches!(
+            c.command(&f1, &m1, t0 + MS(200)),
+            CacheVerdict::Replay(_)
+        ));
+        assert!(
+            repeats(&mut c, t0 + MS(200)).is_empty(),
+            "the answer took its place"
+        );
+        assert_eq!(repeats(&mut c, t0 + MS(325)).len(), 1, "the answer's own");
+    }
+
+    #[test]
+    fn untagged_and_in_progress_acks_are_not_repeated() {
+        let t0 = Instant::from_millis(0);
+        let mut c = redundant(t0, Some(0.3));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        // COMMAND_INT: its ack carries no generation, a repeat could answer the next one
+        let int = MavMessage::COMMAND_INT(crate::dialect::COMMAND_INT_DATA {
+            target_system: 1,
+            target_component: 1,
+            command: MavCmd::MAV_CMD_DO_SET_MODE,
+            ..Default::default()
+        });
+        c.command(&gcs.frame(&int), &int, t0);
+        let (af, am) = ack(&mut fc);
+        assert!(c.ack(t0, 1, 1, &af, &am).is_none(), "untagged");
+        assert_eq!(c.poll_timeout(), None);
+        // IN_PROGRESS: only the final ack is repeated
+        let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 2.0);
+        c.command(&f, &m, t0 + MS(10));
+        let busy = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: MavCmd::MAV_CMD_DO_SET_MODE,
+            result: MavResult::MAV_RESULT_IN_PROGRESS,
+            ..Default::default()
+        });
+        c.ack(t0 + MS(20), 1, 1, &fc.frame(&busy), &busy)
+            .expect("tagged");
+        assert_eq!(c.poll_timeout(), None);
+        c.ack(t0 + MS(900), 1, 1, &af, &am).expect("tagged");
+        assert_eq!(c.poll_timeout(), Some(t0 + MS(1025)));
+    }
+
+    #[test]
+    fn on_a_link_measured_clean_for_30_s_an_ack_goes_once() {
+        let mut c = redundant(Instant::ZERO, Some(0.0));
+        let t0 = Instant::from_millis(30_000);
+        c.set_link_loss(t0, Some(0.01));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+        c.command(&f, &m, t0);
+        let (af, am) = ack(&mut fc);
+        c.ack(t0, 1, 1, &af, &am).expect("tagged");
+        assert_eq!(c.poll_timeout(), None);
+        // a copy is answered at once, still once
+        let (f1, m1) = command(&mut gcs, radio_confirmation(0, 1), 1.0);
+        assert!(matches!(
+            c.command(&f1, &m1, t0 + MS(40)),
+            CacheVerdict::Replay(_)
+        ));
+        assert_eq!(c.poll_timeout(), None);
     }
 }

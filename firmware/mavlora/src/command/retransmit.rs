@@ -4,8 +4,8 @@ use std::collections::{HashMap, VecDeque};
 use std::net::IpAddr;
 
 use super::{
-    ACK_HOLD, CommandId, MAX_ATTEMPTS, MAX_RTO, RETRANSMIT_WINDOW, confirmation,
-    radio_confirmation, with_confirmation,
+    ACK_HOLD, AckTag, CommandId, LossGate, MAX_ATTEMPTS, MAX_RTO, RETRANSMIT_WINDOW, Redundancy,
+    confirmation, radio_confirmation, with_confirmation,
 };
 use crate::dialect::{MavMessage, MavResult};
 use crate::mission::RttEstimator;
@@ -25,8 +25,14 @@ pub struct RetransmitStats {
     pub queued: u64,
     /// Commands whose ack came back.
     pub acked: u64,
-    /// Early second copies (see [`CommandRetransmitter::with_early_copy`]).
+    /// Redundant copies sent before any timeout (see
+    /// [`CommandRetransmitter::with_redundancy`]); not in `retransmissions`.
     pub early_copies: u64,
+    /// Commands (or ground retries sent again) that went with redundant copies: the
+    /// measured loss called for them.
+    pub redundant: u64,
+    /// Round trips measured (from the copy an ack names, or from a single send).
+    pub rtt_samples: u64,
     /// Acks that came back after their command was answered or given up, swallowed.
     pub late_acks: u64,
     /// Commands given up after the last attempt (the ground station still has its own).
@@ -59,13 +65,18 @@ struct Pending {
     frame: OwnedFrame,
     msg: MavMessage,
     first_sent: Instant,
+    /// Its last copy.
     sent: Instant,
+    /// When each attempt went (the radio confirmation's attempt field, 0..=7): an ack that
+    /// names its copy measures the round trip from that copy.
+    sent_at: [Option<Instant>; MAX_ATTEMPTS as usize],
     /// Sends so far; 0 while waiting.
     attempts: u32,
     /// The vehicle answered `IN_PROGRESS`: no more copies, the final ack will come.
     in_progress: bool,
-    /// Its early second copy went (part of the first round: `sent` stays the first send's).
-    early: bool,
+    /// Its redundant copies still to send, by when (set when it goes on the radio and the
+    /// measured loss calls for them; cleared by `IN_PROGRESS`).
+    planned: [Option<Instant>; PLANNED],
     /// When the ground last sent it (first send or retry): it still waits for the ack until
     /// about [`GROUND_PATIENCE`] later.
     last_ground: Instant,
@@ -76,10 +87,22 @@ struct Pending {
 /// taken for the next command's by a station that has just given up.
 const GROUND_PATIENCE: Duration = Duration::from_millis(1400);
 
+/// Redundant copies of a command before any timeout.
+const PLANNED: usize = 3;
+
 impl Pending {
     fn copy(&self) -> OwnedFrame {
         let c = radio_confirmation(self.generation, self.attempts.saturating_sub(1));
         with_confirmation(&self.frame, &self.msg, c)
+    }
+
+    /// Counts a send at `now` (after which [`copy`](Self::copy) is that send's frame).
+    fn count_send(&mut self, now: Instant) {
+        self.attempts += 1;
+        self.sent = now;
+        if let Some(at) = self.sent_at.get_mut(self.attempts as usize - 1) {
+            *at = Some(now);
+        }
     }
 }
 
@@ -100,7 +123,12 @@ pub struct CommandRetransmitter {
     max_attempts: u32,
     window: Duration,
     per_source: usize,
-    early_copy: Option<Duration>,
+    redundancy: Option<Redundancy>,
+    /// The radio budget, bytes/s (see [`CommandRetransmitter::with_budget`]).
+    budget: Option<u32>,
+    /// Whether the measured loss calls for redundancy (see
+    /// [`CommandRetransmitter::set_link_loss`]).
+    gate: LossGate,
     on_air: Vec<Pending>,
     waiting: Vec<Pending>,
     finished: Vec<Finished>,
@@ -130,7 +158,9 @@ impl CommandRetransmitter {
             max_attempts,
             window: (max * max_attempts).min(RETRANSMIT_WINDOW),
             per_source: usize::MAX,
-            early_copy: None,
+            redundancy: None,
+            budget: None,
+            gate: LossGate::default(),
             on_air: Vec::new(),
             waiting: Vec::new(),
             finished: Vec::new(),
@@ -148,15 +178,59 @@ impl CommandRetransmitter {
         self
     }
 
-    /// Sends a second copy of each command `delay` after its first, without waiting for a
-    /// timeout: at 10 % loss each way one round in five fails (command or ack lost), so
-    /// one command in 28 needs a third round and the 99th percentile is three rounds;
-    /// with the copy (the bridge answers it with the cached ack) a round fails about one
-    /// time in fifty, and the 99th percentile is two rounds. `delay` puts the copy in
-    /// another air packet and after the autopilot's ack. A command costs one more frame.
-    pub fn with_early_copy(mut self, delay: Duration) -> Self {
-        self.early_copy = (self.max_attempts > 1).then_some(delay);
+    /// On a lossy link (see [`set_link_loss`](Self::set_link_loss)) each command goes three
+    /// times before any timeout: at once, `pair_gap` later and `spacing` after the first
+    /// (see the [module](super) doc: separate air packets of the first round); the bridge
+    /// answers the copies from its cache. A resend never goes sooner than `spacing` after
+    /// the last copy. Needs at least three attempts.
+    pub fn with_redundancy(mut self, redundancy: Redundancy) -> Self {
+        self.redundancy = (self.max_attempts >= 3).then_some(redundancy);
         self
+    }
+
+    /// The radio budget, `bytes_per_s`: a command's copy `pair_gap` after the first goes
+    /// only if the budget carries the frame in less than that gap. On a fast TDM radio
+    /// (SiK 64k's ~3 kB/s: 45 bytes in 15 ms) it is another packet of the same window; on
+    /// a slow half-duplex one (LoRa SF7's ~250 B/s: 180 ms) it would hold the channel when
+    /// the ack should come back (simulated: median 179 → 267 ms), so the copies go half a
+    /// round and a round after the first only.
+    pub fn with_budget(mut self, bytes_per_s: u32) -> Self {
+        self.budget = Some(bytes_per_s.max(1));
+        self
+    }
+
+    /// The link's measured loss at `now` (the worse direction; `None`: not measured), as
+    /// often as it is known: commands that go on the radio are sent redundantly unless the
+    /// link was measured clean for [`Redundancy::clean_for`].
+    pub fn set_link_loss(&mut self, now: Instant, loss: Option<f64>) {
+        if let Some(r) = &self.redundancy {
+            self.gate.observe(now, loss, r);
+        }
+    }
+
+    /// `p` goes on the radio at `now` (its first copy, or a ground retry sent again): counts
+    /// the send and plans its redundant copies if the measured loss calls for them.
+    fn start_round(&mut self, p: &mut Pending, now: Instant) {
+        p.count_send(now);
+        p.planned = [None; PLANNED];
+        if let Some(r) = self.redundancy.filter(|r| self.gate.lossy(now, r)) {
+            let bytes = p.frame.as_bytes().len() as u64;
+            let on_air = |rate: u32| Duration::from_micros(bytes * 1_000_000 / u64::from(rate));
+            let pair = self.budget.is_none_or(|rate| on_air(rate) < r.pair_gap);
+            p.planned = [
+                pair.then_some(now + r.pair_gap),
+                Some(now + r.spacing),
+                Some(now + r.spacing * 2),
+            ];
+            self.stats.redundant += 1;
+        }
+    }
+
+    /// The shortest time between a copy and the next resend: the timeout, never less than
+    /// the spacing that puts a copy in another air packet.
+    fn resend_after(&self) -> Duration {
+        let floor = self.redundancy.map_or(Duration::ZERO, |r| r.spacing);
+        self.rtt.rto().max(floor)
     }
 
     /// Commands from `source` in flight.
@@ -265,8 +339,7 @@ impl CommandRetransmitter {
                 {
                     self.draining.retain(|d| d.0 != id.slot());
                 }
-                p.attempts += 1;
-                p.sent = now;
+                self.start_round(&mut p, now);
                 p.source = source;
                 p.last_ground = now;
                 p.in_progress = false;
@@ -297,9 +370,10 @@ impl CommandRetransmitter {
             msg: msg.clone(),
             first_sent: now,
             sent: now,
+            sent_at: [None; MAX_ATTEMPTS as usize],
             attempts: 0,
             in_progress: false,
-            early: false,
+            planned: [None; PLANNED],
             last_ground: now,
         };
         if self.slot_busy(id.slot()) || self.waiting.iter().any(|w| w.id.slot() == id.slot()) {
@@ -307,7 +381,7 @@ impl CommandRetransmitter {
             self.waiting.push(p);
             return Admission::Hold;
         }
-        p.attempts = 1;
+        self.start_round(&mut p, now);
         let out = p.copy();
         self.on_air.push(p);
         Admission::Forward(out)
@@ -328,21 +402,23 @@ impl CommandRetransmitter {
     }
 
     /// As [`from_radio`](Self::from_radio), for an ack the bridge tagged with the
-    /// `generation` of the command it answers ([`untag_ack`](super::ack_tag::untag_ack)):
-    /// it answers that command only, and a newer one with the same id need not wait for
-    /// late copies' acks. `None`: untagged, it answers the command of its id on the radio.
+    /// generation of the command it answers and the copy it answers
+    /// ([`untag_ack`](super::ack_tag::untag_ack)): it answers that command only, a newer one
+    /// with the same id need not wait for late copies' acks, and the round trip is measured
+    /// from that copy. `None`: untagged, it answers the command of its id on the radio.
     pub fn from_radio_tagged(
         &mut self,
         now: Instant,
         system: u8,
         component: u8,
         msg: &MavMessage,
-        generation: Option<u8>,
+        tag: Option<AckTag>,
     ) -> bool {
         let MavMessage::COMMAND_ACK(ack) = msg else {
             return true;
         };
         self.expire(now);
+        let generation = tag.map(|t| t.generation);
         let command = ack.command as u32;
         // A tagged ack answers only a COMMAND_LONG of its generation.
         let answers = |p: &Pending| {
@@ -396,17 +472,24 @@ impl CommandRetransmitter {
         }
         if ack.result == MavResult::MAV_RESULT_IN_PROGRESS {
             let p = &mut self.on_air[i];
-            if !p.in_progress {
-                p.in_progress = true;
-                return true;
-            }
+            p.in_progress = true;
+            p.planned = [None; PLANNED];
             return true;
         }
         let p = self.on_air.swap_remove(i);
         self.stats.acked += 1;
-        // Karn: only an unambiguous round trip is a sample.
-        if (p.attempts == 1 || (p.attempts == 2 && p.early)) && !p.in_progress {
-            self.rtt.sample(now.saturating_duration_since(p.sent));
+        // Only an unambiguous round trip is a sample: from the copy a tagged ack names, or
+        // (Karn) from the only copy; a tagged ack that names none (the bridge's repeat) is
+        // none.
+        let from = match tag {
+            Some(t) => t
+                .attempt
+                .and_then(|a| p.sent_at.get(usize::from(a)).copied().flatten()),
+            None => (p.attempts == 1).then_some(p.sent),
+        };
+        if let Some(from) = from.filter(|_| !p.in_progress) {
+            self.rtt.sample(now.saturating_duration_since(from));
+            self.stats.rtt_samples += 1;
         }
         if p.attempts > 1 && generation.is_none() {
             // Copies still on their way get acks (the bridge replays it) that name no
@@ -476,34 +559,41 @@ impl CommandRetransmitter {
             !self.slot_busy(slot) && !self.waiting[..i].iter().any(|w| w.id.slot() == slot)
         }) {
             let mut p = self.waiting.remove(i);
-            p.attempts = 1;
             p.first_sent = now;
-            p.sent = now;
+            self.start_round(&mut p, now);
             self.note_sent(p.id, p.generation, now);
             let out = p.copy();
             self.on_air.push(p);
             return Some(out);
         }
-        if let Some(delay) = self.early_copy
-            && let Some(p) = self
-                .on_air
-                .iter_mut()
-                .find(|p| Self::early_due(p) && now >= p.sent + delay)
+        let max_attempts = self.max_attempts;
+        if let Some(p) = self
+            .on_air
+            .iter_mut()
+            .find(|p| Self::early_at(p).is_some_and(|at| now >= at))
         {
-            p.attempts = 2;
-            p.early = true;
+            let k = p.planned.iter().position(|t| t.is_some_and(|t| now >= t));
+            if let Some(k) = k {
+                p.planned[k] = None;
+            }
+            if p.attempts >= max_attempts {
+                // No attempt left for it: the timeout decides.
+                p.planned = [None; PLANNED];
+                return self.next_due(now);
+            }
+            p.count_send(now);
             let (id, generation, out) = (p.id, p.generation, p.copy());
             self.stats.early_copies += 1;
             self.note_sent(id, generation, now);
             return Some(out);
         }
-        let rto = self.rtt.rto();
+        let rto = self.resend_after();
         let window = self.window;
         let i = self.on_air.iter().position(|p| {
             if p.in_progress {
                 now.saturating_duration_since(p.first_sent) >= window
             } else {
-                now.saturating_duration_since(p.sent) >= rto
+                Self::early_at(p).is_none() && now.saturating_duration_since(p.sent) >= rto
             }
         })?;
         let p = &self.on_air[i];
@@ -524,29 +614,22 @@ impl CommandRetransmitter {
         // congestion (the scheduler's byte budget already paces the link), and doubling the
         // timeout after a lost copy is what pushes the 99th percentile past 3 s.
         let p = &mut self.on_air[i];
-        p.attempts += 1;
-        p.sent = now;
+        p.count_send(now);
         let (id, generation, out) = (p.id, p.generation, p.copy());
         self.stats.retransmissions += 1;
         self.note_sent(id, generation, now);
         Some(out)
     }
 
-    /// Whether `p` is still to get its early copy.
-    fn early_due(p: &Pending) -> bool {
-        p.attempts == 1 && !p.early && !p.in_progress
+    /// When `p`'s next redundant copy is due, if one is still to go.
+    fn early_at(p: &Pending) -> Option<Instant> {
+        p.planned.iter().flatten().min().copied()
     }
 
     /// When the relay next needs [`handle_timeout`](Self::handle_timeout).
     pub fn poll_timeout(&self) -> Option<Instant> {
-        let early = self.early_copy.and_then(|delay| {
-            self.on_air
-                .iter()
-                .filter(|p| Self::early_due(p))
-                .map(|p| p.sent + delay)
-                .min()
-        });
-        let rto = self.rtt.rto();
+        let early = self.on_air.iter().filter_map(Self::early_at).min();
+        let rto = self.resend_after();
         let window = self.window;
         let waiting = (!self.waiting.is_empty())
             .then(|| self.draining.iter().map(|d| d.1).min())
@@ -567,7 +650,8 @@ impl CommandRetransmitter {
                 if p.in_progress {
                     p.first_sent + window
                 } else {
-                    p.sent + rto
+                    // After its redundant copies, the timeout runs from the last.
+                    Self::early_at(p).unwrap_or(p.sent + rto)
                 }
             })
             .chain(waiting)
@@ -626,6 +710,11 @@ mod tests {
         };
         let (g, a) = split_confirmation(c.confirmation);
         (c.param1, g, a)
+    }
+
+    /// A tag naming `generation` and no copy.
+    fn tag(generation: u8) -> Option<AckTag> {
+        Some(AckTag::new(generation, None))
     }
 
     fn forwarded(a: Admission) -> OwnedFrame {
@@ -792,15 +881,15 @@ mod tests {
         forwarded(r.from_ground(t0, GCS, &f4, &m4));
         assert_eq!(r.from_ground(t0 + MS(200), GCS, &f5, &m5), Admission::Hold);
         assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (4.0, 0, 1));
-        assert!(r.from_radio_tagged(t0 + MS(1300), 1, 1, &ack(set_mode), Some(0)));
+        assert!(r.from_radio_tagged(t0 + MS(1300), 1, 1, &ack(set_mode), tag(0)));
         // mode 5, another generation of the same slot, goes at once
         assert_eq!(sent(&resend(&mut r, t0 + MS(1300)).unwrap()), (5.0, 1, 0));
         // the ack of mode 4's second copy comes now: it names mode 4, not mode 5
-        assert!(!r.from_radio_tagged(t0 + MS(1400), 1, 1, &ack(set_mode), Some(0)));
+        assert!(!r.from_radio_tagged(t0 + MS(1400), 1, 1, &ack(set_mode), tag(0)));
         assert_eq!((r.stats().acked, r.stats().late_acks), (1, 1));
         // mode 5 is resent until its own ack comes
         assert_eq!(sent(&resend(&mut r, t0 + MS(2300)).unwrap()), (5.0, 1, 1));
-        assert!(r.from_radio_tagged(t0 + MS(2400), 1, 1, &ack(set_mode), Some(1)));
+        assert!(r.from_radio_tagged(t0 + MS(2400), 1, 1, &ack(set_mode), tag(1)));
         assert_eq!(r.stats().acked, 2);
     }
 
@@ -815,18 +904,18 @@ mod tests {
         let (f, m) = command_with(&mut gcs, cam, 1.0, 0);
         forwarded(r.from_ground(t0, GCS, &f, &m));
         assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (1.0, 0, 1));
-        assert!(r.from_radio_tagged(t0 + MS(1100), 1, 1, &ack(cam), Some(0)));
+        assert!(r.from_radio_tagged(t0 + MS(1100), 1, 1, &ack(cam), tag(0)));
         let (f2, m2) = command_with(&mut gcs, cam, 1.0, 0);
         assert_eq!(
             sent(&forwarded(r.from_ground(t0 + MS(1200), GCS, &f2, &m2))),
             (1.0, 1, 0),
             "no wait for the first's late acks"
         );
-        assert!(!r.from_radio_tagged(t0 + MS(1300), 1, 1, &ack(cam), Some(0)));
+        assert!(!r.from_radio_tagged(t0 + MS(1300), 1, 1, &ack(cam), tag(0)));
         assert_eq!(r.stats().late_acks, 1);
         // the second's copy keeps going until its own ack
         assert!(resend(&mut r, t0 + MS(2200)).is_some());
-        assert!(r.from_radio_tagged(t0 + MS(2300), 1, 1, &ack(cam), Some(1)));
+        assert!(r.from_radio_tagged(t0 + MS(2300), 1, 1, &ack(cam), tag(1)));
         assert_eq!(r.stats().acked, 2);
     }
 
@@ -842,13 +931,13 @@ mod tests {
         forwarded(r.from_ground(t0, GCS, &f, &m));
         for k in 0..1000u32 {
             let g = 1 + (k % 31) as u8;
-            r.from_radio_tagged(t0 + MS(1), 1, 1, &ack(set_mode), Some(g));
+            r.from_radio_tagged(t0 + MS(1), 1, 1, &ack(set_mode), tag(g));
             r.from_radio_tagged(t0 + MS(1), 2 + (k % 200) as u8, 1, &ack(set_mode), None);
         }
         assert_eq!(r.stats().acked, 0);
         // still resent on its timeout, and its own ack completes it
         assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (4.0, 0, 1));
-        assert!(r.from_radio_tagged(t0 + MS(1100), 1, 1, &ack(set_mode), Some(0)));
+        assert!(r.from_radio_tagged(t0 + MS(1100), 1, 1, &ack(set_mode), tag(0)));
         assert_eq!(r.stats().acked, 1);
         assert!(resend(&mut r, t0 + MS(5000)).is_none());
     }
@@ -864,7 +953,7 @@ mod tests {
         let cam = MavCmd::MAV_CMD_DO_DIGICAM_CONTROL;
         let (f, m) = command_with(&mut gcs, cam, 1.0, 0);
         forwarded(r.from_ground(t0, GCS, &f, &m));
-        assert!(r.from_radio_tagged(t0 + MS(150), 1, 1, &ack(cam), Some(0)));
+        assert!(r.from_radio_tagged(t0 + MS(150), 1, 1, &ack(cam), tag(0)));
         let (late, late_m) = command_with(&mut gcs, cam, 1.0, 3);
         let (_, generation, attempt) = sent(&forwarded(r.from_ground(
             t0 + MS(5000),
@@ -875,7 +964,182 @@ mod tests {
         assert_eq!(generation, 0);
         assert!(attempt > 0, "a copy, not a new command");
         // its (replayed) ack is the ground's, once; a second replay's ack is swallowed
-        assert!(r.from_radio_tagged(t0 + MS(5150), 1, 1, &ack(cam), Some(0)));
-        assert!(!r.from_radio_tagged(t0 + MS(5200), 1, 1, &ack(cam), Some(0)));
+        assert!(r.from_radio_tagged(t0 + MS(5150), 1, 1, &ack(cam), tag(0)));
+        assert!(!r.from_radio_tagged(t0 + MS(5200), 1, 1, &ack(cam), tag(0)));
+    }
+
+    /// A retransmitter with SiK 64k's redundant copies, its link at `loss` from `now`.
+    fn redundant(now: Instant, loss: Option<f64>) -> CommandRetransmitter {
+        let mut r = CommandRetransmitter::new(MS(1000), MS(200), MS(1500), MAX_ATTEMPTS)
+            .with_redundancy(Redundancy::SIK_64K);
+        r.set_link_loss(now, loss);
+        r
+    }
+
+    /// (ms, attempt) of every command sent from `from` to `until` ms, polling every ms.
+    fn sends(r: &mut CommandRetransmitter, from: u64, until: u64) -> Vec<(u64, u8)> {
+        (from..=until)
+            .filter_map(|t| resend(r, Instant::from_millis(t)).map(|f| (t, sent(&f).2)))
+            .collect()
+    }
+
+    #[test]
+    fn on_a_lossy_link_a_command_goes_in_separate_packets_of_the_first_two_rounds() {
+        // SiK 64k at 10 % loss: a second copy past one air packet (40 ms), a third half a
+        // round on (125 ms), a fourth a round on (250 ms); then the timeout from the last
+        let t0 = Instant::from_millis(0);
+        let mut r = redundant(t0, Some(0.1));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let (f, m) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+        assert_eq!(sent(&forwarded(r.from_ground(t0, GCS, &f, &m))).2, 0);
+        assert_eq!(sends(&mut r, 0, 1249), vec![(40, 1), (125, 2), (250, 3)]);
+        assert_eq!(
+            r.poll_timeout(),
+            Some(t0 + MS(1250)),
+            "initial 1 s after the last"
+        );
+        assert_eq!(sends(&mut r, 1250, 1250), vec![(1250, 4)]);
+        let s = r.stats();
+        assert_eq!((s.redundant, s.early_copies, s.retransmissions), (1, 3, 1));
+    }
+
+    #[test]
+    fn on_a_slow_radio_the_copies_wait_half_a_round() {
+        // 250 B/s (LoRa SF7's budget) carries the 45-byte command in 180 ms, more than the
+        // 40 ms pair gap: no second copy in the first round
+        let t0 = Instant::from_millis(0);
+        let mut r = redundant(t0, Some(0.1)).with_budget(250);
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let (f, m) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+        forwarded(r.from_ground(t0, GCS, &f, &m));
+        assert_eq!(sends(&mut r, 0, 1000), vec![(125, 1), (250, 2)]);
+        // SiK 64k's ~3 kB/s carries it in 15 ms: the pair goes
+        let mut r = redundant(t0, Some(0.1)).with_budget(3000);
+        forwarded(r.from_ground(t0, GCS, &f, &m));
+        assert_eq!(sends(&mut r, 0, 1000), vec![(40, 1), (125, 2), (250, 3)]);
+    }
+
+    #[test]
+    fn the_ack_ends_the_copies_still_planned() {
+        let t0 = Instant::from_millis(0);
+        let mut r = redundant(t0, Some(0.1));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let (f, m) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+        forwarded(r.from_ground(t0, GCS, &f, &m));
+        assert_eq!(sends(&mut r, 0, 100), vec![(40, 1)]);
+        let ack = ack(MavCmd::MAV_CMD_DO_SET_MODE);
+        assert!(r.from_radio_tagged(t0 + MS(101), 1, 1, &ack, Some(AckTag::new(0, Some(0)))));
+        assert!(sends(&mut r, 101, 5000).is_empty());
+        assert_eq!(r.poll_timeout(), None);
+    }
+
+    #[test]
+    fn in_progress_ends_the_copies_still_planned() {
+        let t0 = Instant::from_millis(0);
+        let mut r = redundant(t0, Some(0.1));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let (f, m) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+        forwarded(r.from_ground(t0, GCS, &f, &m));
+        let busy = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: MavCmd::MAV_CMD_DO_SET_MODE,
+            result: MavResult::MAV_RESULT_IN_PROGRESS,
+            ..Default::default()
+        });
+        assert!(r.from_radio_tagged(t0 + MS(20), 1, 1, &busy, tag(0)));
+        assert!(sends(&mut r, 20, 5000).is_empty(), "the vehicle has it");
+    }
+
+    #[test]
+    fn a_link_measured_clean_for_30_s_gets_one_copy_and_a_lossy_reading_starts_over() {
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let mut r = redundant(Instant::from_millis(0), Some(0.0));
+        // clean for 29.9 s only: still redundant
+        let t1 = Instant::from_millis(29_900);
+        r.set_link_loss(t1, Some(0.01));
+        let set_mode = ack(MavCmd::MAV_CMD_DO_SET_MODE);
+        let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 1.0, 0);
+        let g = sent(&forwarded(r.from_ground(t1, GCS, &f, &m))).1;
+        assert_eq!(sends(&mut r, 29_900, 29_950).len(), 1, "its second copy");
+        assert!(r.from_radio_tagged(t1 + MS(60), 1, 1, &set_mode, tag(g)));
+        // clean for 30 s: one copy, then the timeout
+        let t2 = Instant::from_millis(30_000);
+        r.set_link_loss(t2, Some(0.0));
+        let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 2.0, 0);
+        let g = sent(&forwarded(r.from_ground(t2, GCS, &f, &m))).1;
+        assert_eq!(r.poll_timeout(), Some(t2 + r.rtt().rto()));
+        assert!(sends(&mut r, 30_000, 30_000 + 900).is_empty());
+        assert!(r.from_radio_tagged(t2 + MS(901), 1, 1, &set_mode, tag(g)));
+        // one reading at 2 %, or none, and it starts over
+        for (k, reading) in [Some(0.02), None].into_iter().enumerate() {
+            let t3 = 70_000 + 40_000 * k as u64;
+            r.set_link_loss(Instant::from_millis(t3 - 40_000), Some(0.0));
+            r.set_link_loss(Instant::from_millis(t3), reading);
+            let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 3.0 + k as f32, 0);
+            let g = sent(&forwarded(r.from_ground(
+                Instant::from_millis(t3),
+                GCS,
+                &f,
+                &m,
+            )))
+            .1;
+            assert_eq!(
+                sends(&mut r, t3, t3 + 40),
+                vec![(t3 + 40, 1)],
+                "{reading:?}"
+            );
+            let done = Instant::from_millis(t3 + 41);
+            assert!(r.from_radio_tagged(done, 1, 1, &set_mode, tag(g)));
+        }
+        assert_eq!(r.stats().redundant, 3);
+    }
+
+    #[test]
+    fn the_round_trip_is_measured_from_the_copy_the_ack_names() {
+        // copies at 0, 40 and 125 ms; the vehicle got the third and its ack comes 131 ms
+        // after it: a sample of 131 ms, not 256 ms from the first copy
+        let t0 = Instant::from_millis(0);
+        let mut r = redundant(t0, Some(0.1));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 1.0, 0);
+        forwarded(r.from_ground(t0, GCS, &f, &m));
+        sends(&mut r, 0, 200);
+        let set_mode = ack(MavCmd::MAV_CMD_DO_SET_MODE);
+        assert!(r.from_radio_tagged(t0 + MS(256), 1, 1, &set_mode, Some(AckTag::new(0, Some(2)))));
+        assert_eq!(r.rtt().srtt(), Some(MS(131)));
+        // the bridge's repeat names no copy, an untagged ack after several copies is
+        // ambiguous (Karn): neither is a sample
+        for (k, t) in [tag(1), None].into_iter().enumerate() {
+            let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 2.0 + k as f32, 0);
+            let start = t0 + MS(10_000 * (k as u64 + 1));
+            forwarded(r.from_ground(start, GCS, &f, &m));
+            sends(&mut r, start.as_millis(), start.as_millis() + 200);
+            assert!(r.from_radio_tagged(start + MS(400), 1, 1, &set_mode, t));
+        }
+        assert_eq!(r.rtt().samples(), 1);
+        assert_eq!(r.stats().rtt_samples, 1);
+    }
+
+    #[test]
+    fn no_resend_comes_sooner_than_the_spacing_after_the_last_copy() {
+        // a round trip measured at 20 ms (a timeout floor of 10 ms): a resend sooner than
+        // half a TDM round after the last copy would share its air packet
+        let mut r = CommandRetransmitter::new(MS(1000), MS(10), MS(1500), 8)
+            .with_redundancy(Redundancy::SIK_64K);
+        r.set_link_loss(Instant::ZERO, Some(0.0));
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let set_mode = ack(MavCmd::MAV_CMD_DO_SET_MODE);
+        let mut now = Instant::from_millis(40_000);
+        r.set_link_loss(now, Some(0.0));
+        for k in 0..20 {
+            let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, k as f32, 0);
+            forwarded(r.from_ground(now, GCS, &f, &m));
+            now += MS(20);
+            assert!(r.from_radio(now, 1, 1, &set_mode));
+            now += MS(1000);
+        }
+        assert!(r.rtt().rto() < MS(125), "{:?}", r.rtt().rto());
+        let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 99.0, 0);
+        forwarded(r.from_ground(now, GCS, &f, &m));
+        assert_eq!(r.poll_timeout(), Some(now + MS(125)));
     }
 }

@@ -8,7 +8,7 @@ use mavlink::{MavHeader, MavlinkVersion};
 
 use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
 use crate::command::ack_tag::untag_ack;
-use crate::command::{Admission, CommandRetransmitter, RetransmitStats};
+use crate::command::{Admission, CommandRetransmitter, Redundancy, RetransmitStats, link_loss};
 use crate::compact::Expander;
 use crate::dialect::{MavMessage, RADIO_STATUS_DATA};
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
@@ -47,9 +47,10 @@ pub struct RouterConfig {
     /// Sends of one command over the radio, the first included; 1 turns retransmission off.
     /// The default, 8, outlasts a ground station's 5 tries 1.5 s apart.
     pub command_attempts: u32,
-    /// A second copy of each command this long after its first, before any timeout (see
-    /// [`CommandRetransmitter::with_early_copy`]); `None`: only timeouts resend.
-    pub command_early_copy: Option<Duration>,
+    /// Redundant copies of each command on a lossy link, before any timeout, and the
+    /// shortest resend timeout (see [`CommandRetransmitter::with_redundancy`]); the radio's
+    /// timing (default: SiK 64k). `None`: only timeouts resend.
+    pub command_redundancy: Option<Redundancy>,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
     /// Who on the ground may reach the vehicle (addresses, system ids, command budget).
@@ -74,7 +75,7 @@ impl RouterConfig {
             mission: TerminatorConfig::default(),
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,
-            command_early_copy: Some(Duration::from_millis(120)),
+            command_redundancy: Some(Redundancy::SIK_64K),
             signing: None,
             ground: GroundPolicy::default(),
             ground_signing: None,
@@ -189,9 +190,10 @@ impl Router {
                     Duration::from_millis(1500),
                     config.command_attempts,
                 )
-                .with_source_limit(config.ground.commands_in_flight);
-                match config.command_early_copy {
-                    Some(d) => c.with_early_copy(d),
+                .with_source_limit(config.ground.commands_in_flight)
+                .with_budget(config.scheduler.rate_bytes_per_s);
+                match config.command_redundancy {
+                    Some(r) => c.with_redundancy(r),
                     None => c,
                 }
             },
@@ -317,6 +319,7 @@ impl Router {
             if matches!(id, ids::COMMAND_INT | ids::COMMAND_LONG)
                 && let Ok(msg) = frame.decode::<MavMessage>()
             {
+                self.commands.set_link_loss(now, self.link_loss(now));
                 match self.commands.from_ground(now, from, &frame, &msg) {
                     Admission::Forward(f) => {
                         input.accepted += usize::from(rx.integrity == Integrity::Checked);
@@ -435,15 +438,15 @@ impl Router {
                     };
                     // The bridge's tag names the command answered; the ground gets the ack
                     // as the autopilot sent it.
-                    let (generation, frame, ack) = match untag_ack(&frame, &ack) {
-                        Some((g, plain, ack)) => (Some(g), plain, ack),
+                    let (tag, frame, ack) = match untag_ack(&frame, &ack) {
+                        Some((tag, plain, ack)) => (Some(tag), plain, ack),
                         None => (None, frame, ack),
                     };
                     let (system, component) = (frame.system_id(), frame.component_id());
                     let msg = MavMessage::COMMAND_ACK(ack);
                     if self
                         .commands
-                        .from_radio_tagged(now, system, component, &msg, generation)
+                        .from_radio_tagged(now, system, component, &msg, tag)
                     {
                         self.push_gcs(now, frame);
                     }
@@ -535,6 +538,7 @@ impl Router {
     pub fn handle_timeout(&mut self, now: Instant) {
         self.mission.handle_timeout(now);
         self.drain_mission(now);
+        self.commands.set_link_loss(now, self.link_loss(now));
         self.commands.handle_timeout(now);
         while let Some(frame) = self.commands.poll_retransmit() {
             self.scheduler.push(frame, Class::Priority, now);
@@ -547,6 +551,11 @@ impl Router {
             self.scheduler.push(frame, Class::Periodic, now);
         }
         self.link_monitor(now);
+    }
+
+    /// The loss a command meets on the radio: the worse direction.
+    fn link_loss(&self, now: Instant) -> Option<f64> {
+        link_loss(self.quality.own_loss(now), self.quality.peer_loss(now))
     }
 
     /// `STATUSTEXT` announcements and `RADIO_STATUS` for the ground, as the vehicle's
