@@ -23,7 +23,8 @@
 //! - `io` (feature `cli`): the binaries' serial, UDP and `.tlog` driver — the only code here
 //!   that does IO or reads a clock.
 //! - [`dialect`]: the generated MavLora dialect, `common.xml` plus `LINK_QUALITY` (15),
-//!   `MAVLORA_TELEMETRY` (16), `MAVLORA_POSITION_BATCH` (17) and `MAVLORA_STATUS` (18).
+//!   `MAVLORA_TELEMETRY` (16), `MAVLORA_POSITION_BATCH` (17), `MAVLORA_STATUS` (18) and
+//!   `MAVLORA_MISSION_ITEMS` (19, the mission radio leg's packed items).
 //!
 //! # Contract
 //! The engines do no IO and read no clock: callers pass bytes and the current [`Instant`] in

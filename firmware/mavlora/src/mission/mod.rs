@@ -14,6 +14,7 @@
 //! replaces the transfer in progress. Downloads (`MISSION_REQUEST_LIST`), `MISSION_CLEAR_ALL`
 //! and partial writes pass through unchanged, end to end.
 
+pub mod pack;
 pub mod plan;
 mod relay;
 mod rtt;
