@@ -263,11 +263,12 @@ fn pymavlink_telemetry_and_fifty_item_mission_through_bridge_and_router() {
     assert!(frames > 100, "{frames} frames in the tlog");
     let signed = radio.seen[0].load(Ordering::Relaxed);
     let unsigned = radio.seen[1].load(Ordering::Relaxed);
-    // Every frame on the radio is signed; not vacuously: at least the mission's 50 items
-    // crossed it (the bridge's telemetry is compact and paced, so the count of the rest
-    // follows the budget, not the test).
+    // Every frame on the radio is signed; not vacuously: at least the mission crossed it
+    // (its count, its 50 items packed in a few frames, the poll behind them, the ack) and
+    // seconds of telemetry (compact and paced, so the count follows the budget, not the
+    // test).
     assert!(
-        signed >= 50 && unsigned == 0,
+        signed >= 10 && unsigned == 0,
         "radio frames signed {signed}, unsigned {unsigned}"
     );
     let _ = std::fs::remove_dir_all(&dir);

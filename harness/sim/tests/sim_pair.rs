@@ -241,6 +241,8 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
     w.gcs.upload(GcsMock::mission(50), w.now);
     assert!(w.run_until_or(secs(200), |w| w.gcs.result.is_some()));
     assert_eq!(w.fc.mission(), &GcsMock::mission(50)[..]);
+    // 15 s of flight whatever the upload took (packed, it takes about 2 s)
+    w.run_until(w.now.max(secs(20)));
     assert!(
         w.gcs.received.get(&33).copied().unwrap_or(0) > 30,
         "telemetry expanded"
@@ -260,9 +262,9 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
     let router = w.router().unwrap().stats().signing;
     println!("bridge signing {s:?}, router signing {router:?}");
     assert!(s.unsigned >= 1 && s.replayed >= 1, "{s:?}");
-    // Signed frames flow both ways (the streamed upload sends no request per item, so the
-    // router hears fewer frames than the bridge).
-    assert!(s.accepted > 50 && router.accepted > 20, "{s:?} {router:?}");
+    // Signed frames flow both ways (the upload goes as a handful of packed frames and asks
+    // for nothing per item: the bridge hears ~10 frames of the router).
+    assert!(s.accepted >= 5 && router.accepted > 20, "{s:?} {router:?}");
     assert_eq!(s.bad_signature, 0);
 }
 

@@ -468,7 +468,11 @@ impl Bridge {
                 self.stats.link_quality_received += 1;
                 return;
             }
-            ids::HEARTBEAT | ids::MISSION_COUNT | ids::MISSION_ITEM_INT | ids::MISSION_ACK => {
+            ids::HEARTBEAT
+            | ids::MISSION_COUNT
+            | ids::MISSION_ITEM_INT
+            | ids::MAVLORA_MISSION_ITEMS
+            | ids::MISSION_ACK => {
                 let Ok(msg) = frame.decode::<MavMessage>() else {
                     self.forward_to_fc(frame);
                     return;

@@ -3,15 +3,23 @@
 //!
 //! Radio leg (router → bridge), our own use of standard messages:
 //! - `MISSION_COUNT{count, mission_type, opaque_id = transfer id}` opens a transfer; the
-//!   router streams every item behind it without waiting for requests.
-//! - A gap in the item sequence (the radio keeps order) is a loss: the bridge at once sends
-//!   `MISSION_REQUEST_INT` for each missing item (selective repair); the items the tail of
-//!   the stream lost are requested when nothing arrived for one retransmission timeout.
+//!   router streams every item behind it without waiting for requests, several to a frame
+//!   (`MAVLORA_MISSION_ITEMS`, see [`super::pack`]; each names its transfer and the plan's
+//!   size, so it also opens the transfer when the count was lost), or one `MISSION_ITEM_INT`
+//!   each.
+//! - A gap in the item sequence (the radio keeps order) is a loss: the bridge at once asks
+//!   for each missing run, `MISSION_REQUEST_PARTIAL_LIST{start_index, end_index}` (both
+//!   included; selective repair); the items the tail of the stream lost are requested when
+//!   nothing arrived for one retransmission timeout, or at the router's poll.
 //! - All items in: their CRC must match the transfer id (no item of another plan mixed in),
 //!   else all are requested again. Then the wire leg runs.
-//! - The same `MISSION_COUNT` again is the router's status poll: missing items are requested,
-//!   "all here, the autopilot is busy" is `MISSION_REQUEST_INT{seq = count}`, a finished
-//!   transfer repeats its `MISSION_ACK{opaque_id}`.
+//! - The router's status poll (the same `MISSION_COUNT` again, or a `MAVLORA_MISSION_ITEMS`
+//!   without items, which also opens a transfer the bridge never saw) comes behind everything
+//!   the router sent before it: every missing item is requested, however recently asked (the
+//!   request or its answer was lost), "all here, the autopilot is busy" is
+//!   `MISSION_REQUEST_INT{seq = count}`, a finished transfer repeats its
+//!   `MISSION_ACK{opaque_id}`. A late item frame of a transfer that is over never reopens it
+//!   (its count does: a restarted router numbers transfers from the start again).
 //! - `MISSION_ACK{error, opaque_id}` from the router: the ground cancelled.
 //!
 //! Wire leg: `MISSION_COUNT` to the autopilot, items on its requests (its 250 ms repeats are
@@ -23,11 +31,13 @@ use std::collections::{BTreeMap, VecDeque};
 
 use tracing::{debug, info, warn};
 
+use super::pack;
 use super::plan::{plan_hash, plan_part};
 use super::rtt::RttEstimator;
 use crate::dialect::{
-    MISSION_ACK_DATA, MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA,
-    MavMessage, MavMissionResult, MavMissionType,
+    MAVLORA_MISSION_ITEMS_DATA, MISSION_ACK_DATA, MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA,
+    MISSION_REQUEST_INT_DATA, MISSION_REQUEST_PARTIAL_LIST_DATA, MavMessage, MavMissionResult,
+    MavMissionType,
 };
 use crate::time::Instant;
 
@@ -42,7 +52,8 @@ pub struct MissionConfig {
     pub max_rto: Duration,
     /// Repair rounds without any progress before the transfer is abandoned.
     pub radio_attempts: u32,
-    /// Items requested at most per repair round (bounds one burst of requests).
+    /// Items requested at most per repair round (bounds what one round asks the router to
+    /// send again; one request frame per run of missing items).
     pub repair_batch: usize,
     /// Wire leg timeout (MAVLink mission protocol default: 1500 ms).
     pub wire_timeout: Duration,
@@ -57,8 +68,9 @@ impl Default for MissionConfig {
             min_rto: Duration::from_millis(300),
             max_rto: Duration::from_secs(8),
             radio_attempts: 10,
-            // 8 requests (~140 bytes) fit a LoRa modem's 256-byte buffer beside telemetry.
-            repair_batch: 8,
+            // A whole plan's worth: runs cost one request each, and the router paces what it
+            // sends again.
+            repair_batch: 256,
             wire_timeout: Duration::from_millis(1500),
             wire_attempts: 6,
         }
@@ -70,10 +82,18 @@ impl Default for MissionConfig {
 pub struct MissionStats {
     /// Transfers opened by the router.
     pub transfers: u64,
-    /// Item requests sent over the radio (repairs; a loss-free transfer sends none).
+    /// Items requested over the radio (repairs; a loss-free transfer requests none).
     pub radio_requests: u64,
+    /// Request frames sent over the radio (one per run of missing items).
+    pub radio_request_frames: u64,
     /// Items received over the radio.
     pub radio_items: u64,
+    /// Packed item frames (`MAVLORA_MISSION_ITEMS`) received.
+    pub radio_packed_frames: u64,
+    /// Packed item frames refused as unreadable.
+    pub radio_bad_frames: u64,
+    /// Frames for a transfer already finished or replaced, dropped.
+    pub radio_stale_frames: u64,
     /// Items received that we already had.
     pub radio_duplicate_items: u64,
     /// Assembled plans whose CRC did not match the transfer id (all items requested again).
@@ -153,6 +173,8 @@ pub struct MissionRelay {
     /// Items that arrived with no transfer open (its `MISSION_COUNT` was lost): kept for
     /// the next transfer, whose CRC check rejects them if they belong to another plan.
     orphans: BTreeMap<u16, MISSION_ITEM_INT_DATA>,
+    /// Transfer ids seen lately (a frame of one that is not current is stale: never reopened).
+    recent: VecDeque<u32>,
     stats: MissionStats,
 }
 
@@ -170,6 +192,7 @@ impl MissionRelay {
             to_radio: VecDeque::new(),
             to_fc: VecDeque::new(),
             orphans: BTreeMap::new(),
+            recent: VecDeque::new(),
             stats: MissionStats::default(),
         }
     }
@@ -197,64 +220,113 @@ impl MissionRelay {
                 self.radio_item(now, item);
                 true
             }
+            MavMessage::MAVLORA_MISSION_ITEMS(p) => {
+                self.radio_packed(now, from, p);
+                true
+            }
             MavMessage::MISSION_ACK(a) => self.radio_cancel(a),
             _ => false,
         }
     }
 
-    fn radio_count(&mut self, now: Instant, from: (u8, u8), c: &MISSION_COUNT_DATA) {
+    /// The router's status poll of transfer `id`, answered by state: every missing item
+    /// requested, "busy" (`MISSION_REQUEST_INT{seq = count}`: all here, the autopilot is
+    /// taking them) or the same ack again. Returns false if `id` is not the current transfer.
+    fn answer_poll(&mut self, now: Instant, id: u32) -> bool {
         match &mut self.radio {
             Radio::Receiving {
-                id,
+                id: current,
                 heard,
                 horizon,
                 slots,
                 ..
-            } if *id == c.opaque_id => {
-                debug!(id = c.opaque_id, %now, "router polls the transfer");
+            } if *current == id => {
+                debug!(id, %now, "router polls the transfer");
                 *heard = now;
-                // The router polls once its whole stream has left: whatever is missing was
-                // lost, none of it is still on the way, so every answer may fetch the next.
+                // The router polls once its whole stream has left and the radio keeps order:
+                // whatever is missing now was lost (the items or our requests), none of it is
+                // still on the way. Ask for all of it, however recently asked; the answer also
+                // tells the router the round trip.
                 *horizon = slots.len() as u16;
-                self.repair(now, true);
-                return;
+                self.repair_missing(now, true, true);
+                true
             }
             Radio::Forwarding {
-                id,
+                id: current,
                 router,
                 count,
                 mission_type,
-            } if *id == c.opaque_id => {
+            } if *current == id => {
                 // All items are here; the autopilot is still taking them.
                 let busy = request(*router, *count, *mission_type);
                 self.to_radio.push_back(busy);
-                return;
+                true
             }
             Radio::Done {
-                id,
+                id: current,
                 router,
                 mission_type,
                 result,
-            } if *id == c.opaque_id => {
-                let again = ack(*router, *result, *mission_type, *id);
+            } if *current == id => {
+                let again = ack(*router, *result, *mission_type, id);
                 self.to_radio.push_back(again);
-                return;
+                true
             }
-            _ => {}
+            _ => false,
         }
-        info!(
-            count = c.count,
-            mission_type = ?c.mission_type,
-            id = c.opaque_id,
-            "mission transfer from the router"
-        );
+    }
+
+    fn radio_count(&mut self, now: Instant, from: (u8, u8), c: &MISSION_COUNT_DATA) {
+        if self.answer_poll(now, c.opaque_id) {
+            return;
+        }
+        // A count always opens its transfer, even one seen before: a restarted router
+        // numbers its transfers from the start again.
+        self.recent.retain(|id| *id != c.opaque_id);
+        if !self.open(now, from, c.count, c.mission_type, c.opaque_id) {
+            return;
+        }
+        // Orphans below the horizon that are missing were lost: ask for them now.
+        self.repair(now, false);
+        self.check_complete(now);
+    }
+
+    /// The transfer currently open or finished.
+    fn current_id(&self) -> Option<u32> {
+        match &self.radio {
+            Radio::Receiving { id, .. } | Radio::Forwarding { id, .. } | Radio::Done { id, .. } => {
+                Some(*id)
+            }
+            Radio::Idle => None,
+        }
+    }
+
+    /// Opens transfer `id` (replacing the one in progress), with the orphans that fit it;
+    /// false if `id` is an earlier transfer's (a late item frame: only a count reopens it).
+    fn open(
+        &mut self,
+        now: Instant,
+        from: (u8, u8),
+        count: u16,
+        mission_type: MavMissionType,
+        id: u32,
+    ) -> bool {
+        if id != 0 && self.recent.contains(&id) {
+            self.stats.radio_stale_frames += 1;
+            debug!(id, "frame of an earlier transfer dropped");
+            return false;
+        }
+        info!(count, ?mission_type, id, "mission transfer from the router");
+        if let Some(current) = self.current_id() {
+            self.retire(current);
+        }
         self.stats.transfers += 1;
         self.abort_wire();
-        let mut slots = vec![None; usize::from(c.count)];
+        let mut slots = vec![None; usize::from(count)];
         let mut horizon = 0;
         for (seq, item) in std::mem::take(&mut self.orphans) {
             if let Some(slot) = slots.get_mut(usize::from(seq))
-                && item.mission_type == c.mission_type
+                && item.mission_type == mission_type
             {
                 *slot = Some(item);
                 horizon = seq + 1;
@@ -262,29 +334,82 @@ impl MissionRelay {
         }
         self.radio = Radio::Receiving {
             router: from,
-            id: c.opaque_id,
-            mission_type: c.mission_type,
+            id,
+            mission_type,
             slots,
             horizon,
             requested: BTreeMap::new(),
             heard: now,
             rounds: 0,
         };
-        // Orphans below the horizon that are missing were lost: ask for them now.
-        self.repair(now, false);
+        true
+    }
+
+    /// Transfer `id` is over: a late frame of it is stale.
+    fn retire(&mut self, id: u32) {
+        if id != 0 && !self.recent.contains(&id) {
+            self.recent.push_back(id);
+            if self.recent.len() > 16 {
+                self.recent.pop_front();
+            }
+        }
+    }
+
+    /// Items packed by the router: they open their transfer if its count was lost.
+    fn radio_packed(&mut self, now: Instant, from: (u8, u8), p: &MAVLORA_MISSION_ITEMS_DATA) {
+        self.stats.radio_packed_frames += 1;
+        if p.items == 0 {
+            // No item: the router's status poll (it opens the transfer if nothing else did).
+            if !self.answer_poll(now, p.opaque_id)
+                && self.open(now, from, p.count, p.mission_type, p.opaque_id)
+            {
+                self.answer_poll(now, p.opaque_id);
+                self.check_complete(now);
+            }
+            return;
+        }
+        let items = match pack::unpack(p) {
+            Ok(items) => items,
+            Err(e) => {
+                self.stats.radio_bad_frames += 1;
+                warn!(error = %e, "unreadable packed mission items dropped");
+                return;
+            }
+        };
+        match &self.radio {
+            Radio::Receiving { id, .. } if *id == p.opaque_id => {}
+            Radio::Forwarding { id, .. } | Radio::Done { id, .. } if *id == p.opaque_id => {
+                // All here already: a repair that crossed the last item.
+                self.stats.radio_duplicate_items += items.len() as u64;
+                return;
+            }
+            _ => {
+                if !self.open(now, from, p.count, p.mission_type, p.opaque_id) {
+                    return;
+                }
+            }
+        }
+        let mut repair = false;
+        let mut sampled = false;
+        for item in &items {
+            let (gap, answered) = self.take_item(now, item);
+            if let Some((at, 1)) = answered
+                && !sampled
+            {
+                // Karn's rule: only unambiguous round trips are samples; one per frame.
+                self.rtt.sample(now.saturating_duration_since(at));
+                sampled = true;
+            }
+            repair |= gap || answered.is_some();
+        }
+        if repair {
+            self.repair(now, false);
+        }
         self.check_complete(now);
     }
 
     fn radio_item(&mut self, now: Instant, item: &MISSION_ITEM_INT_DATA) {
-        let Radio::Receiving {
-            slots,
-            horizon,
-            requested,
-            heard,
-            rounds,
-            ..
-        } = &mut self.radio
-        else {
+        if !matches!(self.radio, Radio::Receiving { .. }) {
             if matches!(self.radio, Radio::Forwarding { .. }) || self.orphans.len() >= MAX_ORPHANS {
                 self.stats.radio_duplicate_items += 1;
             } else {
@@ -292,26 +417,12 @@ impl MissionRelay {
                 self.orphans.insert(item.seq, item.clone());
             }
             return;
-        };
-        let seq = item.seq;
-        let Some(slot) = slots.get_mut(usize::from(seq)) else {
-            return;
-        };
-        *heard = now;
-        if slot.is_some() {
-            self.stats.radio_duplicate_items += 1;
-            return;
         }
-        *slot = Some(item.clone());
-        *rounds = 0;
-        self.stats.radio_items += 1;
-        let answered = requested.remove(&seq);
+        let (gap, answered) = self.take_item(now, item);
         if let Some((at, 1)) = answered {
             // Karn's rule: only unambiguous round trips are samples.
             self.rtt.sample(now.saturating_duration_since(at));
         }
-        let gap = seq > *horizon;
-        *horizon = (*horizon).max(seq + 1);
         if gap || answered.is_some() {
             // The radio keeps order: what the stream skipped was lost. And an answered
             // request makes room for the next one: repairs flow at the round trip, a batch
@@ -321,11 +432,53 @@ impl MissionRelay {
         self.check_complete(now);
     }
 
+    /// Stores one item of the transfer being received: whether it showed a gap, and the
+    /// request it answered (sent at, sends).
+    fn take_item(
+        &mut self,
+        now: Instant,
+        item: &MISSION_ITEM_INT_DATA,
+    ) -> (bool, Option<(Instant, u32)>) {
+        let Radio::Receiving {
+            slots,
+            horizon,
+            requested,
+            heard,
+            rounds,
+            ..
+        } = &mut self.radio
+        else {
+            return (false, None);
+        };
+        let seq = item.seq;
+        let Some(slot) = slots.get_mut(usize::from(seq)) else {
+            return (false, None);
+        };
+        *heard = now;
+        if slot.is_some() {
+            self.stats.radio_duplicate_items += 1;
+            return (false, None);
+        }
+        *slot = Some(item.clone());
+        *rounds = 0;
+        self.stats.radio_items += 1;
+        let answered = requested.remove(&seq);
+        let gap = seq > *horizon;
+        *horizon = (*horizon).max(seq + 1);
+        (gap, answered)
+    }
+
     /// Requests missing items not asked for within one RTO: below the horizon (known lost),
-    /// or with `all` every missing one (a poll or our timeout: the tail may be lost too).
+    /// or with `all` every missing one (our timeout: the tail may be lost too).
+    fn repair(&mut self, now: Instant, all: bool) {
+        self.repair_missing(now, all, false);
+    }
+
+    /// [`repair`](Self::repair), and with `again` also what was asked for less than one RTO
+    /// ago (a poll showed it lost).
     // Indexing: the loop also builds `requested` entries keyed by the same seq.
     #[allow(clippy::needless_range_loop)]
-    fn repair(&mut self, now: Instant, all: bool) {
+    fn repair_missing(&mut self, now: Instant, all: bool, again: bool) {
         let rto = self.rtt.rto();
         let Radio::Receiving {
             router,
@@ -344,6 +497,7 @@ impl MissionRelay {
             usize::from(*horizon)
         };
         let mut sent = 0;
+        let mut runs: Vec<(u16, u16)> = Vec::new();
         for seq in 0..limit {
             if sent >= self.config.repair_batch {
                 break;
@@ -355,14 +509,21 @@ impl MissionRelay {
             let entry = requested.entry(seq).or_insert((now, 0));
             // A request younger than one timeout may still be answered: asking again
             // would only put a second copy on the air.
-            if entry.1 > 0 && now.saturating_duration_since(entry.0) < rto {
+            if entry.1 > 0 && !again && now.saturating_duration_since(entry.0) < rto {
                 continue;
             }
             *entry = (now, entry.1 + 1);
             sent += 1;
-            self.stats.radio_requests += 1;
+            match runs.last_mut() {
+                Some((_, end)) if *end + 1 == seq => *end = seq,
+                _ => runs.push((seq, seq)),
+            }
+        }
+        self.stats.radio_requests += sent as u64;
+        self.stats.radio_request_frames += runs.len() as u64;
+        for (start, end) in runs {
             self.to_radio
-                .push_back(request(*router, seq, *mission_type));
+                .push_back(request_range(*router, start, end, *mission_type));
         }
     }
 
@@ -435,6 +596,7 @@ impl MissionRelay {
             info!(id = current, "the ground cancelled the mission transfer");
             self.stats.cancelled += 1;
             self.abort_wire();
+            self.retire(current);
             self.radio = Radio::Idle;
         }
         true
@@ -577,6 +739,8 @@ impl MissionRelay {
                     *id,
                 );
                 self.to_radio.push_back(give_up);
+                let id = *id;
+                self.retire(id);
                 self.radio = Radio::Idle;
             } else {
                 *rounds += 1;
@@ -636,6 +800,26 @@ impl MissionRelay {
 fn count_msg(count: u16, mission_type: MavMissionType) -> MavMessage {
     MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
         count,
+        mission_type,
+        ..Default::default()
+    })
+}
+
+/// Asks the router for items `start..=end` again (`MISSION_REQUEST_PARTIAL_LIST` on the radio
+/// leg; sequence numbers in the `int16` fields as their bit patterns).
+// `..Default::default()` although every field is set today: the dialect may grow.
+#[allow(clippy::needless_update)]
+pub(super) fn request_range(
+    to: (u8, u8),
+    start: u16,
+    end: u16,
+    mission_type: MavMissionType,
+) -> MavMessage {
+    MavMessage::MISSION_REQUEST_PARTIAL_LIST(MISSION_REQUEST_PARTIAL_LIST_DATA {
+        start_index: start as i16,
+        end_index: end as i16,
+        target_system: to.0,
+        target_component: to.1,
         mission_type,
         ..Default::default()
     })

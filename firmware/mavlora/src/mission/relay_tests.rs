@@ -1,5 +1,6 @@
 use super::*;
 use crate::dialect::MavMissionType;
+use crate::mission::pack;
 use crate::mission::plan::{plan_hash, transfer_id};
 
 const ROUTER: (u8, u8) = (255, 191);
@@ -38,11 +39,16 @@ fn fc_out(r: &mut MissionRelay) -> Vec<MavMessage> {
     std::iter::from_fn(|| r.poll_fc((1, 1))).collect()
 }
 
+/// The items asked for: ranges (`MISSION_REQUEST_PARTIAL_LIST`, both ends included) and
+/// single requests (`MISSION_REQUEST_INT`: the "busy" answer, seq = count).
 fn requested(msgs: &[MavMessage]) -> Vec<u16> {
     msgs.iter()
-        .filter_map(|m| match m {
-            MavMessage::MISSION_REQUEST_INT(r) => Some(r.seq),
-            _ => None,
+        .flat_map(|m| match m {
+            MavMessage::MISSION_REQUEST_INT(r) => vec![r.seq],
+            MavMessage::MISSION_REQUEST_PARTIAL_LIST(r) => {
+                (r.start_index as u16..=r.end_index as u16).collect()
+            }
+            _ => vec![],
         })
         .collect()
 }
@@ -309,35 +315,171 @@ fn items_whose_count_was_lost_are_kept_for_it_and_not_sent_again() {
 }
 
 /// The count got through but every item of the stream was lost (a fade): the router's poll
-/// says the stream has left, and from then on each answered request fetches the next, at
-/// the round trip, with no timeout between batches.
+/// says the stream has left, and every missing item is asked for at once, one request per
+/// run, not a batch of 8 per round trip (100 items took 13 rounds).
 #[test]
-fn after_a_poll_repairs_flow_at_the_round_trip_not_a_batch_per_timeout() {
+fn after_a_poll_every_missing_item_is_asked_for_at_once_one_request_per_run() {
     let items = plan(&(0..100).collect::<Vec<_>>());
     let mut r = MissionRelay::new(MissionConfig::default());
     r.handle_radio(ms(0), ROUTER, &count_for(&items, 1));
-    radio_out(&mut r);
-    // 2 s later, nothing else arrived; the router polls.
-    r.handle_radio(ms(2000), ROUTER, &count_for(&items, 1));
-    let mut asked = requested(&radio_out(&mut r));
-    assert!(!asked.is_empty() && asked.len() <= 8, "{asked:?}");
-    // A router that answers each request 100 ms later, and never a timeout in between.
-    let mut now = 2000;
-    let mut rounds = 0;
-    while let Some(&seq) = asked.first() {
-        asked.remove(0);
-        now += 10;
+    for i in (0..10).chain(50..60) {
         r.handle_radio(
-            ms(now),
+            ms(10),
             ROUTER,
-            &MavMessage::MISSION_ITEM_INT(items[usize::from(seq)].clone()),
+            &MavMessage::MISSION_ITEM_INT(items[i].clone()),
         );
-        asked.extend(requested(&radio_out(&mut r)));
-        rounds += 1;
-        assert!(rounds <= 100, "asked again: {asked:?}");
     }
-    assert_eq!(rounds, 100, "each item once");
-    // Every item in, well within one retransmission timeout of the poll.
-    assert!(now - 2000 <= 1000, "{now}");
+    // items 10..49 show as a gap when 50 arrives
+    let gap = radio_out(&mut r);
+    assert_eq!(gap.len(), 1, "one request for one run");
+    assert_eq!(requested(&gap), (10..50).collect::<Vec<u16>>());
+    // 2 s later, nothing else arrived; the router polls: the tail too, and the first run
+    // again (its request or its answer was lost: the poll came after both would have)
+    r.handle_radio(ms(2000), ROUTER, &count_for(&items, 1));
+    let asked = radio_out(&mut r);
+    assert_eq!(asked.len(), 2, "{asked:?}");
+    assert_eq!(
+        requested(&asked),
+        (10..50).chain(60..100).collect::<Vec<u16>>()
+    );
+    assert_eq!(r.stats().radio_request_frames, 3);
+    assert_eq!(r.stats().radio_requests, 40 + 80);
+    for i in (10..50).chain(60..100) {
+        r.handle_radio(
+            ms(2300),
+            ROUTER,
+            &MavMessage::MISSION_ITEM_INT(items[i].clone()),
+        );
+    }
+    assert!(radio_out(&mut r).is_empty(), "nothing more to ask");
     assert!(matches!(&fc_out(&mut r)[..], [MavMessage::MISSION_COUNT(c)] if c.count == 100));
+}
+
+fn packed(items: &[MISSION_ITEM_INT_DATA], generation: u8) -> Vec<MavMessage> {
+    let id = transfer_id(generation, plan_hash(MISSION, items));
+    pack::frames(id, items.len() as u16, (1, 1), MISSION, items, 60)
+}
+
+fn packed_poll(items: &[MISSION_ITEM_INT_DATA], generation: u8) -> MavMessage {
+    let id = transfer_id(generation, plan_hash(MISSION, items));
+    pack::poll(id, items.len() as u16, (1, 1), MISSION)
+}
+
+/// Packed frames name their transfer and the plan's size: a bridge that lost the count
+/// opens the transfer from the first frame it gets, repairs a lost frame by range, and
+/// uploads exactly the plan.
+#[test]
+fn packed_items_open_their_transfer_and_a_lost_frame_is_asked_for_by_range() {
+    let items = plan(&(0..30).map(|x| 1000 + 70_000 * x).collect::<Vec<_>>());
+    let frames = packed(&items, 1);
+    assert!(frames.len() >= 3, "{}", frames.len());
+    let mut r = MissionRelay::new(MissionConfig::default());
+    // the count and the first frame are lost
+    for f in &frames[1..] {
+        r.handle_radio(ms(10), ROUTER, f);
+    }
+    let MavMessage::MAVLORA_MISSION_ITEMS(first) = &frames[0] else {
+        unreachable!()
+    };
+    let lost: Vec<u16> = pack::span(first).map(|s| s as u16).collect();
+    assert_eq!(requested(&radio_out(&mut r)), lost);
+    assert_eq!(r.stats().radio_request_frames, 1);
+    assert!(
+        fc_out(&mut r).is_empty(),
+        "incomplete: nothing for the autopilot"
+    );
+    // the repair arrives (the router re-packs the range)
+    r.handle_radio(ms(300), ROUTER, &frames[0]);
+    let got = wire_upload(&mut r, 30, ms(400));
+    assert!(super::super::plan::same_plan(&got, &items));
+    assert!(
+        matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
+        if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED
+            && a.opaque_id == transfer_id(1, plan_hash(MISSION, &items)))
+    );
+    assert_eq!(r.stats().radio_packed_frames, frames.len() as u64);
+    assert!(
+        r.rtt().samples() > 0,
+        "the repair's round trip was measured"
+    );
+}
+
+/// The router's poll when packing is a frame without items: the bridge knows it for a poll
+/// even when it never saw the transfer (count and every frame lost) and asks for all of it;
+/// later polls get "busy" while the autopilot takes the items, then the same ack.
+#[test]
+fn packed_poll_asks_for_everything_missing_then_busy_then_the_same_ack() {
+    let items = plan(&[5, 6, 7, 8]);
+    let mut r = MissionRelay::new(MissionConfig::default());
+    r.handle_radio(ms(0), ROUTER, &packed_poll(&items, 1));
+    assert_eq!(requested(&radio_out(&mut r)), vec![0, 1, 2, 3]);
+    for f in packed(&items, 1) {
+        r.handle_radio(ms(100), ROUTER, &f);
+    }
+    assert!(matches!(&fc_out(&mut r)[..], [MavMessage::MISSION_COUNT(c)] if c.count == 4));
+    r.handle_radio(ms(200), ROUTER, &packed_poll(&items, 1));
+    assert_eq!(requested(&radio_out(&mut r)), vec![4], "busy: seq = count");
+    for seq in 0..4 {
+        r.handle_fc(ms(300), &fc_request(seq));
+    }
+    r.handle_fc(ms(300), &fc_ack(MavMissionResult::MAV_MISSION_ACCEPTED));
+    radio_out(&mut r);
+    r.handle_radio(ms(400), ROUTER, &packed_poll(&items, 1));
+    assert!(
+        matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
+        if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED)
+    );
+    assert_eq!(r.stats().completed, 1);
+}
+
+/// A late frame of a transfer that is over (a repair that crossed a new upload's count, or
+/// a duplicate) never reopens it: the new upload goes on. Its count does reopen it: a
+/// restarted router numbers transfers from the start again.
+#[test]
+fn a_late_packed_frame_never_reopens_a_finished_transfer_but_its_count_does() {
+    let old = plan(&[1, 2, 3]);
+    let new = plan(&[4, 5, 6]);
+    let mut r = MissionRelay::new(MissionConfig::default());
+    for f in packed(&old, 1) {
+        r.handle_radio(ms(0), ROUTER, &f);
+    }
+    wire_upload(&mut r, 3, ms(10));
+    radio_out(&mut r);
+    r.handle_radio(ms(20), ROUTER, &count_for(&new, 2));
+    for f in packed(&old, 1) {
+        r.handle_radio(ms(30), ROUTER, &f);
+    }
+    assert_eq!(r.stats().radio_stale_frames, 1);
+    assert!(
+        fc_out(&mut r).is_empty(),
+        "the old plan does not go to the autopilot again"
+    );
+    for f in packed(&new, 2) {
+        r.handle_radio(ms(40), ROUTER, &f);
+    }
+    let got = wire_upload(&mut r, 3, ms(50));
+    assert!(super::super::plan::same_plan(&got, &new));
+    radio_out(&mut r);
+    // the old transfer's count again (a restarted router): a new transfer of it
+    r.handle_radio(ms(60), ROUTER, &count_for(&old, 1));
+    for f in packed(&old, 1) {
+        r.handle_radio(ms(70), ROUTER, &f);
+    }
+    let got = wire_upload(&mut r, 3, ms(80));
+    assert!(super::super::plan::same_plan(&got, &old));
+}
+
+#[test]
+fn an_unreadable_packed_frame_is_counted_and_changes_nothing() {
+    let items = plan(&[1, 2, 3]);
+    let mut frames = packed(&items, 1);
+    let MavMessage::MAVLORA_MISSION_ITEMS(p) = &mut frames[0] else {
+        unreachable!()
+    };
+    p.data = [0xFF; pack::MAX_DATA];
+    let mut r = MissionRelay::new(MissionConfig::default());
+    assert!(r.handle_radio(ms(0), ROUTER, &frames[0]));
+    assert_eq!(r.stats().radio_bad_frames, 1);
+    assert_eq!(r.stats().transfers, 0);
+    assert_eq!(r.poll_timeout(), None);
 }

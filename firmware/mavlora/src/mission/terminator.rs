@@ -12,21 +12,39 @@
 //! checked). A `MISSION_ACK` with an error from the ground cancels the transfer.
 //!
 //! Radio leg: `MISSION_COUNT{opaque_id = transfer id}` and every item, one behind the other
-//! (no round trip per item); the bridge asks for the lost ones. When the stream has left
-//! and the bridge said nothing for one timeout, the count goes again as a status poll (see
-//! [`super::relay`]).
+//! (no round trip per item), packed several to a frame ([`super::pack`]) unless
+//! [`TerminatorConfig::pack_bytes`] is `None`, each frame paced at its own length on the
+//! radio; the bridge asks for the lost ones by range. A status poll goes right behind the
+//! stream (and behind each batch of repairs): the radio keeps order, so when the poll arrives
+//! every frame before it has arrived or is lost, and the bridge answers with what it misses,
+//! "busy" or its ack (see [`super::relay`]). The poll is an item frame without items when
+//! packing (the bridge knows it for a poll even if it never saw the transfer), else the count
+//! again. While the bridge stays silent the poll is repeated at a timeout that follows the
+//! round trip measured from polls to their answers (RFC 6298; Karn's rule: only a poll
+//! answered while it was the only one out, by a request that did not cross our latest
+//! frames, is a sample), doubling after [`POLLS_BEFORE_BACKOFF`] unanswered polls (up to
+//! [`TerminatorConfig::poll_max`]); before any is measured the timeout is the time two of
+//! the largest stream frames take at the paced rate plus [`super::MARGIN`], within
+//! [`TerminatorConfig::poll_min`] and [`TerminatorConfig::poll_initial`]. A request for an
+//! item sent again less than the shortest measured round trip ago crossed that copy and is
+//! not answered twice.
 
 use crate::time::Duration;
 use std::collections::VecDeque;
 
 use tracing::{debug, info, warn};
 
+use mavlink::{MavHeader, MavlinkVersion};
+
+use super::pack;
 use super::plan::{plan_hash, transfer_id};
 use super::relay::{ack, request};
+use super::rtt::{MARGIN, RttEstimator};
 use crate::dialect::{
     MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MavMessage, MavMissionResult, MavMissionType,
 };
 use crate::time::Instant;
+use crate::wire::encode;
 
 /// Router-side mission timeouts.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -38,9 +56,12 @@ pub struct TerminatorConfig {
     pub ground_timeout: Duration,
     /// ...this many times in all before the ground counts as gone.
     pub ground_attempts: u32,
-    /// First status poll this long after the stream left the radio without a word back.
+    /// Status poll timeout (the stream left, the bridge silent) before a round trip is
+    /// measured, at most.
     pub poll_initial: Duration,
-    /// Polls back off up to this interval.
+    /// Shortest poll timeout.
+    pub poll_min: Duration,
+    /// Unanswered polls back off (doubling) up to this interval.
     pub poll_max: Duration,
     /// The bridge silent this long after the stream left: the ground is told MAV_MISSION_ERROR.
     pub silence_limit: Duration,
@@ -52,10 +73,14 @@ pub struct TerminatorConfig {
     /// budget): the scheduler's burst allowance would otherwise pour a plan into a radio
     /// whose buffer (256 bytes on a LoRa modem) drops what does not fit. `None`: no pacing.
     pub pace_bytes_per_s: Option<u32>,
+    /// Bytes the radio leg adds to each MAVLink 2 frame (13 when it signs): pacing counts
+    /// each frame at its length on the radio.
+    pub frame_extra_bytes: u32,
+    /// Items go packed into `MAVLORA_MISSION_ITEMS` frames of at most this many data bytes
+    /// (at most [`pack::MAX_DATA`]; a survey's waypoint costs ~8 bytes instead of a
+    /// 49-byte `MISSION_ITEM_INT`); `None`: one `MISSION_ITEM_INT` per item.
+    pub pack_bytes: Option<usize>,
 }
-
-/// Bytes a stream frame may take on the radio (a signed `MISSION_ITEM_INT`: 37 + 12 + 13).
-const STREAM_FRAME_BYTES: u64 = 62;
 
 impl Default for TerminatorConfig {
     fn default() -> Self {
@@ -63,14 +88,24 @@ impl Default for TerminatorConfig {
             keepalive: Duration::from_millis(250),
             ground_timeout: Duration::from_millis(500),
             ground_attempts: 5,
-            poll_initial: Duration::from_secs(2),
-            poll_max: Duration::from_secs(8),
+            poll_initial: Duration::from_millis(1500),
+            poll_min: Duration::from_millis(200),
+            // One poll every 2 s at most finds the end of a long fade within 2 s.
+            poll_max: Duration::from_secs(2),
             silence_limit: Duration::from_secs(60),
             window: 4,
             pace_bytes_per_s: None,
+            frame_extra_bytes: 13,
+            // A 224-byte frame (237 signed): one air packet of SiK (250) or LoRa (251).
+            pack_bytes: Some(pack::MAX_DATA),
         }
     }
 }
+
+/// Unanswered polls after which the poll timeout starts doubling: a fade that swallows a
+/// poll or its answer is not congestion, the next poll should follow one round trip later (a
+/// poll is ~22 bytes); a bridge silent for longer is polled less and less often.
+pub const POLLS_BEFORE_BACKOFF: u32 = 5;
 
 /// Counters of the router's mission side.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -91,6 +126,8 @@ pub struct TerminatorStats {
     pub items_repaired: u64,
     /// Status polls sent.
     pub polls: u64,
+    /// Round trips measured from polls to their answers.
+    pub poll_rtt_samples: u64,
     /// Keep-alive re-requests of the last item sent to the ground.
     pub keepalives: u64,
     /// Acks from the radio for an older transfer, dropped.
@@ -118,7 +155,12 @@ enum State {
         keepalive_at: Instant,
         /// When the last of our frames left, or the bridge last spoke.
         quiet_since: Instant,
-        poll_every: Duration,
+        /// Polls sent since the bridge last spoke.
+        polls_unanswered: u32,
+        /// When the last poll was queued.
+        poll_sent: Instant,
+        /// When each item was last released to the radio.
+        sent_at: Vec<Option<Instant>>,
         /// When the bridge last spoke (or the first stream finished leaving).
         heard: Instant,
         /// Whether the first stream has left (polls do not count as news from the bridge).
@@ -150,6 +192,15 @@ pub struct MissionTerminator {
     in_queue: usize,
     /// The next stream frame is not released before this (pacing).
     next_release: Instant,
+    /// Largest stream frame released (bytes on the radio), for the unmeasured poll timeout.
+    largest_frame: u64,
+    /// A status poll waits to go behind the stream.
+    poll_pending: bool,
+    /// Shortest round trip measured: a request that comes back sooner after an item was sent
+    /// cannot be about that send (it crossed it).
+    min_rtt: Duration,
+    /// Round trip to the bridge, measured from polls; kept across transfers.
+    rtt: RttEstimator,
     stats: TerminatorStats,
 }
 
@@ -166,8 +217,40 @@ impl MissionTerminator {
             stream: VecDeque::new(),
             in_queue: 0,
             next_release: Instant::ZERO,
+            largest_frame: 0,
+            poll_pending: false,
+            min_rtt: Duration::ZERO,
+            rtt: RttEstimator::new(config.poll_initial, config.poll_min, config.poll_max),
             stats: TerminatorStats::default(),
         }
+    }
+
+    /// The round trip to the bridge, as measured from polls.
+    pub fn rtt(&self) -> &RttEstimator {
+        &self.rtt
+    }
+
+    /// Poll timeout with no poll unanswered: the measured one, or before any is measured
+    /// two of the largest stream frames at the paced rate plus the margin.
+    fn poll_base(&self) -> Duration {
+        if self.rtt.samples() > 0 {
+            return self.rtt.rto();
+        }
+        match self.config.pace_bytes_per_s.filter(|r| *r > 0) {
+            Some(rate) if self.largest_frame > 0 => {
+                let two =
+                    Duration::from_micros(2 * self.largest_frame * 1_000_000 / u64::from(rate));
+                (two + MARGIN).clamp(self.config.poll_min, self.config.poll_initial)
+            }
+            _ => self.config.poll_initial,
+        }
+    }
+
+    /// The poll timeout after `unanswered` unanswered polls: the base up to
+    /// [`POLLS_BEFORE_BACKOFF`], then doubling, at most [`TerminatorConfig::poll_max`].
+    fn poll_after(&self, unanswered: u32) -> Duration {
+        let doublings = unanswered.saturating_sub(POLLS_BEFORE_BACKOFF).min(16);
+        (self.poll_base() * 2u32.pow(doublings)).min(self.config.poll_max)
     }
 
     /// Counters so far.
@@ -332,6 +415,7 @@ impl MissionTerminator {
         }
         // What has not left yet is of no use to anyone.
         self.stream.clear();
+        self.poll_pending = false;
     }
 
     /// Asks the ground for the next item, or starts the radio leg with all of them.
@@ -378,10 +462,11 @@ impl MissionTerminator {
                 opaque_id: id,
                 ..Default::default()
             }));
-        for item in &items {
-            self.stream
-                .push_back(MavMessage::MISSION_ITEM_INT(to_vehicle(item, vehicle)));
-        }
+        let count = items.len();
+        let frames = item_frames(&self.config, id, vehicle, mission_type, &items, &items);
+        self.stream.extend(frames);
+        // A poll right behind the stream: a lost tail is asked for one round trip later.
+        self.poll_pending = !items.is_empty();
         self.stats.items_streamed += items.len() as u64;
         self.state = State::Relaying {
             ground,
@@ -391,7 +476,9 @@ impl MissionTerminator {
             id,
             keepalive_at: now + self.config.keepalive,
             quiet_since: now,
-            poll_every: self.config.poll_initial,
+            polls_unanswered: 0,
+            poll_sent: now,
+            sent_at: vec![None; count],
             heard: now,
             streamed: false,
         };
@@ -412,8 +499,18 @@ impl MissionTerminator {
                 self.bridge_request(now, r.seq, r.mission_type);
                 true
             }
+            // The bridge's repair request on the radio leg: items start..=end again.
+            MavMessage::MISSION_REQUEST_PARTIAL_LIST(r) => {
+                self.bridge_range(
+                    now,
+                    r.start_index as u16,
+                    r.end_index as u16,
+                    r.mission_type,
+                );
+                true
+            }
             MavMessage::MISSION_ACK(a) if a.opaque_id != 0 => {
-                self.bridge_ack(a.opaque_id, a.mavtype);
+                self.bridge_ack(now, a.opaque_id, a.mavtype);
                 true
             }
             _ => false,
@@ -421,46 +518,106 @@ impl MissionTerminator {
     }
 
     fn bridge_request(&mut self, now: Instant, seq: u16, t: MavMissionType) {
+        // seq == count: "all items here, the autopilot is busy": alive, nothing to send.
+        self.bridge_range(now, seq, seq, t);
+    }
+
+    /// The bridge spoke about the transfer: it is alive, and (with `sample`) a poll it
+    /// answered while it was the only one out is a round-trip sample.
+    fn bridge_heard(&mut self, now: Instant, sample: bool) {
         let State::Relaying {
-            vehicle,
-            mission_type,
-            items,
             quiet_since,
-            poll_every,
+            polls_unanswered,
+            poll_sent,
             heard,
             ..
         } = &mut self.state
         else {
             return;
         };
+        if *polls_unanswered == 1 && sample {
+            let rtt = now.saturating_duration_since(*poll_sent);
+            self.rtt.sample(rtt);
+            self.min_rtt = match self.stats.poll_rtt_samples {
+                0 => rtt,
+                _ => self.min_rtt.min(rtt),
+            };
+            self.stats.poll_rtt_samples += 1;
+        }
+        *polls_unanswered = 0;
+        *heard = now;
+        *quiet_since = now;
+    }
+
+    /// Items `start..=end` again, those not already waiting to leave, ahead of the rest of
+    /// the stream (the bridge only looks for gaps above what it has seen).
+    fn bridge_range(&mut self, now: Instant, start: u16, end: u16, t: MavMissionType) {
+        let State::Relaying {
+            vehicle,
+            mission_type,
+            items,
+            id,
+            sent_at,
+            ..
+        } = &self.state
+        else {
+            return;
+        };
         if t != *mission_type {
             return;
         }
-        *heard = now;
-        *quiet_since = now;
-        *poll_every = self.config.poll_initial;
-        // seq == count: "all items here, the autopilot is busy": alive, nothing to send.
-        let waiting = self
-            .stream
-            .iter()
-            .any(|m| matches!(m, MavMessage::MISSION_ITEM_INT(i) if i.seq == seq));
-        if let Some(item) = items.get(usize::from(seq))
-            && !waiting
-        {
-            // A repair goes before the rest of the stream (the bridge only looks for gaps
-            // above what it has seen), and only once while it waits here.
-            self.stats.items_repaired += 1;
-            let at = usize::from(
-                self.stream
-                    .front()
-                    .is_some_and(|m| matches!(m, MavMessage::MISSION_COUNT(_))),
-            );
+        // Not what still waits to leave, nor what left less than the shortest round trip
+        // ago (the request was sent before that copy could have arrived).
+        let waiting = |seq: usize| self.stream.iter().any(|m| covers(m, seq));
+        let crossed = |seq: usize| {
+            sent_at[seq].is_some_and(|t| now.saturating_duration_since(t) < self.min_rtt)
+        };
+        let mut crossed_any = false;
+        let mut runs: Vec<(usize, usize)> = Vec::new();
+        let last = items.len().min(usize::from(end) + 1);
+        for seq in usize::from(start)..last {
+            if waiting(seq) {
+                continue;
+            }
+            if crossed(seq) {
+                crossed_any = true;
+                continue;
+            }
+            match runs.last_mut() {
+                Some((_, e)) if *e + 1 == seq => *e = seq,
+                _ => runs.push((seq, seq)),
+            }
+        }
+        let mut repairs = Vec::new();
+        for (a, b) in runs {
+            self.stats.items_repaired += (b - a + 1) as u64;
+            repairs.extend(item_frames(
+                &self.config,
+                *id,
+                *vehicle,
+                *mission_type,
+                items,
+                &items[a..=b],
+            ));
+        }
+        // A request that crossed our latest frames was sent before our poll arrived: it is
+        // not the poll's answer, its time no round-trip sample.
+        self.bridge_heard(now, !crossed_any);
+        let at = usize::from(
             self.stream
-                .insert(at, MavMessage::MISSION_ITEM_INT(to_vehicle(item, *vehicle)));
+                .front()
+                .is_some_and(|m| matches!(m, MavMessage::MISSION_COUNT(_))),
+        );
+        if !repairs.is_empty() {
+            // ...and a poll behind them.
+            self.poll_pending = true;
+        }
+        for (k, frame) in repairs.into_iter().enumerate() {
+            self.stream.insert(at + k, frame);
         }
     }
 
-    fn bridge_ack(&mut self, opaque_id: u32, result: MavMissionResult) {
+    fn bridge_ack(&mut self, now: Instant, opaque_id: u32, result: MavMissionResult) {
         let State::Relaying {
             ground,
             vehicle,
@@ -478,7 +635,9 @@ impl MissionTerminator {
             debug!(opaque_id, "ack for an older transfer dropped");
             return;
         }
-        self.finish(*ground, *vehicle, *mission_type, items.len() as u16, result);
+        let (g, v, t, n) = (*ground, *vehicle, *mission_type, items.len() as u16);
+        self.bridge_heard(now, true);
+        self.finish(g, v, t, n, result);
     }
 
     fn finish(
@@ -498,6 +657,7 @@ impl MissionTerminator {
         }
         self.to_ground
             .push_back((vehicle, ack(ground, result, mission_type, 0)));
+        self.poll_pending = false;
         self.state = State::Done {
             ground,
             vehicle,
@@ -527,14 +687,45 @@ impl MissionTerminator {
         }
     }
 
-    /// Stream frames not yet on the radio.
+    /// Stream frames (the poll included) not yet on the radio.
     fn outstanding(&self) -> usize {
-        self.stream.len() + self.in_queue
+        self.stream.len() + self.in_queue + usize::from(self.poll_pending)
+    }
+
+    /// The status poll of the transfer being relayed: an item frame without items when
+    /// packing (the bridge knows it for a poll even if it never saw the count), else the
+    /// count again.
+    // `..Default::default()` on a full literal: the dialect may grow.
+    #[allow(clippy::needless_update)]
+    fn poll_message(&self) -> Option<MavMessage> {
+        let State::Relaying {
+            vehicle,
+            mission_type,
+            items,
+            id,
+            ..
+        } = &self.state
+        else {
+            return None;
+        };
+        let count = items.len() as u16;
+        Some(match self.config.pack_bytes {
+            Some(_) if count > 0 => pack::poll(*id, count, *vehicle, *mission_type),
+            _ => MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                count,
+                target_system: vehicle.0,
+                target_component: vehicle.1,
+                mission_type: *mission_type,
+                opaque_id: *id,
+                ..Default::default()
+            }),
+        })
     }
 
     /// When something is due.
     pub fn poll_timeout(&self) -> Option<Instant> {
-        let release = (!self.stream.is_empty() && self.in_queue < self.config.window)
+        let release = ((!self.stream.is_empty() || self.poll_pending)
+            && self.in_queue < self.config.window)
             .then_some(self.next_release);
         self.state_timeout().into_iter().chain(release).min()
     }
@@ -546,10 +737,11 @@ impl MissionTerminator {
             State::Relaying {
                 keepalive_at,
                 quiet_since,
-                poll_every,
+                polls_unanswered,
                 ..
             } => {
-                let poll = (outstanding == 0).then(|| *quiet_since + *poll_every);
+                let poll =
+                    (outstanding == 0).then(|| *quiet_since + self.poll_after(*polls_unanswered));
                 Some(poll.map_or(*keepalive_at, |p| p.min(*keepalive_at)))
             }
             _ => None,
@@ -561,6 +753,12 @@ impl MissionTerminator {
     #[allow(clippy::needless_update)]
     pub fn handle_timeout(&mut self, now: Instant) {
         let outstanding = self.outstanding();
+        let poll_after = match &self.state {
+            State::Relaying {
+                polls_unanswered, ..
+            } => self.poll_after(*polls_unanswered),
+            _ => Duration::ZERO,
+        };
         match &mut self.state {
             State::Collecting {
                 ground,
@@ -590,7 +788,6 @@ impl MissionTerminator {
                 id,
                 keepalive_at,
                 quiet_since,
-                poll_every,
                 heard,
                 ..
             } => {
@@ -602,7 +799,7 @@ impl MissionTerminator {
                         self.to_ground.push_back((*vehicle, again));
                     }
                 }
-                if outstanding > 0 || now < *quiet_since + *poll_every {
+                if outstanding > 0 || now < *quiet_since + poll_after {
                     return;
                 }
                 if now.saturating_duration_since(*heard) >= self.config.silence_limit {
@@ -611,18 +808,9 @@ impl MissionTerminator {
                     self.finish(g, v, t, n, MavMissionResult::MAV_MISSION_ERROR);
                     return;
                 }
-                self.stats.polls += 1;
+                debug!(%now, after = ?poll_after, "bridge quiet, polling");
                 *quiet_since = now;
-                *poll_every = (*poll_every * 2).min(self.config.poll_max);
-                self.stream
-                    .push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                        count: items.len() as u16,
-                        target_system: vehicle.0,
-                        target_component: vehicle.1,
-                        mission_type: *mission_type,
-                        opaque_id: *id,
-                        ..Default::default()
-                    }));
+                self.poll_pending = true;
             }
             _ => {}
         }
@@ -644,14 +832,77 @@ impl MissionTerminator {
         if self.in_queue >= self.config.window || now < self.next_release {
             return None;
         }
-        let msg = self.stream.pop_front()?;
+        let msg = match self.stream.pop_front() {
+            Some(msg) => msg,
+            // The poll goes behind everything queued: when it arrives, all before it has
+            // arrived or is lost.
+            None if self.poll_pending => {
+                self.poll_pending = false;
+                let msg = self.poll_message()?;
+                if let State::Relaying {
+                    polls_unanswered,
+                    poll_sent,
+                    ..
+                } = &mut self.state
+                {
+                    self.stats.polls += 1;
+                    *polls_unanswered += 1;
+                    *poll_sent = now;
+                }
+                msg
+            }
+            None => return None,
+        };
         self.in_queue += 1;
+        if let State::Relaying { sent_at, .. } = &mut self.state {
+            for (seq, at) in sent_at.iter_mut().enumerate() {
+                if covers(&msg, seq) {
+                    *at = Some(now);
+                }
+            }
+        }
+        let len = radio_len(&msg) + u64::from(self.config.frame_extra_bytes);
+        self.largest_frame = self.largest_frame.max(len);
         if let Some(rate) = self.config.pace_bytes_per_s.filter(|r| *r > 0) {
-            let gap = Duration::from_micros(STREAM_FRAME_BYTES * 1_000_000 / u64::from(rate));
+            let gap = Duration::from_micros(len * 1_000_000 / u64::from(rate));
             self.next_release = self.next_release.max(now) + gap;
         }
         Some(msg)
     }
+}
+
+/// The frames that carry `run` (consecutive items of `plan`): packed, or one each.
+fn item_frames(
+    config: &TerminatorConfig,
+    id: u32,
+    vehicle: (u8, u8),
+    mission_type: MavMissionType,
+    plan: &[MISSION_ITEM_INT_DATA],
+    run: &[MISSION_ITEM_INT_DATA],
+) -> Vec<MavMessage> {
+    match config.pack_bytes {
+        Some(cap) => pack::frames(id, plan.len() as u16, vehicle, mission_type, run, cap),
+        None => run
+            .iter()
+            .map(|i| MavMessage::MISSION_ITEM_INT(to_vehicle(i, vehicle)))
+            .collect(),
+    }
+}
+
+/// Whether a stream frame carries item `seq`.
+fn covers(msg: &MavMessage, seq: usize) -> bool {
+    match msg {
+        MavMessage::MISSION_ITEM_INT(i) => usize::from(i.seq) == seq,
+        MavMessage::MAVLORA_MISSION_ITEMS(p) => pack::span(p).contains(&(seq as u32)),
+        _ => false,
+    }
+}
+
+/// Bytes `msg` takes as a MAVLink 2 frame (trailing zeros trimmed), unsigned.
+fn radio_len(msg: &MavMessage) -> u64 {
+    encode(MavlinkVersion::V2, MavHeader::default(), msg)
+        .as_bytes()
+        .len() as u64
 }
 
 fn to_vehicle(item: &MISSION_ITEM_INT_DATA, vehicle: (u8, u8)) -> MISSION_ITEM_INT_DATA {

@@ -50,7 +50,9 @@ fn radio_out(m: &mut MissionTerminator, now: Instant) -> Vec<MavMessage> {
     while let Some(msg) = m.poll_radio(now) {
         if matches!(
             msg,
-            MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_)
+            MavMessage::MISSION_COUNT(_)
+                | MavMessage::MISSION_ITEM_INT(_)
+                | MavMessage::MAVLORA_MISSION_ITEMS(_)
         ) {
             m.radio_frame_left(now);
         }
@@ -68,13 +70,34 @@ fn upload(m: &mut MissionTerminator, t: u64, xs: &[i32], ty: MavMissionType) -> 
     radio_out(m, ms(t))
 }
 
+/// The items a stream carries, one per `MISSION_ITEM_INT` or packed.
 fn items_of(msgs: &[MavMessage]) -> Vec<(u16, i32)> {
     msgs.iter()
-        .filter_map(|m| match m {
-            MavMessage::MISSION_ITEM_INT(i) => Some((i.seq, i.x)),
-            _ => None,
+        .flat_map(|m| match m {
+            MavMessage::MISSION_ITEM_INT(i) => vec![(i.seq, i.x)],
+            MavMessage::MAVLORA_MISSION_ITEMS(p) if p.items > 0 => pack::unpack(p)
+                .unwrap()
+                .iter()
+                .map(|i| (i.seq, i.x))
+                .collect(),
+            _ => vec![],
         })
         .collect()
+}
+
+/// Polls in a stream: packed frames without items.
+fn polls_of(msgs: &[MavMessage]) -> usize {
+    msgs.iter()
+        .filter(|m| matches!(m, MavMessage::MAVLORA_MISSION_ITEMS(p) if p.items == 0))
+        .count()
+}
+
+/// The terminator with one `MISSION_ITEM_INT` per item (no packing).
+fn unpacked() -> TerminatorConfig {
+    TerminatorConfig {
+        pack_bytes: None,
+        ..TerminatorConfig::default()
+    }
 }
 
 fn id_of(msgs: &[MavMessage]) -> u32 {
@@ -234,7 +257,7 @@ fn ground_cancel_stops_the_transfer_and_tells_the_bridge() {
 
 #[test]
 fn stream_goes_out_through_a_window_and_a_restart_drops_what_never_left() {
-    let mut m = MissionTerminator::new(TerminatorConfig::default());
+    let mut m = MissionTerminator::new(unpacked());
     m.from_ground(ms(0), GROUND, 1, &count(10, MISSION));
     for seq in 0..10 {
         m.from_ground(ms(0), GROUND, 1, &item(seq, 1, MISSION));
@@ -255,24 +278,51 @@ fn stream_goes_out_through_a_window_and_a_restart_drops_what_never_left() {
     assert_eq!(items_of(&rest), vec![(0, 77)]);
 }
 
+/// Each frame is paced at its own length on the radio (signed: 13 bytes more), not at the
+/// longest a frame could be: a 21-byte count held the stream as long as a signed item.
 #[test]
-fn stream_is_paced_at_the_radio_budget() {
+fn stream_is_paced_at_the_radio_budget_frame_by_frame() {
     let config = TerminatorConfig {
-        pace_bytes_per_s: Some(620),
-        ..TerminatorConfig::default()
+        pace_bytes_per_s: Some(1000),
+        ..unpacked()
     };
     let mut m = MissionTerminator::new(config);
     m.from_ground(ms(0), GROUND, 1, &count(3, MISSION));
     for seq in 0..3 {
-        m.from_ground(ms(0), GROUND, 1, &item(seq, 1, MISSION));
+        m.from_ground(
+            ms(0),
+            GROUND,
+            1,
+            &item(seq, 100_000 + i32::from(seq), MISSION),
+        );
     }
-    assert!(m.poll_radio(ms(0)).is_some());
-    assert!(
-        m.poll_radio(ms(0)).is_none(),
-        "62 bytes at 620 B/s: 100 ms apart"
+    let count = m.poll_radio(ms(0)).unwrap();
+    assert!(matches!(count, MavMessage::MISSION_COUNT(_)));
+    assert!(m.poll_radio(ms(0)).is_none(), "paced");
+    let at = |msg: &MavMessage| Duration::from_millis(radio_len(msg) + 13);
+    // at 1000 B/s a byte takes 1 ms
+    let due = Instant::ZERO + at(&count);
+    assert_eq!(m.poll_timeout(), Some(due));
+    let first = m.poll_radio(due).unwrap();
+    assert!(matches!(first, MavMessage::MISSION_ITEM_INT(_)));
+    assert!(radio_len(&first) > radio_len(&count));
+    assert_eq!(m.poll_timeout(), Some(due + at(&first)));
+    // unsigned: only the frame
+    let mut m = MissionTerminator::new(TerminatorConfig {
+        frame_extra_bytes: 0,
+        ..config
+    });
+    m.from_ground(ms(0), GROUND, 1, &count_msg(1));
+    m.from_ground(ms(0), GROUND, 1, &item(0, 1, MISSION));
+    let count = m.poll_radio(ms(0)).unwrap();
+    assert_eq!(
+        m.poll_timeout(),
+        Some(Instant::ZERO + Duration::from_millis(radio_len(&count)))
     );
-    assert_eq!(m.poll_timeout(), Some(ms(100)));
-    assert!(m.poll_radio(ms(100)).is_some());
+}
+
+fn count_msg(n: u16) -> MavMessage {
+    count(n, MISSION)
 }
 
 #[test]
@@ -291,13 +341,26 @@ fn fence_upload_carries_its_type_on_every_message() {
     for msg in &radio {
         match msg {
             MavMessage::MISSION_COUNT(c) => assert_eq!(c.mission_type, FENCE),
-            MavMessage::MISSION_ITEM_INT(i) => assert_eq!(i.mission_type, FENCE),
+            MavMessage::MAVLORA_MISSION_ITEMS(p) => {
+                assert_eq!(p.mission_type, FENCE);
+                if p.items > 0 {
+                    assert!(
+                        pack::unpack(p)
+                            .unwrap()
+                            .iter()
+                            .all(|i| i.mission_type == FENCE)
+                    );
+                }
+            }
             other => panic!("{other:?}"),
         }
     }
     // the bridge's repair request is answered with the fence item
     m.from_radio(ms(3), &super::request((255, 191), 1, FENCE));
     assert_eq!(items_of(&radio_out(&mut m, ms(3))), vec![(1, 2)]);
+    // a request of another type is not for this upload
+    m.from_radio(ms(4), &super::request((255, 191), 1, MISSION));
+    assert!(items_of(&radio_out(&mut m, ms(4))).is_empty());
 }
 
 #[test]
@@ -314,4 +377,142 @@ fn silent_vehicle_side_ends_in_an_error_for_the_ground() {
     }
     assert_eq!(result, Some(MavMissionResult::MAV_MISSION_ERROR));
     assert!((60_000..70_000).contains(&t), "{t}");
+}
+
+/// The simulated ground station's survey: a waypoint every 100 m, climbing 1 m each.
+fn survey(n: u16) -> Vec<i32> {
+    (0..n).map(|i| 553_700_000 + i32::from(i) * 1000).collect()
+}
+
+/// Runs the terminator's timers from `t` until its first poll has gone to the radio; the
+/// radio stream and the time of that poll.
+fn until_poll(m: &mut MissionTerminator, from: Instant) -> (Vec<MavMessage>, Instant) {
+    let mut t = from;
+    let mut out = radio_out(m, t);
+    for _ in 0..10_000 {
+        if polls_of(&out) > 0 {
+            return (out, t);
+        }
+        t = m.poll_timeout().unwrap();
+        m.handle_timeout(t);
+        out.extend(radio_out(m, t));
+        ground_out(m);
+    }
+    panic!("no poll by {t}")
+}
+
+fn range(start: u16, end: u16) -> MavMessage {
+    super::super::relay::request_range((255, 191), start, end, MISSION)
+}
+
+#[test]
+fn a_plan_streams_packed_in_a_fifth_of_the_bytes_with_a_poll_behind() {
+    let xs = survey(100);
+    let mut m = MissionTerminator::new(TerminatorConfig::default());
+    let radio = upload(&mut m, 0, &xs, MISSION);
+    assert!(matches!(radio.first(), Some(MavMessage::MISSION_COUNT(c)) if c.count == 100));
+    let want: Vec<(u16, i32)> = xs.iter().enumerate().map(|(s, x)| (s as u16, *x)).collect();
+    assert_eq!(items_of(&radio), want);
+    assert!(
+        matches!(radio.last(), Some(MavMessage::MAVLORA_MISSION_ITEMS(p)) if p.items == 0),
+        "a poll right behind the stream"
+    );
+    let bytes: u64 = radio.iter().map(radio_len).sum();
+    assert!(
+        bytes * 5 < 100 * 49,
+        "{bytes} bytes in {} frames",
+        radio.len()
+    );
+    assert_eq!(m.stats().polls, 1);
+}
+
+/// A range request is answered packed, ahead of what has not left yet, without what still
+/// waits to leave (it goes anyway) and without what left less than the shortest measured
+/// round trip ago (the request crossed it: answering would send it twice).
+#[test]
+fn a_range_request_is_answered_ahead_of_the_stream_without_what_waits_or_crossed_it() {
+    let config = TerminatorConfig {
+        pace_bytes_per_s: Some(1000),
+        pack_bytes: Some(60),
+        ..TerminatorConfig::default()
+    };
+    let mut m = MissionTerminator::new(config);
+    let xs: Vec<i32> = (0..40).map(|i| i * 70_000).collect();
+    m.from_ground(ms(0), GROUND, 1, &count(40, MISSION));
+    for (seq, x) in xs.iter().enumerate() {
+        m.from_ground(ms(0), GROUND, 1, &item(seq as u16, *x, MISSION));
+    }
+    // the count and the first item frame leave; the rest wait for the pace
+    let mut out = radio_out(&mut m, ms(0));
+    let t = m.poll_timeout().unwrap();
+    out.extend(radio_out(&mut m, t));
+    let sent = items_of(&out);
+    assert!(!sent.is_empty() && sent.len() < 40, "{}", sent.len());
+    let last_sent = sent.last().unwrap().0;
+    // the bridge asks for everything: only what already left comes again, first
+    m.from_radio(t + Duration::from_millis(10), &range(0, 39));
+    let later = t + Duration::from_millis(2000);
+    let next = radio_out(&mut m, later);
+    let again: Vec<u16> = items_of(&next[..1]).iter().map(|(s, _)| *s).collect();
+    assert_eq!(again, (0..=last_sent).collect::<Vec<_>>());
+    assert_eq!(m.stats().items_repaired, u64::from(last_sent) + 1);
+    // The trailing poll answered 300 ms after it left: the shortest round trip is 300 ms.
+    let mut m = MissionTerminator::new(TerminatorConfig::default());
+    upload(&mut m, 0, &[1, 2, 3], MISSION);
+    m.from_radio(ms(300), &range(3, 3)); // the answer to the trailing poll: "busy"
+    assert_eq!(m.rtt().samples(), 1);
+    m.from_radio(ms(400), &range(1, 1));
+    assert_eq!(items_of(&radio_out(&mut m, ms(400))), vec![(1, 2)]);
+    // a request for item 1 that left the bridge before the repair arrived
+    m.from_radio(ms(500), &range(1, 1));
+    assert!(items_of(&radio_out(&mut m, ms(500))).is_empty(), "crossed");
+    // one sent after it: the repair was lost
+    m.from_radio(ms(800), &range(1, 1));
+    assert_eq!(items_of(&radio_out(&mut m, ms(800))), vec![(1, 2)]);
+}
+
+/// Issue 9's SiK case: a fixed 2 s wait for the first poll was most of a 100-item upload.
+/// The poll timeout is two stream frames at the paced rate plus the margin until a round
+/// trip is measured, then the measured RTO; a poll lost in a fade is followed by the next
+/// one a timeout later, several times, before the timeout doubles up to `poll_max`.
+#[test]
+fn poll_timeout_follows_the_round_trip_and_polls_keep_coming_through_a_fade() {
+    let uploaded = || {
+        let mut m = MissionTerminator::new(TerminatorConfig {
+            pace_bytes_per_s: Some(3000),
+            ..TerminatorConfig::default()
+        });
+        m.from_ground(ms(0), GROUND, 1, &count(100, MISSION));
+        for (seq, x) in survey(100).iter().enumerate() {
+            m.from_ground(ms(0), GROUND, 1, &item(seq as u16, *x, MISSION));
+        }
+        let (out, t0) = until_poll(&mut m, ms(0));
+        (m, out, t0)
+    };
+    let (mut m, out, t0) = uploaded();
+    let largest = out.iter().map(|f| radio_len(f) + 13).max().unwrap();
+    let unmeasured = Duration::from_micros(2 * largest * 1_000_000 / 3000) + MARGIN;
+    assert!(unmeasured < Duration::from_millis(300), "{unmeasured:?}");
+    // the poll behind the stream is lost: the next goes one unmeasured timeout after it
+    let (_, t1) = until_poll(&mut m, t0);
+    assert_eq!(t1, t0 + unmeasured);
+    // answered 200 ms after it left: the RTO follows (RFC 6298 first sample: 200 + 4 x 100)
+    let (mut m, _, t0) = uploaded();
+    let answer = t0 + Duration::from_millis(200);
+    m.from_radio(answer, &range(100, 100)); // "busy"
+    assert_eq!(m.rtt().rto(), Duration::from_millis(600));
+    let (_, t2) = until_poll(&mut m, answer);
+    assert_eq!(t2, answer + Duration::from_millis(600));
+    // a fade: polls unanswered; after POLLS_BEFORE_BACKOFF of them the timeout doubles
+    let mut gaps = Vec::new();
+    let mut t = t2;
+    for _ in 0..8 {
+        let (_, next) = until_poll(&mut m, t);
+        gaps.push((next - t).as_millis());
+        t = next;
+    }
+    let mut want = vec![600; POLLS_BEFORE_BACKOFF as usize];
+    want.extend([1200, 2000, 2000, 2000]);
+    want.truncate(8);
+    assert_eq!(gaps, want);
 }

@@ -179,6 +179,8 @@ impl Router {
                     .mission
                     .pace_bytes_per_s
                     .or(Some(config.scheduler.rate_bytes_per_s)),
+                // Pacing counts each frame as long as it is on the radio.
+                frame_extra_bytes: if config.signing.is_some() { 13 } else { 0 },
                 ..config.mission
             }),
             // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
@@ -344,6 +346,10 @@ impl Router {
                 self.stats.ground_link_quality_dropped += 1;
                 continue;
             }
+            // Packed mission items exist on the radio leg only (the router's own).
+            if id == ids::MAVLORA_MISSION_ITEMS {
+                continue;
+            }
             if id == ids::HEARTBEAT {
                 if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
                     continue;
@@ -422,7 +428,10 @@ impl Router {
                         self.expand(now, frame.system_id(), &msg);
                     }
                 }
-                ids::MISSION_REQUEST | ids::MISSION_REQUEST_INT | ids::MISSION_ACK => {
+                ids::MISSION_REQUEST
+                | ids::MISSION_REQUEST_INT
+                | ids::MISSION_REQUEST_PARTIAL_LIST
+                | ids::MISSION_ACK => {
                     if let Ok(msg) = frame.decode::<MavMessage>()
                         && self.mission.from_radio(now, &msg)
                     {
@@ -600,7 +609,7 @@ impl Router {
                 == (self.config.system_id, self.config.component_id)
                 && matches!(
                     frame.message_id(),
-                    ids::MISSION_COUNT | ids::MISSION_ITEM_INT
+                    ids::MISSION_COUNT | ids::MISSION_ITEM_INT | ids::MAVLORA_MISSION_ITEMS
                 )
             {
                 // The stream's window moves on.

@@ -143,17 +143,25 @@ fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
                 .filter(|m| {
                     matches!(
                         m,
-                        MavMessage::MISSION_COUNT(_) | MavMessage::MISSION_ITEM_INT(_)
+                        MavMessage::MISSION_COUNT(_)
+                            | MavMessage::MISSION_ITEM_INT(_)
+                            | MavMessage::MAVLORA_MISSION_ITEMS(_)
                     )
                 }),
         );
     }
     assert!(matches!(&radio[0], MavMessage::MISSION_COUNT(c) if c.count == 3 && c.opaque_id != 0));
+    // items packed several to a frame (the frame behind them without items is a poll)
     let seqs: Vec<u16> = radio[1..]
         .iter()
-        .filter_map(|m| match m {
-            MavMessage::MISSION_ITEM_INT(i) => Some(i.seq),
-            _ => None,
+        .flat_map(|m| match m {
+            MavMessage::MISSION_ITEM_INT(i) => vec![i.seq],
+            MavMessage::MAVLORA_MISSION_ITEMS(p) if p.items > 0 => crate::mission::pack::unpack(p)
+                .unwrap()
+                .iter()
+                .map(|i| i.seq)
+                .collect(),
+            _ => vec![],
         })
         .collect();
     assert_eq!(
@@ -162,6 +170,58 @@ fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
         "streamed without waiting for requests"
     );
     assert_eq!(known::message_name(44), Some("MISSION_COUNT"));
+    // The bridge asks for items 1..=2 again by range: the router answers, the ground never
+    // sees the request.
+    let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
+    let range = MavMessage::MISSION_REQUEST_PARTIAL_LIST(
+        crate::dialect::MISSION_REQUEST_PARTIAL_LIST_DATA {
+            start_index: 1,
+            end_index: 2,
+            target_system: 255,
+            target_component: 191,
+            ..Default::default()
+        },
+    );
+    let now = ms(t + 5000);
+    r.handle_radio_bytes(now, bridge.frame(&range).as_bytes());
+    assert!(
+        gcs_out(&mut r)
+            .iter()
+            .all(|f| f.message_id() != ids::MISSION_REQUEST_PARTIAL_LIST)
+    );
+    let again: Vec<u16> = radio_out(&mut r, now)
+        .iter()
+        .flat_map(|m| match m {
+            MavMessage::MAVLORA_MISSION_ITEMS(p) if p.items > 0 => crate::mission::pack::unpack(p)
+                .unwrap()
+                .iter()
+                .map(|i| i.seq)
+                .collect(),
+            _ => vec![],
+        })
+        .collect();
+    assert_eq!(again, vec![1, 2]);
+}
+
+/// Packed mission items are the router's own, on the radio leg only: a ground station's
+/// never reaches the radio (it would put items into the bridge's transfer).
+#[test]
+fn packed_mission_items_from_the_ground_never_reach_the_radio() {
+    let mut r = router();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let items = [crate::dialect::MISSION_ITEM_INT_DATA {
+        target_system: 1,
+        target_component: 1,
+        ..Default::default()
+    }];
+    let packed = crate::mission::pack::frames(7, 1, (1, 1), Default::default(), &items, 200);
+    r.handle_gcs_bytes(ms(0), gcs.frame(&packed[0]).as_bytes());
+    let out = radio_out(&mut r, ms(0));
+    assert!(
+        out.iter()
+            .all(|m| !matches!(m, MavMessage::MAVLORA_MISSION_ITEMS(_))),
+        "{out:?}"
+    );
 }
 
 fn radio_out(r: &mut Router, now: Instant) -> Vec<MavMessage> {

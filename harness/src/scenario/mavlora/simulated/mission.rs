@@ -2,8 +2,11 @@
 //! 100 items, 10 % bursty loss both ways, during the flight.
 //!
 //! - relay: bridge and router (`px4-compact.toml`, compact telemetry): the router takes the
-//!   ground station's upload, the bridge requests items over the radio with timeouts that
-//!   follow the measured round trip, and uploads to the flight controller on its wire;
+//!   ground station's upload and streams it over the radio, items packed several to a frame
+//!   (`MAVLORA_MISSION_ITEMS`: a survey waypoint in ~8 bytes instead of a 49-byte
+//!   `MISSION_ITEM_INT`), the bridge asks for lost ones by range when the router polls (right
+//!   behind the stream, then at the measured round trip), and uploads to the flight
+//!   controller on its wire;
 //! - naive: a transparent radio; the ground station's protocol goes straight to PX4, which
 //!   re-requests each item after 250 ms whatever the radio. The flight controller streams
 //!   what the relay's profile asks of it (same `stream_hz`), so telemetry load is alike.
@@ -11,8 +14,15 @@
 //! PX4's 250 ms retry hurts where the round trip is longer: on LoRa SF7 (a 49-byte item is
 //! ~100 ms on air each way, half duplex) nearly every item crosses several times. On SiK at
 //! 64 kbit/s the round trip is about one TDM round (237 ms), so the naive link duplicates
-//! little and recovers a loss in 250 ms, sooner than the relay's timeout (RTT-following,
-//! at least 300 ms): there the relay is not faster, and the measurements show it.
+//! little and recovers a loss in 250 ms.
+//!
+//! Efficiency is the items' airtime bound (one standard 49-byte frame per air packet, as the
+//! ground sends them) over the upload's time. Under the engines' byte budget (80 % of one
+//! direction: 251 B/s on LoRa SF7, 2923 B/s on SiK 64k) 100 standard frames alone take 19.5 s
+//! and 1.5 s, an efficiency of at most 0.53 and 0.52 with no loss at all: the relay meets
+//! issue 9's 0.65 by sending fewer bytes (packed items, ~1,000 bytes for the plan), so the
+//! figure can exceed 1. One seed is one draw of the fades: the efficiency is the 10th
+//! percentile over [`SEEDS`] seeds.
 
 use timebase::Duration;
 
@@ -20,11 +30,12 @@ use anyhow::Result;
 use harness_sim::profiles::PX4_COMPACT_TOML;
 use harness_sim::{Flight, GcsMock, PX4_NORMAL, Px4Fc, Route};
 use mavlora::Instant;
-use mavlora::dialect::MavMissionResult;
+use mavlora::dialect::{MISSION_ITEM_INT_DATA, MavMissionResult};
 use mavlora::filter::Profile;
+use mavlora::mission::pack::standard_bytes;
 use mavlora::wire::ids;
 
-use super::{Radios, Scenario, Script, mavlora_configs, spec};
+use super::{Radios, Scenario, Script, mavlora_configs, quantile, spec};
 use crate::measurement::{Declarations, Dimension, Handle, RELAY};
 use crate::scenario::PhaseContext;
 use harness_radio::{Direction, LinkStats, RadioSetup};
@@ -45,15 +56,34 @@ pub const CUT_OFF_S: f64 = 300.0;
 /// The run goes on this long in any case, so the radio's measured loss rests on enough
 /// packets to compare with the configured mean.
 pub const RUN_S: f64 = WARM_UP_S + CUT_OFF_S;
-/// Mission protocol messages (not MISSION_CURRENT: that is telemetry).
-pub const MISSION_IDS: [u32; 6] = [
+/// Mission protocol messages (not MISSION_CURRENT: that is telemetry), with those the relay's
+/// radio leg uses besides the standard ones: its range requests (`MISSION_REQUEST_PARTIAL_LIST`)
+/// and packed items (`MAVLORA_MISSION_ITEMS`).
+pub const MISSION_IDS: [u32; 8] = [
     ids::MISSION_ITEM,
     ids::MISSION_REQUEST,
     ids::MISSION_COUNT,
     ids::MISSION_ACK,
     ids::MISSION_REQUEST_INT,
     ids::MISSION_ITEM_INT,
+    ids::MISSION_REQUEST_PARTIAL_LIST,
+    ids::MAVLORA_MISSION_ITEMS,
 ];
+
+/// The average length of the plan's items as the ground station sends them: one
+/// `MISSION_ITEM_INT` each, MAVLink 2 (trailing zeros trimmed), unsigned. The items' airtime
+/// bound is one such frame per air packet; the relay's radio leg may carry them in fewer bytes
+/// (packed), the naive link carries exactly these.
+pub fn item_frame_len(items: &[MISSION_ITEM_INT_DATA]) -> usize {
+    if items.is_empty() {
+        return 0;
+    }
+    (standard_bytes(items) as f64 / items.len() as f64).round() as usize
+}
+
+/// Seeds the efficiency and the mismatch count are taken over (the run's seed and the ones
+/// after it).
+pub const SEEDS: u64 = 20;
 
 /// Ground stations' mission timeouts (per step, retries): SDKs' 0.5 s x 3 (the issue's
 /// target) and the MAVLink spec's 1.5 s x 5.
@@ -99,25 +129,31 @@ fn plan(d: &mut Declarations, radios: &Radios) -> Script {
             upload_s,
             mismatch: d.declare(
                 on("mission_mismatch_on_accept", "", RELAY)
-                    .describe(
-                        "relayed uploads (both ground timeouts) whose ground heard ACCEPTED while the \
-                         flight controller does not hold exactly the plan sent (issue 9: must be 0)",
-                    )
+                    .describe(format!(
+                        "relayed uploads (both ground timeouts, {SEEDS} seeds) whose ground heard \
+                         ACCEPTED while the flight controller does not hold exactly the plan sent \
+                         (issue 9: must be 0)"
+                    ))
                     .at_most(0.0),
             ),
             bytes_on_air: d.declare(on("mission_bytes_on_air", "B", RELAY).describe(
-                "mission-protocol bytes handed to the radio during the relayed upload, both \
-                 directions (MISSION_COUNT, _REQUEST(_INT), _ITEM(_INT), _ACK), retries included",
+                "mission-protocol bytes handed to the radio during the relayed upload (the run's \
+                 seed, 0.5 s x 3 ground), both directions (MISSION_COUNT, _REQUEST(_INT), \
+                 _REQUEST_PARTIAL_LIST, _ITEM(_INT), _ACK, MAVLORA_MISSION_ITEMS), retries \
+                 included",
             )),
             efficiency: d.declare(
                 on("mission_efficiency", "", RELAY)
-                    .describe(
-                        "airtime the 100 items need at least (no loss) ÷ the relayed upload's time \
-                         with the 0.5 s x 3 ground. Issue 9's engineering target (time ≤ 1.5 × \
-                         that airtime, ≥ 0.65) is the marginal band, reported MARGINAL while not \
-                         met; no requirement of SORA or the paper sets a hard limit (the upload \
-                         time's limit does)",
-                    )
+                    .describe(format!(
+                        "airtime the 100 items need at least as the ground sends them (one \
+                         MISSION_ITEM_INT per air packet, no loss) ÷ the relayed upload's time \
+                         with the 0.5 s x 3 ground; the 10th percentile over {SEEDS} seeds (90 % \
+                         of uploads do at least this well). The relay packs items, so it can \
+                         exceed 1. Issue 9's engineering target (time ≤ 1.5 × that airtime, ≥ \
+                         0.65) is the marginal band, reported MARGINAL while not met; no \
+                         requirement of SORA or the paper sets a hard limit (the upload time's \
+                         limit does)"
+                    ))
                     .marginal_below(0.65),
             ),
             naive_upload_s: d.declare(on("mission_upload_s", "s", "naive").describe(
@@ -215,13 +251,9 @@ pub fn upload(
     let mission_bytes = mission(w.sent(Direction::Downlink), &downlink0)
         + mission(w.sent(Direction::Uplink), &uplink0);
     let used = airtime(&w) - air0;
-    // The average item frame as sent (v2 truncates trailing zeros, so lengths vary a little).
-    let uplink = w.sent(Direction::Uplink).since(&uplink0);
-    let item_len = match uplink.frames_of(&[73]) {
-        0 => 0,
-        n => (uplink.bytes_of(&[73]) as f64 / n as f64).round() as usize,
-    };
-    let needed = preset.time_on_air(item_len) * u32::from(ITEMS);
+    // The average item frame as the ground sends it (v2 truncates trailing zeros, so lengths
+    // vary a little): what a standard uplink carries for each item.
+    let needed = preset.time_on_air(item_frame_len(&items)) * u32::from(ITEMS);
     let duplicate_items = w.fc.stats().duplicate_items;
     let items_sent = w.gcs.items_sent;
     w.run_until(secs(RUN_S));
@@ -250,9 +282,30 @@ fn airtime(w: &World) -> Duration {
         .sum()
 }
 
+/// The uplink's configured fades, as the notes state them (the rig file may set them).
+fn fades(setup: &RadioSetup) -> String {
+    match &setup.uplink.burst {
+        Some(b) if b.p_bad_to_good > 0.0 => format!(
+            "{:.0} % of the time in {:.0} ms fades",
+            100.0 * b.p_good_to_bad / (b.p_good_to_bad + b.p_bad_to_good),
+            1.0 / b.p_bad_to_good
+        ),
+        _ => "no fades".to_owned(),
+    }
+}
+
+/// Efficiency of one relayed upload (0 if it did not finish).
+pub fn efficiency(u: &Upload) -> f64 {
+    u.needed_airtime.as_secs_f64() / u.upload_s.unwrap_or(f64::INFINITY)
+}
+
+fn mismatched(u: &Upload) -> bool {
+    matches!(u.result, Some((MavMissionResult::MAV_MISSION_ACCEPTED, _))) && !u.stored
+}
+
 fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result<()> {
-    for ((key, setup), m) in radios.mission.iter().zip(measured) {
-        let setup = radios.seeded(setup);
+    for ((key, base), m) in radios.mission.iter().zip(measured) {
+        let setup = radios.seeded(base);
         let mut relays = Vec::new();
         for (_, ms, retries) in GROUNDS {
             relays.push(upload(
@@ -263,12 +316,30 @@ fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result
             )?);
         }
         let naive = upload(radios, &setup, false, None)?;
-        let mismatches = relays
-            .iter()
-            .filter(|u| {
-                matches!(u.result, Some((MavMissionResult::MAV_MISSION_ACCEPTED, _))) && !u.stored
-            })
-            .count();
+        let mut mismatches = relays.iter().filter(|u| mismatched(u)).count();
+        // The other seeds: efficiency with the 0.5 s ground, mismatches with both.
+        let mut effs = vec![efficiency(&relays[0])];
+        let mut bytes = vec![relays[0].mission_bytes as f64];
+        for k in 1..SEEDS {
+            let seeded = Radios {
+                seed: radios.seed + k,
+                ..radios.clone()
+            };
+            let setup = seeded.seeded(base);
+            for (g, (_, ms, retries)) in GROUNDS.iter().enumerate() {
+                let u = upload(
+                    &seeded,
+                    &setup,
+                    true,
+                    Some((Duration::from_millis(*ms), *retries)),
+                )?;
+                mismatches += usize::from(mismatched(&u));
+                if g == 0 {
+                    effs.push(efficiency(&u));
+                    bytes.push(u.mission_bytes as f64);
+                }
+            }
+        }
         ctx.record(m.mismatch, mismatches as f64);
         let relay = relays[0].clone();
         let labelled = GROUNDS
@@ -293,8 +364,9 @@ fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result
             ));
         }
         let loss_note = format!(
-            "radio loss measured over the {RUN_S} s run (configured: 10 % of the time in \
-             1 s fades, a packet lost if one overlaps it): UAV→GCS {:.1} %, GCS→UAV {:.1} %",
+            "radio loss measured over the {RUN_S} s run (configured: {}, a packet lost if one \
+             overlaps it): UAV→GCS {:.1} %, GCS→UAV {:.1} %",
+            fades(&setup),
             100.0 * relay.loss.0,
             100.0 * relay.loss.1
         );
@@ -312,9 +384,32 @@ fn run(ctx: &mut PhaseContext, radios: &Radios, measured: &[Measured]) -> Result
             ctx.annotate(*n, &loss_note);
         }
         ctx.record(m.bytes_on_air, relay.mission_bytes as f64);
-        ctx.record(
+        ctx.annotate(
+            m.bytes_on_air,
+            &format!(
+                "over {SEEDS} seeds: mean {:.0} B, max {:.0} B",
+                bytes.iter().sum::<f64>() / bytes.len() as f64,
+                bytes.iter().copied().fold(0.0, f64::max)
+            ),
+        );
+        let mut sorted = effs.clone();
+        sorted.sort_by(f64::total_cmp);
+        ctx.record(m.efficiency, quantile(&sorted, 0.10));
+        let below = sorted.iter().filter(|e| **e < 0.65).count();
+        ctx.annotate(
             m.efficiency,
-            relay.needed_airtime.as_secs_f64() / relay.upload_s.unwrap_or(f64::INFINITY),
+            &format!(
+                "over {SEEDS} seeds (run seed first): min {:.3}, p10 {:.3}, p50 {:.3}, max {:.3}; \
+                 {below} below 0.65; each: {}",
+                sorted[0],
+                quantile(&sorted, 0.10),
+                quantile(&sorted, 0.50),
+                sorted[sorted.len() - 1],
+                effs.iter()
+                    .map(|e| format!("{e:.2}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            ),
         );
         let n = m.naive_upload_s;
         match naive.upload_s {

@@ -195,7 +195,8 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
         }
         assert_eq!(on(key, RELAY, "mission_mismatch_on_accept"), 0.0);
         let e = on(key, RELAY, "mission_efficiency");
-        assert!(e > 0.0 && e <= 1.0, "{key}: efficiency {e}");
+        // packed items can beat the bound of standard frames: above 1 is possible
+        assert!(e > 0.0 && e.is_finite(), "{key}: efficiency {e}");
     }
     let relay = |base: &str| on("lora_sf7", RELAY, base);
     let naive = |base: &str| on("lora_sf7", "naive", base);
@@ -216,6 +217,25 @@ fn mission_upload_relay_finishes_and_naive_floods_duplicates_on_lora() {
         log.iter()
             .any(|l| l.contains("lora_sf7 relay") && l.contains(" 0 duplicates"))
     );
+}
+
+/// The efficiency's bound is the items as the ground sends them, one 49-byte MISSION_ITEM_INT
+/// per air packet (what the uplink carried before the relay packed items: the average item
+/// frame it measured then), not what the relay puts on the radio.
+#[test]
+fn mission_airtime_bound_is_the_grounds_standard_frames() {
+    let items = harness_sim::GcsMock::mission(mission::ITEMS);
+    assert_eq!(mission::item_frame_len(&items), 49);
+    let radios = Radios::paper_defaults();
+    for (_, setup) in &radios.mission {
+        let preset = setup.preset.resolve().unwrap();
+        let u = mission::upload(&radios, &radios.seeded(setup), true, None).unwrap();
+        assert_eq!(
+            u.needed_airtime,
+            preset.time_on_air(49) * u32::from(mission::ITEMS)
+        );
+        assert!(u.mission_bytes < 100 * 49, "packed: {}", u.mission_bytes);
+    }
 }
 
 /// The bursty loss the mission scenario configures averages 10 % of the time, as the radio
