@@ -545,6 +545,16 @@ fn flat_names_are_the_ones_readers_know() {
         "mavlora.lora_sf7.monitor_downlink_bytes_per_s".into(),
         "mavlora.lora_sf7.duty_cycle_pct".into(),
         "mavlora.lora_sf7.uplink_duty_cycle_pct".into(),
+        "mavlora.soak_heap_growth_pct".into(),
+        "mavlora.soak_heap_footprint_kib".into(),
+        "mavlora.soak_commands_acked_not_executed".into(),
+        "mavlora.soak_commands_given_up".into(),
+        "mavlora.soak_commands_executed_twice".into(),
+        "mavlora.soak_commands_sent".into(),
+        "mavlora.soak_mission_mismatch_on_accept".into(),
+        "mavlora.soak_missions_accepted".into(),
+        "mavlora.soak_radio_unbalanced_bytes".into(),
+        "mavlora.soak_last_position_age_s".into(),
     ]);
     assert_eq!(names, expected);
     let simulated = Selector::any()
