@@ -10,10 +10,13 @@
 
 use anyhow::{Context, Result};
 
-use super::{CommandsAfter, Scenario, Script, Unsigned, ensure_clean, run_sessions, spec};
+use super::{
+    CommandsAfter, Scenario, Script, Unsigned, ensure_clean, lora_sf7_link_quality_period,
+    loss_alarms, run_sessions, spec,
+};
 use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
-use crate::strategy::mavlora::{FcProfile, GcsPlan, SessionDefaults, SessionReport};
+use crate::strategy::mavlora::{FcProfile, GcsPlan, SessionDefaults};
 
 const SCENARIO_NAME: &str = "ardupilot";
 
@@ -41,8 +44,6 @@ const WINDOW_S: f64 = 20.0;
 /// The profiles ask GLOBAL_POSITION_INT at 3 Hz; one missed update in 10 s allowed (the
 /// simulated rows' bound).
 const POSITION_HZ_MIN: f64 = 2.9;
-/// LoRa SF7's channel rate, as in `table_ii`: link monitoring paced for it.
-const LORA_SF7_BYTES_PER_S: u32 = 683;
 
 struct Variant {
     bytes_per_s: Handle,
@@ -134,11 +135,7 @@ fn run(
         o.bridge_profile = d.profile_dir.join(profile);
         o.compact = compact;
         o.rate = rate;
-        o.link_quality_period = Some(
-            mavlora::quality::LinkQualityConfig::for_budget(LORA_SF7_BYTES_PER_S, true)
-                .period
-                .as_secs_f64(),
-        );
+        o.link_quality_period = Some(lora_sf7_link_quality_period());
         o.fc_profile = FcProfile::ArduPilot;
         o.gcs = GcsPlan {
             listen_s: WARMUP_S + WINDOW_S,
@@ -168,7 +165,13 @@ fn run(
         ));
         ctx.record(m.bytes_per_s, bytes_per_s);
         ctx.record(m.position_hz, position_hz);
-        let alarms = loss_alarms(ctx, report)?;
+        let router_log = report
+            .exits
+            .iter()
+            .find(|e| e.name == "mavlora-router")
+            .map(|e| e.log.clone())
+            .context("the session ran no router")?;
+        let alarms = loss_alarms(ctx, &[router_log])?;
         ctx.record(m.loss_alarms, alarms as f64);
         ctx.record(m.radio_dropped, report.downlink.bytes_dropped as f64);
         m.commands.record(ctx, report)?;
@@ -178,26 +181,4 @@ fn run(
         ensure_clean(ctx, r)?;
     }
     Ok(())
-}
-
-/// The router's "degraded: N% lost" announcements over the session, logged.
-fn loss_alarms(ctx: &mut PhaseContext, report: &SessionReport) -> Result<usize> {
-    let log = report
-        .exits
-        .iter()
-        .find(|e| e.name == "mavlora-router")
-        .map(|e| e.log.clone())
-        .context("the session ran no router")?;
-    let text =
-        std::fs::read_to_string(&log).with_context(|| format!("reading {}", log.display()))?;
-    let alarms: Vec<&str> = text
-        .lines()
-        .filter(|l| {
-            l.contains("link announcement") && l.contains("% lost") && l.contains("degraded")
-        })
-        .collect();
-    for a in &alarms {
-        ctx.log(format!("router: {a}"));
-    }
-    Ok(alarms.len())
 }

@@ -172,6 +172,34 @@ impl Unsigned {
     }
 }
 
+/// The router's "degraded: N% lost" link announcements in `logs` (its log files over the
+/// session), each logged into the phase; returns how many.
+pub fn loss_alarms(ctx: &mut PhaseContext, logs: &[std::path::PathBuf]) -> Result<u32> {
+    let mut alarms = 0;
+    for path in logs {
+        let log =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        for a in log.lines().filter(|l| {
+            l.contains("link announcement") && l.contains("% lost") && l.contains("degraded")
+        }) {
+            ctx.log(format!("router: {a}"));
+            alarms += 1;
+        }
+    }
+    Ok(alarms)
+}
+
+/// The `--link-quality-period` both ends get on the LoRa SF7 channel (683 B/s, signed), as
+/// the simulated Table II paces it: a pty's budget would buy a report every second or two,
+/// which the 50 B/s compact budget does not allow for.
+pub fn lora_sf7_link_quality_period() -> f64 {
+    /// LoRa SF7's channel rate, as the engines' default link monitoring assumes.
+    const LORA_SF7_BYTES_PER_S: u32 = 683;
+    mavlora::quality::LinkQualityConfig::for_budget(LORA_SF7_BYTES_PER_S, true)
+        .period
+        .as_secs_f64()
+}
+
 /// SORA TMPR, medium robustness: C2 latency under 3 s (the fault scenarios' bound).
 pub const TMPR_S: f64 = 3.0;
 

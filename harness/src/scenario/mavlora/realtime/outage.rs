@@ -22,7 +22,10 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 
-use super::{CommandsAfter, Scenario, Script, TMPR_S, Unsigned, ensure_clean, keep_evidence, spec};
+use super::{
+    CommandsAfter, Scenario, Script, TMPR_S, Unsigned, ensure_clean, keep_evidence, loss_alarms,
+    spec,
+};
 use crate::clock::Mono;
 use crate::driver::fixture::mavlora_gcs::GcsEvent;
 use crate::measurement::{Declarations, Handle};
@@ -221,17 +224,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     ctx.record(m.recovery, seen.since(back).as_secs_f64());
     ctx.record(m.outage, seen.since(since).as_secs_f64());
     m.commands.record(ctx, &report)?;
-    let mut alarms = 0;
-    for path in &router_logs {
-        let log =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        for a in log.lines().filter(|l| {
-            l.contains("link announcement") && l.contains("% lost") && l.contains("degraded")
-        }) {
-            ctx.log(format!("router: {a}"));
-            alarms += 1;
-        }
-    }
+    let alarms = loss_alarms(ctx, &router_logs)?;
     ctx.record(m.false_alarms, f64::from(alarms));
     m.unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)

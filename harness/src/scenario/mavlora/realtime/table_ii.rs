@@ -5,7 +5,9 @@
 
 use anyhow::{Context, Result};
 
-use super::{Scenario, Script, Unsigned, ensure_clean, run_sessions, spec};
+use super::{
+    Scenario, Script, Unsigned, ensure_clean, lora_sf7_link_quality_period, run_sessions, spec,
+};
 use crate::driver::fixture::mavlora_fc::FcEvent;
 use crate::measurement::{Declarations, Dimension, Handle};
 use crate::scenario::PhaseContext;
@@ -80,9 +82,6 @@ fn plan(d: &mut Declarations) -> Script {
     Box::new(move |ctx, defaults| run(ctx, defaults, &measured, &unsigned))
 }
 
-/// LoRa SF7's channel rate, as the engines' default link monitoring assumes.
-const LORA_SF7_BYTES_PER_S: u32 = 683;
-
 fn run(
     ctx: &mut PhaseContext,
     d: &SessionDefaults,
@@ -99,14 +98,7 @@ fn run(
         o.bridge_profile = d.profile_dir.join(profile);
         o.compact = compact;
         o.rate = RATE;
-        // Link monitoring as on the LoRa SF7 channel the 50 B/s is for (signed), as in the
-        // simulated Table II: the pty's 3000 B/s budget would buy a report every second or
-        // two, which the limit does not allow for.
-        o.link_quality_period = Some(
-            mavlora::quality::LinkQualityConfig::for_budget(LORA_SF7_BYTES_PER_S, true)
-                .period
-                .as_secs_f64(),
-        );
+        o.link_quality_period = Some(lora_sf7_link_quality_period());
         o.fc_profile = FcProfile::Config;
         o.gcs = GcsPlan {
             listen_s: WARMUP_S + WINDOW_S,
