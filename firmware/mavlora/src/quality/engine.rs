@@ -331,6 +331,14 @@ impl LinkQuality {
         if let Some(n) = noise {
             self.peer_noise_floor = Some(self.peer_noise_floor.map_or(n, |f| f.min(n)));
         }
+        // It hears us again after hearing nothing: the sequence gap it counts now is the
+        // outage (already announced as lost), not the channel it hears from here on. A
+        // window holding it would say "degraded" for one more window after the link is
+        // back; the loss is judged again from this report on.
+        if prev.is_some_and(|p| p.unheard >= 2) && deltas.is_some_and(|(received, _)| received > 0)
+        {
+            self.peer_window = LossWindow::new(self.config.window);
+        }
         let loss_ratio = deltas.and_then(|(received, lost)| {
             let total = u32::from(lost) + u32::from(received);
             (total > 0).then(|| f64::from(lost) / f64::from(total))

@@ -387,8 +387,23 @@ fn a_report_of_nothing_received_while_we_sent_reads_as_a_deaf_peer() {
     // reports of "nothing new" a second apart still add up
     lq.handle_frame(Instant::from_millis(5_500), &sender.frame(&report(100, 0)));
     assert_eq!(lq.peer().unwrap().unheard, 4);
-    // it hears us again
-    lq.handle_frame(secs(6), &sender.frame(&report(101, 0)));
-    assert_eq!(lq.peer_loss(secs(6)), Some(0.0));
+    // it hears us again, and counts the outage's 30 frames as lost: that was the outage,
+    // announced as such; the channel after it is judged from this report on
+    lq.handle_frame(secs(6), &sender.frame(&report(101, 30)));
     assert_eq!(lq.peer().unwrap().unheard, 0);
+    assert_eq!(lq.peer_loss(secs(6)), None);
+    lq.handle_frame(secs(7), &sender.frame(&report(105, 30)));
+    assert_eq!(lq.peer_loss(secs(7)), Some(0.0));
+    lq.handle_frame(secs(8), &sender.frame(&report(108, 31)));
+    assert_eq!(lq.peer_loss(secs(8)), Some(1.0 / 8.0));
+}
+
+#[test]
+fn loss_counted_while_the_peer_still_hears_us_stays_in_the_window() {
+    let mut sender = Sender::new(1, 191, MavlinkVersion::V2);
+    let mut lq = LinkQuality::new(config(), secs(0));
+    lq.handle_frame(secs(1), &sender.frame(&report(100, 0)));
+    lq.sent_frame(Instant::from_millis(1_500));
+    lq.handle_frame(secs(2), &sender.frame(&report(101, 9)));
+    assert_eq!(lq.peer_loss(secs(2)), Some(0.9));
 }
