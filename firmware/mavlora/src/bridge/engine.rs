@@ -114,7 +114,9 @@ impl Bridge {
     /// A bridge started at `now`. Nothing is sent to the flight controller before its first
     /// heartbeat: the configuration needs its ids as target.
     pub fn new(config: BridgeConfig, now: Instant) -> Result<Self, ScheduleError> {
-        let scheduler = LinkScheduler::new(config.scheduler, now)?;
+        let radio_leg = RadioLeg::new(config.signing.as_ref());
+        let scheduler =
+            LinkScheduler::new(config.scheduler, now)?.with_frame_extra(radio_leg.frame_extra());
         let sys = config.system_id;
         let comp = config.component_id;
         Ok(Self {
@@ -140,7 +142,7 @@ impl Bridge {
             radio_sender: Sender::new(sys, comp, MavlinkVersion::V2),
             fc_sender: Sender::new(sys, comp, MavlinkVersion::V2),
             to_fc: VecDeque::new(),
-            radio_leg: RadioLeg::new(config.signing.as_ref()),
+            radio_leg,
             config_state: ConfigState {
                 pending: Vec::new(),
                 acknowledged: true,

@@ -163,6 +163,7 @@ impl Router {
     /// A router started at `now`.
     pub fn new(config: RouterConfig, now: Instant) -> Result<Self, ScheduleError> {
         let hz = 1.0 / config.gcs_heartbeat_period.as_secs_f64().max(1e-3);
+        let radio_leg = RadioLeg::new(config.signing.as_ref());
         let profile = Profile::parse(&format!("[messages.HEARTBEAT]\nradio = {hz}\n"), "router")
             .expect("a positive rate is a valid profile");
         Ok(Self {
@@ -171,7 +172,8 @@ impl Router {
             quality: LinkQuality::new(config.quality, now),
             monitor: LinkMonitor::new(config.monitor),
             vehicle: None,
-            scheduler: LinkScheduler::new(config.scheduler, now)?,
+            scheduler: LinkScheduler::new(config.scheduler, now)?
+                .with_frame_extra(radio_leg.frame_extra()),
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
             mission: MissionTerminator::new(TerminatorConfig {
@@ -180,7 +182,7 @@ impl Router {
                     .pace_bytes_per_s
                     .or(Some(config.scheduler.rate_bytes_per_s)),
                 // Pacing counts each frame as long as it is on the radio.
-                frame_extra_bytes: if config.signing.is_some() { 13 } else { 0 },
+                frame_extra_bytes: radio_leg.frame_extra() as u32,
                 ..config.mission
             }),
             // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
@@ -202,7 +204,7 @@ impl Router {
             sender: Sender::new(config.system_id, config.component_id, MavlinkVersion::V2),
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
-            radio_leg: RadioLeg::new(config.signing.as_ref()),
+            radio_leg,
             ground_version: MavlinkVersion::V2,
             reported: HashMap::new(),
             ground_signer: config.ground_signing.as_ref().map(SigningConfig::signer),

@@ -53,7 +53,7 @@ pub enum ScheduleError {
 pub struct SchedulerStats {
     /// Frames handed to the radio.
     pub sent_frames: u64,
-    /// Bytes handed to the radio.
+    /// Bytes handed to the radio, each frame with what the radio leg adds to it.
     pub sent_bytes: u64,
     /// Periodic frames replaced in the queue by a newer sample of the same message.
     pub replaced: u64,
@@ -137,6 +137,8 @@ pub struct LinkScheduler {
     unlisted: VecDeque<(Key, OwnedFrame)>,
     /// Bytes waiting in the priority and telemetry queues (parameters are counted apart).
     queued_bytes: usize,
+    /// Bytes each frame gains after it leaves the scheduler (a signature), charged with it.
+    frame_extra: usize,
     stats: SchedulerStats,
 }
 
@@ -172,8 +174,18 @@ impl LinkScheduler {
             periodic: VecDeque::new(),
             unlisted: VecDeque::new(),
             queued_bytes: 0,
+            frame_extra: 0,
             stats: SchedulerStats::default(),
         })
+    }
+
+    /// Charges every frame `bytes` more than its length: what the radio leg adds after the
+    /// scheduler (13 for a MAVLink 2 signature), so the budget counts the bytes on the air.
+    /// Uncharged, a signed burst of short frames (an autopilot's parameters, ~37 bytes
+    /// each) goes out 35 % over the rate and overflows a radio budgeted at 80 %.
+    pub fn with_frame_extra(mut self, bytes: usize) -> Self {
+        self.frame_extra = bytes;
+        self
     }
 
     /// The configuration.
@@ -267,10 +279,11 @@ impl LinkScheduler {
     /// `room`, the bytes the radio can accept right now (its free buffer).
     pub fn poll_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
         let (source, len) = self.next_source()?;
-        if len > room
+        let cost = len + self.frame_extra;
+        if cost > room
             || !self
                 .bucket
-                .try_take_keeping(len, self.reserve_for(source), now)
+                .try_take_keeping(cost, self.reserve_for(source), now)
         {
             return None;
         }
@@ -283,7 +296,7 @@ impl LinkScheduler {
         match source {
             Source::ParamShare => {
                 self.param_bytes -= len;
-                self.param_credit -= len as u64 * (PARAM_SHARE_DIVISOR - 1);
+                self.param_credit -= cost as u64 * (PARAM_SHARE_DIVISOR - 1);
                 self.stats.sent_param_frames += 1;
             }
             Source::ParamLeftover => {
@@ -292,19 +305,19 @@ impl LinkScheduler {
                 self.param_bytes -= len;
                 self.param_credit = self
                     .param_credit
-                    .saturating_sub(len as u64 * (PARAM_SHARE_DIVISOR - 1));
+                    .saturating_sub(cost as u64 * (PARAM_SHARE_DIVISOR - 1));
                 self.stats.sent_param_frames += 1;
             }
             _ => {
                 self.queued_bytes -= len;
                 if !self.params.is_empty() {
                     let cap = (MAX_FRAME_LEN as u64) * (PARAM_SHARE_DIVISOR - 1);
-                    self.param_credit = (self.param_credit + len as u64).min(cap);
+                    self.param_credit = (self.param_credit + cost as u64).min(cap);
                 }
             }
         }
         self.stats.sent_frames += 1;
-        self.stats.sent_bytes += len as u64;
+        self.stats.sent_bytes += cost as u64;
         Some(frame)
     }
 
@@ -312,7 +325,8 @@ impl LinkScheduler {
     /// `None` if nothing is queued.
     pub fn poll_timeout(&self) -> Option<Instant> {
         let (source, len) = self.next_source()?;
-        self.bucket.ready_at(len + self.reserve_for(source))
+        self.bucket
+            .ready_at(len + self.frame_extra + self.reserve_for(source))
     }
 
     fn reserve_for(&self, source: Source) -> usize {
@@ -331,8 +345,9 @@ impl LinkScheduler {
         if let Some(f) = self.priority.front() {
             return Some((Source::Priority, len(f)));
         }
-        let share_due =
-            |f: &OwnedFrame| self.param_credit >= len(f) as u64 * (PARAM_SHARE_DIVISOR - 1);
+        let share_due = |f: &OwnedFrame| {
+            self.param_credit >= (len(f) + self.frame_extra) as u64 * (PARAM_SHARE_DIVISOR - 1)
+        };
         if let Some(f) = self.params.front()
             && share_due(f)
         {

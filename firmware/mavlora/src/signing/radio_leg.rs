@@ -35,6 +35,16 @@ impl RadioLeg {
         self.signer.is_some()
     }
 
+    /// Bytes [`outgoing`](Self::outgoing) adds to a frame [`admit`](Self::admit) let through:
+    /// the signature, when signing.
+    pub fn frame_extra(&self) -> usize {
+        if self.signed() {
+            crate::wire::SIGNATURE_LEN
+        } else {
+            0
+        }
+    }
+
     /// Signing counters (only `sent_unsigned` when signing is off).
     pub fn stats(&self) -> SigningStats {
         let signer = self.signer.as_ref().map(|s| s.stats()).unwrap_or_default();

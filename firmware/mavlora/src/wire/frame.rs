@@ -16,7 +16,8 @@ pub const MAX_FRAME_LEN: usize = V2_HEADER_LEN + 255 + CHECKSUM_LEN + SIGNATURE_
 const V1_HEADER_LEN: usize = 6;
 const V2_HEADER_LEN: usize = 10;
 const CHECKSUM_LEN: usize = 2;
-const SIGNATURE_LEN: usize = 13;
+/// A MAVLink 2 signature: link id, 48-bit timestamp, 48-bit signature.
+pub const SIGNATURE_LEN: usize = 13;
 
 /// Field offsets. v1: STX LEN SEQ SYS COMP MSGID; v2: STX LEN INCOMPAT COMPAT SEQ SYS COMP MSGID[3].
 mod field {

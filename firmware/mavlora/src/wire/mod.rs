@@ -13,7 +13,8 @@ mod stats;
 mod version;
 
 pub use frame::{
-    Frame, FrameError, IFLAG_SIGNED, MAX_FRAME_LEN, OwnedFrame, STX_V1, STX_V2, encode,
+    Frame, FrameError, IFLAG_SIGNED, MAX_FRAME_LEN, OwnedFrame, SIGNATURE_LEN, STX_V1, STX_V2,
+    encode,
 };
 pub use reader::{CrcExtraFn, FrameReader, Integrity, Received};
 pub use resequence::Resequencer;

@@ -10,6 +10,7 @@ use anyhow::Result;
 
 use super::{ModeLimits, Scenario, Script, SessionOptions};
 use crate::clock::Mono;
+use crate::driver::fixture::sbus_receiver::ReceiverEvent;
 use crate::driver::receiver::Loss;
 use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
@@ -86,8 +87,13 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, fault: &str, h: Handles) -> R
     let from = Mono::now();
     s.receiver(0).set_line(fault)?;
     std::thread::sleep(FAULT);
-    s.receiver(0).set_line("clean")?;
+    let clean = s.receiver(0).set_line("clean")?;
     let to = Mono::now();
+    if let ReceiverEvent::Line { noise_redrawn, .. } = clean {
+        ctx.log(format!(
+            "noise bursts drawn again because they framed as a frame: {noise_redrawn}"
+        ));
+    }
     // Frames already on their way when the fault began or ended are the wire's, too.
     std::thread::sleep(Duration::from_millis(100));
     let during: Vec<_> =

@@ -109,6 +109,32 @@ fn rate_is_enforced_and_poll_timeout_says_when() {
 }
 
 #[test]
+fn the_budget_counts_the_signature_the_radio_leg_adds() {
+    // 1,000 B/s, one second of a signed parameter burst: 37-byte frames are 50 bytes on air
+    let rate = 1_000;
+    let mut s = LinkScheduler::new(config(rate), ms(0))
+        .unwrap()
+        .with_frame_extra(13);
+    for seq in 0..100 {
+        s.push(frame(PARAM_VALUE, 1, 1, seq), Class::Param, ms(0));
+    }
+    let mut on_air = 0;
+    for t in (0..=1_000).step_by(10) {
+        on_air += drain(&mut s, ms(t))
+            .iter()
+            .map(|f| f.as_bytes().len() + 13)
+            .sum::<usize>();
+    }
+    let bound = rate as usize + MAX_FRAME_LEN;
+    assert!(
+        on_air <= bound,
+        "{on_air} bytes on air in 1 s, budget {bound}"
+    );
+    assert!(on_air > bound - 2 * 50, "the budget is used: {on_air}");
+    assert_eq!(s.stats().sent_bytes, on_air as u64);
+}
+
+#[test]
 fn frame_larger_than_the_room_waits() {
     let mut s = LinkScheduler::new(config(10_000), ms(0)).unwrap();
     let f = frame(COMMAND_LONG, 1, 1, 0);
