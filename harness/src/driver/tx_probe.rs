@@ -40,6 +40,27 @@ pub fn read(path: &Path) -> Result<Vec<ProbeLine>> {
     parse(&text).with_context(|| format!("{}", path.display()))
 }
 
+/// Reads the probe log once it holds a frame sent after `until`, or after `patience`.
+///
+/// That frame closes the last interval with its hold accounted; read before the device
+/// wrote it (a frame period, more while the host holds the device), the tail would count
+/// as a gap with the hold left in (15 ms seen on CI). A device that writes nothing for
+/// `patience` has stopped: then the tail is a gap, as it should be.
+pub fn read_past(
+    path: &Path,
+    until: Mono,
+    patience: std::time::Duration,
+) -> Result<Vec<ProbeLine>> {
+    let give_up = std::time::Instant::now() + patience;
+    loop {
+        let lines = read(path)?;
+        if lines.last().is_some_and(|l| l.sent > until) || std::time::Instant::now() >= give_up {
+            return Ok(lines);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
+
 /// Parses probe lines; a last line without its newline is a frame being
 /// written while we read, and is left out.
 pub fn parse(text: &str) -> Result<Vec<ProbeLine>> {
@@ -112,6 +133,36 @@ pub fn cadence(lines: &[ProbeLine], from: Mono, until: Mono) -> Cadence {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn reading_waits_for_the_frame_that_closes_the_window() {
+        let dir = std::env::temp_dir().join(format!("tx-probe-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("tx.log");
+        let now = Mono::now();
+        let stamp = |m: Mono| format!("{:.9} 0.000000000\n", m.as_secs_f64());
+        std::fs::write(&path, stamp(now)).unwrap();
+        let until = Mono::now();
+        let writer = {
+            let path = path.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(std::time::Duration::from_millis(30));
+                let mut f = std::fs::OpenOptions::new()
+                    .append(true)
+                    .open(&path)
+                    .unwrap();
+                std::io::Write::write_all(&mut f, stamp(Mono::now()).as_bytes()).unwrap();
+            })
+        };
+        let lines = read_past(&path, until, std::time::Duration::from_secs(5)).unwrap();
+        writer.join().unwrap();
+        assert_eq!(lines.len(), 2, "read before the closing frame was written");
+        // a device that stopped: the reader gives up and the tail is a gap
+        let later = Mono::now();
+        let lines = read_past(&path, later, std::time::Duration::from_millis(20)).unwrap();
+        assert_eq!(lines.len(), 2);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     fn line(sent_ms: f64, held_ms: f64) -> ProbeLine {
         ProbeLine {

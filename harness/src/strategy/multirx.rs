@@ -360,7 +360,7 @@ impl MultirxSession {
             return Ok(None);
         };
         let until = self.judged_until.lock().unwrap().unwrap_or_else(Mono::now);
-        let lines = tx_probe::read(path)?;
+        let lines = tx_probe::read_past(path, until, std::time::Duration::from_millis(500))?;
         Ok(Some(tx_probe::cadence(&lines, self.started, until)))
     }
 
