@@ -17,7 +17,7 @@ if [ ${#need_apt[@]} -gt 0 ]; then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
 fi
 
-if ! python3 -c "import serial, pymavlink, pytest" 2>/dev/null; then
+if ! python3 -c "import serial, pymavlink, pytest, xdist" 2>/dev/null; then
     echo "setup: pip install -r fixtures/requirements.txt"
     python3 -m pip install -q --disable-pip-version-check -r fixtures/requirements.txt
 fi
