@@ -288,8 +288,21 @@ fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
     let (lat, stats) = c2_latency::measure(&radios).unwrap();
     assert!(stats.started >= c2_latency::COMMANDS);
     assert!(lat.iter().all(|l| l.is_finite()), "a command was given up");
-    let (lat, _) =
-        c2_latency::measure_with(&radios, harness_sim::CommandPlan::default(), Some(1)).unwrap();
+    // Three seeds, 600 commands: at 3.6 % about 22 need a third copy, so the 1 % tail holds
+    // several of them whatever the seed (200 commands, ~7 expected, missed it for about one
+    // seed in forty: any change to the traffic reshuffles which).
+    let mut lat = Vec::new();
+    for k in 0..3 {
+        let seeded = Radios {
+            seed: radios.seed + k,
+            ..radios.clone()
+        };
+        let (more, _) =
+            c2_latency::measure_with(&seeded, harness_sim::CommandPlan::default(), Some(1))
+                .unwrap();
+        lat.extend(more);
+    }
+    lat.sort_by(f64::total_cmp);
     let p99_ground_only = quantile(&lat, 0.99);
     // The ground's own 1.5 s retries: the slowest 1 % needed a third copy (or, at 19 %
     // round-trip loss, now and then a fourth: 0.7 % of commands).
