@@ -238,6 +238,10 @@ impl Drop for PtyLink {
         if let Some(relay) = self.relay.take() {
             let _ = relay.join();
         }
+        // The stable name leads to a pty that dies with us (see `RadioEmulator`'s drop).
+        if let Some(link) = &self.output_link {
+            let _ = std::fs::remove_file(link);
+        }
     }
 }
 

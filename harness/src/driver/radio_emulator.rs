@@ -310,6 +310,11 @@ impl RadioEmulator {
 impl Drop for RadioEmulator {
     fn drop(&mut self) {
         self.halt();
+        // The stable names lead to ptys that die with us: a dangling link left in the
+        // phase's folder is no evidence, and `rig certify` could not seal the folder.
+        for link in self.links.iter().flatten() {
+            let _ = std::fs::remove_file(link);
+        }
     }
 }
 

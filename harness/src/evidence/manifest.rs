@@ -123,13 +123,20 @@ pub fn fingerprint(key: &VerifyingKey) -> String {
     format!("sha256:{}", sha256_bytes(key.as_bytes()))
 }
 
-/// Every regular file under `dir`, as `/`-separated relative paths, sorted.
+/// Every regular file under `dir`, as `/`-separated relative paths, sorted. A symbolic link
+/// is an error naming it: what it leads to can change after sealing, outside the folder.
 fn files(dir: &Path) -> std::io::Result<Vec<String>> {
     fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) -> std::io::Result<()> {
         for entry in std::fs::read_dir(dir)? {
             let entry = entry?;
             let kind = entry.file_type()?;
             let path = entry.path();
+            if kind.is_symlink() {
+                return Err(std::io::Error::other(format!(
+                    "{} is a symbolic link: an evidence folder holds files only",
+                    path.display()
+                )));
+            }
             if kind.is_dir() {
                 walk(root, &path, out)?;
             } else {
@@ -447,6 +454,33 @@ mod tests {
         assert!(err.starts_with("phase/fc-frames.csv: listed"), "{err}");
         let empty = tempfile::tempdir().unwrap();
         assert_eq!(verify(empty.path(), None).unwrap_err().exit_code(), 2);
+    }
+
+    #[test]
+    fn a_symbolic_link_is_refused_by_name() {
+        // sealing a folder with one
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("results.json"), "{}\n").unwrap();
+        std::os::unix::fs::symlink("/dev/pts/2", dir.path().join("radio-air")).unwrap();
+        let err = format!(
+            "{:#}",
+            anyhow::Error::from(seal(dir.path(), None).unwrap_err())
+        );
+        assert!(
+            err.contains("radio-air") && err.contains("symbolic link"),
+            "{err}"
+        );
+        // one added to a sealed folder
+        let dir = folder(false);
+        std::os::unix::fs::symlink("/etc/passwd", dir.path().join("phase/trace.csv")).unwrap();
+        let err = format!(
+            "{:#}",
+            anyhow::Error::from(verify(dir.path(), None).unwrap_err())
+        );
+        assert!(
+            err.contains("trace.csv") && err.contains("symbolic link"),
+            "{err}"
+        );
     }
 
     #[test]
