@@ -235,4 +235,10 @@ fn a_replugged_side_hangs_up_and_comes_back_under_its_stable_name() {
     assert_eq!(read_for(&mut b, 5, Duration::from_secs(3)), b"after");
     b.write_all(b"down").unwrap();
     assert_eq!(read_for(&mut a, 4, Duration::from_secs(3)), b"down");
+    // The names go with the emulator: links left in a phase's folder would dangle, and an
+    // evidence folder holds files only.
+    drop((a, b));
+    drop(std::sync::Arc::into_inner(emulator).expect("the replug thread let go"));
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
 }

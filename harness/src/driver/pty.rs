@@ -306,6 +306,13 @@ mod tests {
         writer.write_all(b"two").unwrap();
         reader.read_exact(&mut got).unwrap();
         assert_eq!(&got, b"two");
+        // The name goes with the link (it would dangle in the phase's folder).
+        drop((reader, writer));
+        drop(Arc::into_inner(link).expect("the replug thread let go"));
+        assert!(
+            std::fs::symlink_metadata(&name).is_err(),
+            "the name is left"
+        );
     }
 
     /// Regression: the masters were inherited by every child, so closing one never hung
