@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# Runs the workspace's test binaries (already built in release), two at a
+# Runs the workspace's test binaries (already built in release), four at a
 # time, each in its package's folder as `cargo test` would, then the doc tests.
 #
 # `cargo test` runs one test binary after another; most of ours wait on real
-# time (end-to-end runs over ptys, a 12 s scripted link cut), so on a 2-core
-# machine two binaries side by side take half the wall time for the same CPU.
+# time (end-to-end runs over ptys, a 12 s scripted link cut): on a 2-core
+# machine all of them together use 84 s of CPU in 94 s two at a time, so four
+# side by side still leave the CPU idle part of the time and take half the wall
+# time. RUN_TESTS_LANES sets how many (4).
 # Each binary's output goes to target/test-logs/<name>.log and is printed when
 # it fails; a summary line per binary says how long it took.
 #
@@ -34,7 +36,7 @@ for line in sys.stdin:
     m = json.loads(line)
     if m.get("reason") == "compiler-artifact" and m.get("executable") and m["profile"]["test"]:
         found.append((os.path.dirname(m["manifest_path"]), m["executable"], m["target"]["name"]))
-# The long real-time ones first, so the two lanes end together.
+# The long real-time ones first, so the lanes end together.
 slow = ("e2e_", "firmware", "cli")
 found.sort(key=lambda f: not f[2].startswith(slow))
 # The emulated MultiRX device is tested against host holds (SIGSTOP) to the millisecond:
@@ -44,7 +46,8 @@ with open(sys.argv[1], "w") as lanes, open(sys.argv[2], "w") as solo:
     for d, exe, _ in found:
         (solo if alone(d) else lanes).write(d + "\t" + exe + "\n")
 ' "$logs/binaries.tsv" "$logs/alone.tsv"
-echo "run-tests: $(wc -l < "$logs/binaries.tsv") test binaries two at a time, then $(wc -l < "$logs/alone.tsv") alone (logs: $logs/)"
+lanes=${RUN_TESTS_LANES:-4}
+echo "run-tests: $(wc -l < "$logs/binaries.tsv") test binaries $lanes at a time, then $(wc -l < "$logs/alone.tsv") alone (logs: $logs/)"
 lanes_started=$SECONDS
 
 run_one() {
@@ -70,7 +73,7 @@ export RUN_TESTS_ARGS="${test_args[*]}"
 
 # xargs exits non-zero when any run failed, after all have run.
 tr '\t' '\n' < "$logs/binaries.tsv" \
-    | xargs -d '\n' -n 2 -P 2 bash -c 'run_one "$@"' _ \
+    | xargs -d '\n' -n 2 -P "$lanes" bash -c 'run_one "$@"' _ \
     || { echo "run-tests: some test binaries failed (above)" >&2; exit 1; }
 tr '\t' '\n' < "$logs/alone.tsv" \
     | xargs -d '\n' -n 2 -P 1 bash -c 'run_one "$@"' _ \

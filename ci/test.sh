@@ -2,7 +2,7 @@
 # Every test: formatting and lints, the Rust workspace (unit, property,
 # scenario and end-to-end tests over real ptys), the Python fixtures, the
 # SAMD21 firmware build with its size, the MultiRX core's and MavLora's
-# benchmarks, and finally the full emulated rig suite. Each step says when it
+# benchmarks, and the full emulated rig suite. Each step says when it
 # started (seconds since the first).
 #
 # One build serves tests, benchmarks and the rig: everything is built once in
@@ -11,10 +11,18 @@
 # (`--workspace` everywhere: one feature set, so nothing compiles again). That set
 # leaves out the rig's `flash` feature: probe-rs is a third of the build, and the
 # emulated rig flashes nothing (the lints below still check that code).
-# The real-time MavLora scenarios run once, as rig phases in the last step;
-# their `cargo test` twins (harness/tests/mavlora_realtime.rs, the same
-# scenarios through the same code) are filtered out here and run by a plain
-# `cargo test --workspace` on a developer's machine.
+#
+# Order, for the wall time: the rig suite spends its ~4.5 minutes waiting on
+# real time (fixtures pace frames at 7 ms, scans wait out 2 s windows) and uses
+# about a third of the CPU. So the programs it runs are built first, then the
+# suite runs while the test binaries and benchmarks build beside it, niced (a
+# nice-19 process yields a core to any nice-0 one that wakes; the MultiRX
+# emulator's measured thread is SCHED_FIFO where allowed, and its gaps are read
+# on the device's clock). The tests run after the suite, on a quiet machine.
+# The real-time MavLora scenarios run once, as rig phases; their `cargo test`
+# twins (harness/tests/mavlora_realtime.rs, the same scenarios through the same
+# code) are filtered out here and run by a plain `cargo test --workspace` on a
+# developer's machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash ci/setup.sh
@@ -49,9 +57,23 @@ collect_clippy() {
         exit 1
     fi
 }
-step "build everything once (release: tests, benchmarks, rig programs)"
-cargo build --release --locked --workspace --all-targets "${features[@]}"
-step "cargo test --workspace (release; test binaries two at a time: ci/run-tests.sh)"
+step "build the programs the rig runs (release)"
+cargo build --release --locked --workspace --bins "${features[@]}"
+# The rest of `--all-targets` (test binaries, benchmarks) shares every unit just built.
+step "build the tests and benchmarks (in the background, niced; log: target/test-build.log)"
+nice -n 19 cargo build --release --locked --workspace --all-targets "${features[@]}" \
+    > target/test-build.log 2>&1 &
+test_build_pid=$!
+trap 'kill "$clippy_pid" "$test_build_pid" 2>/dev/null || true' EXIT
+step "rig suite, emulated rig (includes the real-time MavLora scenarios)"
+RIG_PREBUILT=1 bash ci/rig-emulated.sh --out target/rig-report
+step "build the tests and benchmarks: waiting for it"
+if ! wait "$test_build_pid"; then
+    cat target/test-build.log
+    echo "building the tests failed (log above)" >&2
+    exit 1
+fi
+step "cargo test --workspace (release; test binaries four at a time: ci/run-tests.sh)"
 bash ci/run-tests.sh "${features[@]}" -- \
     --skip table_ii_compact_and_limit_filter_bandwidth \
     --skip mission_upload_over_lossy_sik_arrives_intact \
@@ -66,7 +88,5 @@ step "multirx-core benchmark"
 cargo bench --locked -q --workspace "${features[@]}" --bench mux
 step "mavlora benchmark"
 cargo bench --locked -q --workspace "${features[@]}" --bench radio
-step "rig suite, emulated rig (includes the real-time MavLora scenarios)"
-RIG_PREBUILT=1 bash ci/rig-emulated.sh --out target/rig-report
 collect_clippy
 step "done"
