@@ -263,8 +263,9 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
     println!("bridge signing {s:?}, router signing {router:?}");
     assert!(s.unsigned >= 1 && s.replayed >= 1, "{s:?}");
     // Signed frames flow both ways (the upload goes as a handful of packed frames and asks
-    // for nothing per item: the bridge hears ~10 frames of the router).
-    assert!(s.accepted >= 5 && router.accepted > 20, "{s:?} {router:?}");
+    // for nothing per item: the bridge hears ~10 frames of the router; the router hears a
+    // position batch every 2 s for 20 s, the statuses and the mission's answers).
+    assert!(s.accepted >= 5 && router.accepted >= 10, "{s:?} {router:?}");
     assert_eq!(s.bad_signature, 0);
 }
 

@@ -1,19 +1,36 @@
 //! Router side: compact frames in, the standard messages an unmodified ground station
 //! expects out.
 
+use super::MAX_BATCH_SAMPLES;
 use crate::dialect::{
     GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, HEARTBEAT_DATA, MAVLORA_POSITION_BATCH_DATA,
     MAVLORA_STATUS_DATA, MISSION_CURRENT_DATA, MavMessage, MavSysStatusSensor,
     MavSysStatusSensorExtended, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
+use crate::time::{Duration, Instant};
+
+/// The vehicle's HEARTBEAT goes to the ground once a second (the rate MAVLink asks of every
+/// component) while compact frames keep coming, although a batch comes only every 2 s: a
+/// ground station that misses heartbeats for a few seconds calls the link lost.
+pub const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
+
+/// A heartbeat of our own goes only this long after the last compact frame: one fills the
+/// second between two batches, and none follows a frame that no other follows, so a ground
+/// station sees heartbeats stop a second after the link does, as when a batch went every
+/// second (a longer hold hid a bridge's restart from the rig's ground station).
+pub const HEARTBEAT_HOLD: Duration = Duration::from_millis(1200);
 
 /// Sans-IO expander: keeps the latest status so position batches can be expanded into full
-/// HEARTBEAT / SYS_STATUS / GPS_RAW_INT messages too.
+/// HEARTBEAT / SYS_STATUS / GPS_RAW_INT messages too, and keeps the vehicle's HEARTBEAT
+/// going between batches ([`poll_heartbeat`](Self::poll_heartbeat)).
 #[derive(Debug, Default)]
 pub struct Expander {
     status: Option<MAVLORA_STATUS_DATA>,
     newest: Option<GLOBAL_POSITION_INT_DATA>,
     groundspeed_cm: u16,
+    /// The vehicle whose compact frames were expanded last, and when one arrived.
+    heard: Option<(u8, Instant)>,
+    last_heartbeat: Option<Instant>,
 }
 
 impl Expander {
@@ -22,8 +39,48 @@ impl Expander {
         Self::default()
     }
 
-    /// The standard messages `msg` stands for; empty for messages that are not compact.
-    pub fn expand(&mut self, msg: &MavMessage) -> Vec<MavMessage> {
+    /// The standard messages `msg`, a compact frame from vehicle `system` received at `now`,
+    /// stands for; empty for messages that are not compact.
+    pub fn expand(&mut self, now: Instant, system: u8, msg: &MavMessage) -> Vec<MavMessage> {
+        let out = self.expand_message(msg);
+        if matches!(
+            msg,
+            MavMessage::MAVLORA_POSITION_BATCH(_) | MavMessage::MAVLORA_STATUS(_)
+        ) {
+            self.heard = Some((system, now));
+        }
+        if out.iter().any(|m| matches!(m, MavMessage::HEARTBEAT(_))) {
+            self.last_heartbeat = Some(now);
+        }
+        out
+    }
+
+    /// A HEARTBEAT for the ground (with the vehicle's system id) when one is due at `now`:
+    /// a period after the last, as long as a compact frame came within [`HEARTBEAT_HOLD`].
+    pub fn poll_heartbeat(&mut self, now: Instant) -> Option<(u8, MavMessage)> {
+        let due = self.heartbeat_due()?;
+        if now < due {
+            return None;
+        }
+        self.last_heartbeat = Some(now);
+        let (system, _) = self.heard?;
+        let heartbeat = self.status_messages().into_iter().next()?;
+        Some((system, heartbeat))
+    }
+
+    /// When [`poll_heartbeat`](Self::poll_heartbeat) next has something to give.
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        self.heartbeat_due()
+    }
+
+    fn heartbeat_due(&self) -> Option<Instant> {
+        self.status.as_ref()?;
+        let (_, heard) = self.heard?;
+        let due = self.last_heartbeat? + HEARTBEAT_PERIOD;
+        (due <= heard + HEARTBEAT_HOLD).then_some(due)
+    }
+
+    fn expand_message(&mut self, msg: &MavMessage) -> Vec<MavMessage> {
         match msg {
             MavMessage::MAVLORA_POSITION_BATCH(batch) => self.batch(batch),
             MavMessage::MAVLORA_STATUS(status) => {
@@ -53,7 +110,7 @@ impl Expander {
             )
         };
         let vz = -i16::from(b.climb) * 10;
-        let count = usize::from(b.count.clamp(1, 3));
+        let count = usize::from(b.count).clamp(1, MAX_BATCH_SAMPLES);
         let mut out = Vec::with_capacity(count + 4);
         for i in 0..count {
             let (dlat, dlon, drel, dt) = if i == 0 {

@@ -1,7 +1,7 @@
 //! Compact telemetry: the bridge packs the periodic messages a ground station needs into
-//! `MAVLORA_POSITION_BATCH` (17, one frame per second with three positions) and
+//! `MAVLORA_POSITION_BATCH` (17, one frame every 2 s with six positions) and
 //! `MAVLORA_STATUS` (18, on change and every few seconds); the router expands them back into
-//! standard messages.
+//! standard messages, and keeps the vehicle's HEARTBEAT at 1 Hz while batches come.
 //!
 //! # Precision (what `expand(compact(x))` gives back)
 //! | field | carried as | exact to |
@@ -24,8 +24,8 @@
 mod compactor;
 mod expander;
 
-pub use compactor::{CompactConfig, CompactStats, Compactor, REPLACED_IDS};
-pub use expander::Expander;
+pub use compactor::{CompactConfig, CompactStats, Compactor, MAX_BATCH_SAMPLES, REPLACED_IDS};
+pub use expander::{Expander, HEARTBEAT_HOLD, HEARTBEAT_PERIOD};
 
 #[cfg(test)]
 mod tests;

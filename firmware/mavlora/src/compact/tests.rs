@@ -4,8 +4,9 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::dialect::{
-    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, MISSION_CURRENT_DATA,
-    MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, SYS_STATUS_DATA,
+    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
+    MAVLORA_POSITION_BATCH_DATA, MISSION_CURRENT_DATA, MavAutopilot, MavMessage, MavModeFlag,
+    MavState, MavType, SYS_STATUS_DATA,
 };
 use crate::time::Instant;
 
@@ -29,25 +30,29 @@ fn drain(c: &mut Compactor, now: Instant) -> Vec<MavMessage> {
 }
 
 #[test]
-fn three_positions_make_one_batch_and_status_goes_on_change() {
+fn six_positions_make_one_batch_and_status_goes_on_change() {
     let mut c = Compactor::new(CompactConfig::default());
     assert!(c.observe(&heartbeat(0x0004_0000, false), Instant::ZERO));
     let first = drain(&mut c, Instant::ZERO);
     assert!(matches!(first[..], [MavMessage::MAVLORA_STATUS(_)]));
     let pos = GLOBAL_POSITION_INT_DATA::default();
-    // 5 Hz in for 1 s: 3 samples taken, one batch out
+    // 5 Hz in for 2 s: 6 samples taken (3 Hz), one batch out
     let mut batches = 0;
-    for k in 0..5u64 {
+    for k in 0..10u64 {
         let now = Instant::from_millis(k * 200);
         c.observe(&MavMessage::GLOBAL_POSITION_INT(pos.clone()), now);
         batches += drain(&mut c, now)
             .iter()
-            .filter(|m| matches!(m, MavMessage::MAVLORA_POSITION_BATCH(b) if b.count == 3))
+            .filter(|m| matches!(m, MavMessage::MAVLORA_POSITION_BATCH(b) if b.count == 6))
             .count();
     }
     assert_eq!(batches, 1);
+    assert_eq!(
+        MAX_BATCH_SAMPLES,
+        1 + MAVLORA_POSITION_BATCH_DATA::default().dlat.len()
+    );
     // arming is a change: a status goes at once, not at the 10 s period
-    let t = Instant::from_millis(900);
+    let t = Instant::from_millis(1900);
     c.observe(&heartbeat(0x0004_0000, true), t);
     assert!(
         drain(&mut c, t)
@@ -59,8 +64,11 @@ fn three_positions_make_one_batch_and_status_goes_on_change() {
 
 #[test]
 fn coalesced_frames_leave_together_after_the_hold() {
+    // one-second batches of three: two of them are ready within each 1.5 s hold
     let mut c = Compactor::new(CompactConfig {
         coalesce: Duration::from_millis(1500),
+        batch_samples: 3,
+        batch_period: Duration::from_secs(1),
         ..CompactConfig::default()
     });
     c.observe(&heartbeat(0, false), Instant::ZERO);
@@ -121,7 +129,7 @@ fn position_jump_starts_a_new_batch_instead_of_overflowing() {
         panic!("{out:?}");
     };
     assert_eq!((first.count, first.lat), (1, 0));
-    let out = drain(&mut c, Instant::from_millis(1400));
+    let out = drain(&mut c, Instant::from_millis(2400));
     let [MavMessage::MAVLORA_POSITION_BATCH(second)] = &out[..] else {
         panic!("{out:?}");
     };
@@ -144,12 +152,14 @@ fn keep_alive_status_without_position() {
             .unwrap()
             .max(now + Duration::from_millis(1));
     }
-    assert!((6..=8).contains(&statuses), "{statuses}");
+    // t = 0, 3, 6 and 9 s (batch period 2 s)
+    assert!((4..=5).contains(&statuses), "{statuses}");
 }
 
 #[test]
 fn batches_a_little_late_add_no_keep_alive_statuses() {
-    // Real clock: the third sample of a batch arrives a few ms after one batch period.
+    // Real clock: the samples of a batch come a little slower than 3 Hz, so batches leave a
+    // little more than one batch period apart.
     // Driven as the bridge's loop drives it (positions in, and poll at every
     // poll_timeout): only the first status and the 10 s periodic ones may go in 20 s.
     let mut c = Compactor::new(CompactConfig::default());
@@ -158,7 +168,7 @@ fn batches_a_little_late_add_no_keep_alive_statuses() {
     let mut now = Instant::ZERO;
     let mut k = 0u64;
     while k < 60 {
-        let next_pos = Instant::from_millis(k * 340); // 2.94 Hz: every batch 1.02 s
+        let next_pos = Instant::from_millis(k * 340); // 2.94 Hz: every batch 2.04 s
         if next_pos <= now {
             let pos = GLOBAL_POSITION_INT_DATA {
                 time_boot_ms: (k * 340) as u32,
@@ -182,16 +192,104 @@ fn batches_a_little_late_add_no_keep_alive_statuses() {
     assert!(statuses <= 3, "{statuses} statuses in 20 s");
 }
 
+#[test]
+fn a_jittered_4_hz_autopilot_gives_3_hz_of_samples() {
+    // ArduPilot streams position at 4 Hz with a few ms of jitter either way; the compactor
+    // must still take 3 samples a second (60 in 20 s, one more or less at the ends).
+    let mut c = Compactor::new(CompactConfig::default());
+    let mut samples = 0usize;
+    for k in 0..80u64 {
+        let jitter = [0i64, -3, 2, -2, 3, -1][k as usize % 6];
+        let t = Instant::from_micros((k as i64 * 250_000 + jitter * 1000) as u64 + 10_000);
+        let pos = GLOBAL_POSITION_INT_DATA {
+            time_boot_ms: (t.as_micros() / 1000) as u32,
+            ..Default::default()
+        };
+        c.observe(&MavMessage::GLOBAL_POSITION_INT(pos), t);
+        samples += drain(&mut c, t)
+            .iter()
+            .map(|m| match m {
+                MavMessage::MAVLORA_POSITION_BATCH(b) => usize::from(b.count),
+                _ => 0,
+            })
+            .sum::<usize>();
+    }
+    samples += drain(&mut c, Instant::from_secs(30))
+        .iter()
+        .map(|m| match m {
+            MavMessage::MAVLORA_POSITION_BATCH(b) => usize::from(b.count),
+            _ => 0,
+        })
+        .sum::<usize>();
+    assert!((59..=61).contains(&samples), "{samples} samples in 20 s");
+}
+
+#[test]
+fn heartbeat_goes_on_at_1_hz_between_batches_and_stops_with_them() {
+    // A batch every ~2 s, then the radio is cut at 12 s: the ground gets a HEARTBEAT at
+    // least each second (a batch brings one of its own) until HEARTBEAT_HOLD after the last
+    // compact frame it heard, then none.
+    let cut = Instant::from_secs(12);
+    let mut c = Compactor::new(CompactConfig::default());
+    let mut e = Expander::new();
+    let mut beats = Vec::new();
+    let mut heard = Instant::ZERO;
+    let mut now = Instant::ZERO;
+    let mut k = 0u64;
+    while now < Instant::from_secs(20) {
+        if now >= Instant::from_millis(k * 340) {
+            c.observe(&heartbeat(0, false), now);
+            let pos = GLOBAL_POSITION_INT_DATA {
+                time_boot_ms: (k * 340) as u32,
+                ..Default::default()
+            };
+            c.observe(&MavMessage::GLOBAL_POSITION_INT(pos), now);
+            k += 1;
+        }
+        for m in drain(&mut c, now).iter().filter(|_| now < cut) {
+            heard = now;
+            let out = e.expand(now, 7, m);
+            let hb = out.iter().filter(|m| matches!(m, MavMessage::HEARTBEAT(_)));
+            beats.extend(hb.map(|_| now));
+        }
+        while let Some((system, m)) = e.poll_heartbeat(now) {
+            assert_eq!(system, 7);
+            assert!(matches!(m, MavMessage::HEARTBEAT(_)));
+            beats.push(now);
+        }
+        let next = [c.poll_timeout(), e.poll_timeout()]
+            .into_iter()
+            .flatten()
+            .chain([Instant::from_millis(k * 340)])
+            .min()
+            .unwrap();
+        now = next.max(now + Duration::from_millis(1));
+    }
+    for pair in beats.windows(2) {
+        let gap = pair[1].saturating_duration_since(pair[0]);
+        assert!(gap <= Duration::from_millis(1100), "{beats:?}");
+    }
+    let last = *beats.last().unwrap();
+    assert!(
+        last <= heard + HEARTBEAT_HOLD,
+        "{last:?}, last frame {heard:?}"
+    );
+    assert!(
+        last + HEARTBEAT_PERIOD > heard + HEARTBEAT_HOLD,
+        "{beats:?}"
+    );
+}
+
 proptest! {
     /// expand(compact(x)) == x within the precision table of the module doc.
     #[test]
     fn expansion_is_exact_within_precision(
         lat in -900_000_000i32..900_000_000, lon in -1_800_000_000i32..1_800_000_000,
-        dlat in prop::collection::vec(-3_000i32..3_000, 2),
-        dlon in prop::collection::vec(-6_000i32..6_000, 2),
-        rel in -1_000_000i32..1_000_000, drel in prop::collection::vec(-10_000i32..10_000, 2),
+        dlat in prop::collection::vec(-3_000i32..3_000, 5),
+        dlon in prop::collection::vec(-6_000i32..6_000, 5),
+        rel in -1_000_000i32..1_000_000, drel in prop::collection::vec(-10_000i32..10_000, 5),
         home in -100_000i32..3_000_000,
-        t0 in 0u32..4_000_000_000, dt in prop::collection::vec(340u32..600, 2),
+        t0 in 0u32..4_000_000_000, dt in prop::collection::vec(340u32..600, 5),
         hdg in 0u16..36_000, vx in -1_700i16..1_700, vy in -1_700i16..1_700, vz in -1_200i16..1_200,
         custom_mode: u32, armed: bool, voltage: u16, remaining in -1i8..=100,
         fix in 0u8..=8, sats: u8, seq: u16,
@@ -207,7 +305,7 @@ proptest! {
         let mc = MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA { seq, ..Default::default() });
         let mut positions = Vec::new();
         let mut t = t0;
-        for i in 0..3 {
+        for i in 0..MAX_BATCH_SAMPLES {
             let (dl, dn, dr) = if i == 0 { (0, 0, 0) } else { (dlat[i - 1], dlon[i - 1], drel[i - 1]) };
             if i > 0 { t = t.wrapping_add(dt[i - 1]); }
             positions.push(GLOBAL_POSITION_INT_DATA {
@@ -224,13 +322,14 @@ proptest! {
             c.observe(&MavMessage::GLOBAL_POSITION_INT(p.clone()), now);
             compact.extend(std::iter::from_fn(|| c.poll(now)));
         }
-        now += Duration::from_secs(1);
+        now += Duration::from_secs(2);
         compact.extend(std::iter::from_fn(|| c.poll(now)));
         let mut e = Expander::new();
-        let expanded: Vec<MavMessage> = compact.iter().flat_map(|m| e.expand(m)).collect();
+        let expanded: Vec<MavMessage> =
+            compact.iter().flat_map(|m| e.expand(now, 1, m)).collect();
         let got: Vec<_> = expanded.iter().filter_map(|m| match m {
             MavMessage::GLOBAL_POSITION_INT(p) => Some(p.clone()), _ => None }).collect();
-        prop_assert_eq!(got.len(), 3);
+        prop_assert_eq!(got.len(), MAX_BATCH_SAMPLES);
         for (g, x) in got.iter().zip(&positions) {
             prop_assert_eq!((g.lat, g.lon, g.hdg), (x.lat, x.lon, x.hdg));
             prop_assert!((g.relative_alt - x.relative_alt).abs() <= 50);

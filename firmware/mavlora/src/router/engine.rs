@@ -470,17 +470,22 @@ impl Router {
 
     fn expand(&mut self, now: Instant, system: u8, msg: &MavMessage) {
         self.stats.expanded_frames += 1;
-        let component = self.config.autopilot_component;
-        for out in self.expander.expand(msg) {
-            let seq = self.next_sequence((system, component));
-            let header = MavHeader {
-                system_id: system.into(),
-                component_id: component,
-                sequence: seq,
-            };
-            self.stats.expanded_messages += 1;
-            self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, &out));
+        for out in self.expander.expand(now, system, msg) {
+            self.enqueue_expanded(now, system, &out);
         }
+    }
+
+    /// A standard message standing for compact frames, to the ground as the vehicle's
+    /// autopilot in that stream's numbering.
+    fn enqueue_expanded(&mut self, now: Instant, system: u8, msg: &MavMessage) {
+        let component = self.config.autopilot_component;
+        let header = MavHeader {
+            system_id: system.into(),
+            component_id: component,
+            sequence: self.next_sequence((system, component)),
+        };
+        self.stats.expanded_messages += 1;
+        self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, msg));
     }
 
     fn next_sequence(&mut self, stream: (u8, u8)) -> u8 {
@@ -562,6 +567,9 @@ impl Router {
             self.scheduler.push(frame, Class::Periodic, now);
         }
         self.link_monitor(now);
+        while let Some((system, heartbeat)) = self.expander.poll_heartbeat(now) {
+            self.enqueue_expanded(now, system, &heartbeat);
+        }
     }
 
     /// The loss a command meets on the radio: the worse direction.
@@ -633,6 +641,7 @@ impl Router {
             self.scheduler.poll_timeout(),
             self.commands.poll_timeout(),
             self.mission.poll_timeout(),
+            self.expander.poll_timeout(),
             // Frames waiting for the ground stations: due at once.
             (!self.to_gcs.is_empty()).then_some(Instant::ZERO),
         ]

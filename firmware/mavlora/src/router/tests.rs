@@ -1,7 +1,7 @@
 use mavlink::MavlinkVersion;
 
 use super::*;
-use crate::compact::{CompactConfig, Compactor};
+use crate::compact::{CompactConfig, Compactor, MAX_BATCH_SAMPLES};
 use crate::dialect::{
     COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavAutopilot,
     MavMessage, MavType,
@@ -43,7 +43,7 @@ fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
     let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
     let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
     let mut radio = Vec::new();
-    for k in 0..3 {
+    for k in 0..MAX_BATCH_SAMPLES as u64 {
         c.observe(&pos, ms(k * 340));
         while let Some(m) = c.poll(ms(k * 340)) {
             radio.extend_from_slice(bridge.frame(&m).as_bytes());
@@ -56,7 +56,7 @@ fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
     radio.extend_from_slice(fc.frame(&ack).as_bytes());
 
     let mut r = router();
-    r.handle_radio_bytes(ms(1000), &radio);
+    r.handle_radio_bytes(ms(2000), &radio);
     let out = gcs_out(&mut r);
     let mut reader = FrameReader::new();
     for f in &out {
@@ -65,7 +65,11 @@ fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
     let frames: Vec<_> = std::iter::from_fn(|| reader.next_frame()).collect();
     assert_eq!(frames.len(), out.len(), "every frame checks");
     let ids: Vec<u32> = frames.iter().map(|f| f.frame.message_id()).collect();
-    assert_eq!(ids.iter().filter(|&&i| i == 33).count(), 3, "{ids:?}");
+    assert_eq!(
+        ids.iter().filter(|&&i| i == 33).count(),
+        MAX_BATCH_SAMPLES,
+        "{ids:?}"
+    );
     for id in [0, 1, 24, 42, 74, 77] {
         assert!(ids.contains(&id), "{id} missing from {ids:?}");
     }

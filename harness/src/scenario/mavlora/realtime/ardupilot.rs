@@ -79,10 +79,11 @@ fn plan(d: &mut Declarations) -> Script {
                 position_hz: d.declare(
                     variant("position_hz", "Hz")
                         .describe(
-                            "GLOBAL_POSITION_INT the pymavlink ground station decoded per second \
-                             over the window; issue 9: the profile's 3 Hz (2.9 allows one missed \
-                             update in 10 s; compact's window holds whole 1 s batches of 3, so \
-                             one batch more or less is 0.15 Hz)",
+                            "distinct GLOBAL_POSITION_INT samples the pymavlink ground station \
+                             decoded in the window, per second of the autopilot's clock from the \
+                             first to the last (compact telemetry delivers six every 2 s: a count \
+                             of arrivals would swing by a batch with the window's phase); issue \
+                             9: the profile's 3 Hz (2.9 allows one missed update in 10 s)",
                         )
                         .marginal_below(POSITION_HZ_MIN),
                 ),
@@ -155,8 +156,7 @@ fn run(
             .telemetry
             .as_ref()
             .context("the GCS fixture ran no telemetry phase")?;
-        let positions = t.by_type.get("GLOBAL_POSITION_INT").copied().unwrap_or(0);
-        let position_hz = positions as f64 / t.window_s();
+        let position_hz = t.positions.and_then(|p| p.hz()).unwrap_or(0.0);
         ctx.log(format!(
             "{variant}: window {secs:.2} s; radio {bytes_per_s:.1} B/s; GCS {:.2} msg/s, \
              position {position_hz:.2} Hz; by type {:?}",

@@ -153,9 +153,17 @@ pub fn measure_with(
 /// [`Radios::c2_target`]; latencies as [`measure`], and what the autopilot executed.
 pub fn measure_target(radios: &Radios) -> Result<(Vec<f64>, CommandStats, Integrity)> {
     // MAVSDK's 0.5 s retry: the ground's own copies (confirmation > 0) are part of the mix.
+    measure_mix(radios, Duration::from_millis(500))
+}
+
+/// As [`measure_target`], with the ground retrying after `retry` without an ack.
+pub fn measure_mix(
+    radios: &Radios,
+    retry: Duration,
+) -> Result<(Vec<f64>, CommandStats, Integrity)> {
     let plan = CommandPlan {
         mix: true,
-        retry: Duration::from_millis(500),
+        retry,
         ..CommandPlan::default()
     };
     let (ms, stats, executed) = run_commands(radios, &radios.c2_target, plan, None)?;

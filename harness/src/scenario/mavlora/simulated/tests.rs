@@ -71,9 +71,8 @@ fn value(ms: &[Measurement], base: &str, dims: &[(Dimension, &str)]) -> f64 {
 }
 
 /// Table II: every mechanism cuts traffic, limiting + filtering stays under the paper's
-/// 951 B/s. Compact telemetry averages just over 50 B/s over a whole flight (the frames that
-/// pass raw before the bridge has seen PX4's first heartbeat, ~125 B, tip it over): its SLA
-/// is recorded as failing, and this test pins how close it is.
+/// 951 B/s and compact telemetry under issue 9's 50 B/s (a batch every 2 s), and every
+/// measurement of the phase passes.
 #[test]
 fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
     let (ms, _, _) = run_one("table_ii", &Radios::paper_defaults(), Path::new(""));
@@ -89,14 +88,9 @@ fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
     };
     assert!(b("wired") > b("limit") && b("limit") > b("limit_filter"));
     assert!(b("limit_filter") > b("compact"));
-    let compact_bytes = Selector::base("bytes_per_s").dim(Dimension::Variant, "compact");
-    let passing: Vec<_> = ms
-        .iter()
-        .filter(|m| !compact_bytes.matches(m))
-        .cloned()
-        .collect();
-    assert_all_pass(&passing);
-    assert!((45.0..=55.0).contains(&b("compact")), "{}", b("compact"));
+    assert_all_pass(&ms);
+    // issue 9's target for compact telemetry (here unsigned, as the paper measured)
+    assert!((0.0..=50.0).contains(&b("compact")), "{}", b("compact"));
 }
 
 /// Counting check: on the wire, UAV→GCS bytes per second must be what the profile's streams
@@ -323,26 +317,40 @@ fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
 /// once per command, and every execution is of a command the ground sent.
 #[test]
 fn c2_command_mix_runs_each_command_exactly_once() {
+    // The target's ground (0.5 s retries: on this seed every ack comes sooner, so no retry)
+    // and an impatient one (0.15 s, near the 131 ms median round trip: it retries every slow
+    // command, so the retry path is exercised whatever the seed).
     let radios = Radios::paper_defaults();
-    let (lat, stats, integrity) = c2_latency::measure_target(&radios).unwrap();
-    eprintln!(
-        "sik c2: p50 {} p99 {} max {} ms; {stats:?}; {integrity:?}",
-        quantile(&lat, 0.5),
-        quantile(&lat, 0.99),
-        lat.last().unwrap()
-    );
-    assert!(
-        stats.copies > stats.started,
-        "no ground retry: the mix must include some"
-    );
-    assert_eq!(
-        integrity,
-        c2_latency::Integrity {
-            lost: 0,
-            executed_twice: 0,
-            unknown: 0
+    for retry_ms in [500, 150] {
+        let retry = timebase::Duration::from_millis(retry_ms);
+        let (lat, stats, integrity) = c2_latency::measure_mix(&radios, retry).unwrap();
+        eprintln!(
+            "sik c2, ground retry {retry_ms} ms: p50 {} p99 {} max {} ms; {} commands, {} \
+             copies; {integrity:?}",
+            quantile(&lat, 0.5),
+            quantile(&lat, 0.99),
+            lat.last().unwrap(),
+            stats.started,
+            stats.copies
+        );
+        assert_eq!(
+            integrity,
+            c2_latency::Integrity {
+                lost: 0,
+                executed_twice: 0,
+                unknown: 0
+            },
+            "ground retry {retry_ms} ms"
+        );
+        if retry_ms == 150 {
+            assert!(
+                stats.copies > stats.started,
+                "{} copies of {} commands: the impatient ground must retry",
+                stats.copies,
+                stats.started
+            );
         }
-    );
+    }
 }
 
 #[test]
@@ -395,7 +403,8 @@ fn blind_drone_is_seen_from_the_ground() {
 
 /// The airtime the radio reports is the airtime of the frames the bridge sent, one packet
 /// each, by the LoRa time-on-air formula (checked in `radio::airtime` against Semtech's):
-/// compact telemetry's ~50 B/s costs ~11 % of an SF7/125 kHz channel, over the EU 10 %.
+/// compact telemetry's ~32 B/s costs ~7 % of an SF7/125 kHz channel, under the EU 10 %
+/// (11 % when a batch went every second).
 #[test]
 fn duty_cycle_is_the_airtime_of_the_frames_sent() {
     let radios = Radios::paper_defaults();
@@ -425,23 +434,20 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
         "{} vs {expected}",
         d.down_pct
     );
-    assert!((10.0..13.0).contains(&d.down_pct), "{}", d.down_pct);
-    // Coalesced for 1.5 s: the same bytes in about one packet per two batches, under 10 %.
+    // A batch every 2 s fits the EU 433 MHz 10 % even one frame per packet.
+    assert!(d.down_pct < 10.0, "{}", d.down_pct);
+    // Coalesced for 1.5 s: the same bytes in fewer packets (the status and the link-quality
+    // report ride with a batch), so less airtime.
     let same_bytes =
         coalesced.downlink_sent.total_bytes() as f64 / d.downlink_sent.total_bytes() as f64;
     assert!((0.97..1.03).contains(&same_bytes), "{same_bytes}");
-    let batches = coalesced
-        .downlink_sent
-        .frames
-        .get(&mavlora::wire::ids::MAVLORA_POSITION_BATCH)
-        .copied()
-        .unwrap_or(0);
     assert!(
-        coalesced.down.packets_sent <= batches / 2 + 10,
-        "{} packets for {batches} batches",
-        coalesced.down.packets_sent
+        coalesced.down.packets_sent < d.down.packets_sent,
+        "{} packets coalesced, {} not",
+        coalesced.down.packets_sent,
+        d.down.packets_sent
     );
-    assert!(coalesced.down_pct < 10.0, "{}", coalesced.down_pct);
+    assert!(coalesced.down_pct < d.down_pct, "{}", coalesced.down_pct);
     assert!(value(&ms, "uplink_duty_cycle_pct", &on_lora) < coalesced.down_pct);
 }
 
