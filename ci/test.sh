@@ -52,13 +52,21 @@ mkdir -p target
 step "build the programs the rig runs (release; clippy -D warnings on the workspace's crates)"
 cargo build --release --locked --workspace --bins "${features[@]}"
 # The rest of `--all-targets` (test binaries, benchmarks) shares every unit just built.
-step "build the tests and benchmarks (in the background, niced; log: target/test-build.log)"
+step "build the tests, benchmarks and firmware (in the background, niced; logs: target/test-build.log, target/firmware-build.log)"
 nice -n 19 cargo build --release --locked --workspace --all-targets "${features[@]}" \
     > target/test-build.log 2>&1 &
 test_build_pid=$!
-trap 'kill "$test_build_pid" 2>/dev/null || true' EXIT
+# The firmware's own workspace and target (thumbv6m): its build and size checks.
+nice -n 19 "${unlinted[@]}" bash ci/build-firmware.sh > target/firmware-build.log 2>&1 &
+firmware_pid=$!
+trap 'kill "$test_build_pid" "$firmware_pid" 2>/dev/null || true' EXIT
 step "rig suite, emulated rig (includes the real-time MavLora scenarios)"
 RIG_PREBUILT=1 "${unlinted[@]}" bash ci/rig-emulated.sh --out target/rig-report
+step "firmware build and size (built beside the suite)"
+status=0
+wait "$firmware_pid" || status=$?
+cat target/firmware-build.log
+[ "$status" -eq 0 ] || { echo "the firmware build or its checks failed (log above)" >&2; exit 1; }
 step "build the tests and benchmarks: waiting for it"
 if ! wait "$test_build_pid"; then
     cat target/test-build.log
@@ -74,8 +82,6 @@ bash ci/run-tests.sh "${features[@]}" -- \
 # ptys, sockets); one after another they took 72 s, side by side 23 s.
 step "pytest fixtures (4 workers)"
 "${unlinted[@]}" python3 -m pytest -q -n 4 fixtures/tests
-step "firmware build and size"
-"${unlinted[@]}" bash ci/build-firmware.sh
 step "multirx-core benchmark"
 cargo bench --locked -q --workspace "${features[@]}" --bench mux
 step "mavlora benchmark"

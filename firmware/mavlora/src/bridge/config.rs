@@ -56,7 +56,7 @@ impl BridgeConfig {
             scheduler,
             quality: LinkQualityConfig::for_budget(scheduler.rate_bytes_per_s, false),
             compact: None,
-            mission: MissionConfig::default(),
+            mission: MissionConfig::for_rate(scheduler.rate_bytes_per_s),
             signing: None,
             system_id: 1,
             component_id: 191,

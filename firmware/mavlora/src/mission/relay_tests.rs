@@ -483,3 +483,13 @@ fn an_unreadable_packed_frame_is_counted_and_changes_nothing() {
     assert_eq!(r.stats().transfers, 0);
     assert_eq!(r.poll_timeout(), None);
 }
+
+#[test]
+fn the_first_timeout_follows_the_radios_budget() {
+    // Two 280-byte frames at the rate plus the 100 ms margin, within 300 ms and 1.5 s.
+    let ms = |c: MissionConfig| c.initial_rtt.as_micros() / 1000;
+    assert_eq!(ms(MissionConfig::for_rate(6_400)), 300); // SiK 64k at 80 %: 187 ms
+    assert_eq!(ms(MissionConfig::for_rate(546)), 1_125); // LoRa SF7 at 80 %
+    assert_eq!(ms(MissionConfig::for_rate(100)), 1_500); // slower: the default
+    assert_eq!(MissionConfig::for_rate(0), MissionConfig::default());
+}
