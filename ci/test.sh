@@ -47,7 +47,10 @@ cargo fmt --all -- --check
 # the firmware's own workspace, the rig and the test programs get a clean environment.
 export RUSTC_WORKSPACE_WRAPPER=clippy-driver
 export CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
-unlinted=(env -u RUSTC_WORKSPACE_WRAPPER -u CLIPPY_ARGS)
+# No line tables in CI's build: less to generate and link for ~40 binaries, on a machine
+# short of CPU. A failing assertion still names its file and line; only backtraces lose them.
+export CARGO_PROFILE_RELEASE_DEBUG=false
+unlinted=(env -u RUSTC_WORKSPACE_WRAPPER -u CLIPPY_ARGS -u CARGO_PROFILE_RELEASE_DEBUG)
 mkdir -p target
 step "build the programs the rig runs (release; clippy -D warnings on the workspace's crates)"
 cargo build --release --locked --workspace --bins "${features[@]}"
@@ -67,6 +70,11 @@ status=0
 wait "$firmware_pid" || status=$?
 cat target/firmware-build.log
 [ "$status" -eq 0 ] || { echo "the firmware build or its checks failed (log above)" >&2; exit 1; }
+# The fixtures' tests need no build: they run while the tests' build finishes, niced, beside
+# them. Four workers on two cores: they mostly wait on real time (subprocesses, ptys,
+# sockets); one after another they took 72 s, side by side 23 s.
+step "pytest fixtures (4 workers)"
+"${unlinted[@]}" python3 -m pytest -q -n 4 fixtures/tests
 step "build the tests and benchmarks: waiting for it"
 if ! wait "$test_build_pid"; then
     cat target/test-build.log
@@ -78,10 +86,6 @@ bash ci/run-tests.sh "${features[@]}" -- \
     --skip table_ii_compact_and_limit_filter_bandwidth \
     --skip mission_upload_over_lossy_sik_arrives_intact \
     --skip c2_latency_over_lossy_sik
-# Four workers on two cores: the fixtures' tests mostly wait on real time (subprocesses,
-# ptys, sockets); one after another they took 72 s, side by side 23 s.
-step "pytest fixtures (4 workers)"
-"${unlinted[@]}" python3 -m pytest -q -n 4 fixtures/tests
 step "multirx-core benchmark"
 cargo bench --locked -q --workspace "${features[@]}" --bench mux
 step "mavlora benchmark"
