@@ -39,11 +39,16 @@ for line in sys.stdin:
 # The long real-time ones first, so the lanes end together.
 slow = ("e2e_", "firmware", "cli")
 found.sort(key=lambda f: not f[2].startswith(slow))
-# The emulated MultiRX device is tested against host holds (SIGSTOP) to the millisecond:
-# it runs alone, after the lanes, with no other test on the CPU. So does the router test
-# that the number of a vanished radio pty, reused by the kernel for an unrelated pty, is not
-# reopened: beside other tests that make ptys, one of them takes the freed number first.
-alone = lambda d, name: d.endswith("firmware/multirx/emulator") or name == "cli_reopen"
+# Alone, after the lanes, with no other test on the CPU: the emulated MultiRX device, tested
+# against host holds (SIGSTOP) to the millisecond; the rig program running real-time MultiRX
+# phases (harness/tests/cli.rs: beside three other lanes it once saw 17 idle takeovers); and
+# the router test that the number of a vanished radio pty, reused by the kernel for an
+# unrelated pty, is not reopened (beside other tests that make ptys, one took it first).
+alone = lambda d, name: (
+    d.endswith("firmware/multirx/emulator")
+    or (d.endswith("/harness") and name == "cli")
+    or name == "cli_reopen"
+)
 with open(sys.argv[1], "w") as lanes, open(sys.argv[2], "w") as solo:
     for d, exe, name in found:
         (solo if alone(d, name) else lanes).write(d + "\t" + exe + "\n")
