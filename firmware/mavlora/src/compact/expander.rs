@@ -64,8 +64,7 @@ impl Expander {
         }
         self.last_heartbeat = Some(now);
         let (system, _) = self.heard?;
-        let heartbeat = self.status_messages().into_iter().next()?;
-        Some((system, heartbeat))
+        Some((system, heartbeat(self.status.as_ref()?)))
     }
 
     /// When [`poll_heartbeat`](Self::poll_heartbeat) next has something to give.
@@ -164,14 +163,7 @@ impl Expander {
         };
         let pos = self.newest.clone().unwrap_or_default();
         vec![
-            MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                custom_mode: s.custom_mode,
-                mavtype: s.mavtype,
-                autopilot: s.autopilot,
-                base_mode: s.base_mode,
-                system_status: s.system_status,
-                mavlink_version: 3,
-            }),
+            heartbeat(s),
             MavMessage::SYS_STATUS(SYS_STATUS_DATA {
                 onboard_control_sensors_present: MavSysStatusSensor::empty(),
                 onboard_control_sensors_enabled: MavSysStatusSensor::empty(),
@@ -202,4 +194,16 @@ impl Expander {
             }),
         ]
     }
+}
+
+/// The vehicle's HEARTBEAT as its latest status describes it.
+fn heartbeat(s: &MAVLORA_STATUS_DATA) -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: s.custom_mode,
+        mavtype: s.mavtype,
+        autopilot: s.autopilot,
+        base_mode: s.base_mode,
+        system_status: s.system_status,
+        mavlink_version: 3,
+    })
 }
