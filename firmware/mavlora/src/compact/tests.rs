@@ -192,6 +192,16 @@ fn batches_a_little_late_add_no_keep_alive_statuses() {
     assert!(statuses <= 3, "{statuses} statuses in 20 s");
 }
 
+/// Position samples in the batches among `out`.
+fn batched_samples(out: &[MavMessage]) -> usize {
+    out.iter()
+        .map(|m| match m {
+            MavMessage::MAVLORA_POSITION_BATCH(b) => usize::from(b.count),
+            _ => 0,
+        })
+        .sum()
+}
+
 #[test]
 fn a_jittered_4_hz_autopilot_gives_3_hz_of_samples() {
     // ArduPilot streams position at 4 Hz with a few ms of jitter either way; the compactor
@@ -206,21 +216,9 @@ fn a_jittered_4_hz_autopilot_gives_3_hz_of_samples() {
             ..Default::default()
         };
         c.observe(&MavMessage::GLOBAL_POSITION_INT(pos), t);
-        samples += drain(&mut c, t)
-            .iter()
-            .map(|m| match m {
-                MavMessage::MAVLORA_POSITION_BATCH(b) => usize::from(b.count),
-                _ => 0,
-            })
-            .sum::<usize>();
+        samples += batched_samples(&drain(&mut c, t));
     }
-    samples += drain(&mut c, Instant::from_secs(30))
-        .iter()
-        .map(|m| match m {
-            MavMessage::MAVLORA_POSITION_BATCH(b) => usize::from(b.count),
-            _ => 0,
-        })
-        .sum::<usize>();
+    samples += batched_samples(&drain(&mut c, Instant::from_secs(30)));
     assert!((59..=61).contains(&samples), "{samples} samples in 20 s");
 }
 

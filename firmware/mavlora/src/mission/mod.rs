@@ -21,5 +21,5 @@ mod rtt;
 mod terminator;
 
 pub use relay::{MissionConfig, MissionRelay, MissionStats};
-pub use rtt::{MARGIN, RttEstimator};
+pub use rtt::{MARGIN, RttEstimator, unmeasured_timeout};
 pub use terminator::{MissionTerminator, TerminatorConfig, TerminatorStats};

@@ -40,6 +40,7 @@ use crate::dialect::{
     MavMissionType,
 };
 use crate::time::Instant;
+use crate::wire::MAX_FRAME_LEN;
 
 /// Relay timeouts.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -80,8 +81,9 @@ impl Default for MissionConfig {
 impl MissionConfig {
     /// The defaults, with the round trip assumed before one is measured taken from the
     /// radio's budget: two of the largest frames (a request up, a packed item frame down) at
-    /// `rate_bytes_per_s` plus [`MARGIN`](super::MARGIN), within `min_rto` and the default
-    /// 1.5 s. An upload over a fast radio ends before any round trip is measured, so a loss at
+    /// `rate_bytes_per_s` plus [`MARGIN`](super::MARGIN)
+    /// ([`unmeasured_timeout`](super::unmeasured_timeout), as the router's first poll), within
+    /// `min_rto` and the default 1.5 s. An upload over a fast radio ends before any round trip is measured, so a loss at
     /// its end waited the whole 1.5 s: on SiK 64k that tripled an upload's time on 1 seed in
     /// 10 (the rig's `mission_efficiency`); this makes it ~0.3 s there, ~1.1 s on LoRa SF7.
     pub fn for_rate(rate_bytes_per_s: u32) -> Self {
@@ -89,19 +91,14 @@ impl MissionConfig {
         if rate_bytes_per_s == 0 {
             return d;
         }
-        let two = Duration::from_micros(
-            2 * LARGEST_RADIO_FRAME as u64 * 1_000_000 / u64::from(rate_bytes_per_s),
-        );
+        // The largest frame the radio leg carries: 255 payload bytes, signed.
+        let first = super::unmeasured_timeout(MAX_FRAME_LEN as u64, rate_bytes_per_s);
         Self {
-            initial_rtt: (two + super::MARGIN).clamp(d.min_rto, d.initial_rtt),
+            initial_rtt: first.clamp(d.min_rto, d.initial_rtt),
             ..d
         }
     }
 }
-
-/// The largest frame the radio leg of a transfer carries: a MAVLink 2 frame of 255 payload
-/// bytes with its 12 of header and checksum and 13 of signature.
-const LARGEST_RADIO_FRAME: usize = 280;
 
 /// Counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

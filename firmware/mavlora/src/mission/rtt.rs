@@ -13,6 +13,12 @@ use crate::time::Duration;
 /// 683 B/s (60 ms), with room.
 pub const MARGIN: Duration = Duration::from_millis(100);
 
+/// A timeout to start from before any round trip is measured: a frame of `frame_bytes` each
+/// way at `rate_bytes_per_s` (the radio budget both ends pace to) plus [`MARGIN`].
+pub fn unmeasured_timeout(frame_bytes: u64, rate_bytes_per_s: u32) -> Duration {
+    Duration::from_micros(2 * frame_bytes * 1_000_000 / u64::from(rate_bytes_per_s.max(1))) + MARGIN
+}
+
 /// Sans-IO RTT estimator.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RttEstimator {

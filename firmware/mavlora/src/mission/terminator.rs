@@ -39,7 +39,7 @@ use mavlink::{MavHeader, MavlinkVersion};
 use super::pack;
 use super::plan::{plan_hash, transfer_id};
 use super::relay::{ack, request};
-use super::rtt::{MARGIN, RttEstimator};
+use super::rtt::{RttEstimator, unmeasured_timeout};
 use crate::dialect::{
     MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MavMessage, MavMissionResult, MavMissionType,
 };
@@ -237,11 +237,8 @@ impl MissionTerminator {
             return self.rtt.rto();
         }
         match self.config.pace_bytes_per_s.filter(|r| *r > 0) {
-            Some(rate) if self.largest_frame > 0 => {
-                let two =
-                    Duration::from_micros(2 * self.largest_frame * 1_000_000 / u64::from(rate));
-                (two + MARGIN).clamp(self.config.poll_min, self.config.poll_initial)
-            }
+            Some(rate) if self.largest_frame > 0 => unmeasured_timeout(self.largest_frame, rate)
+                .clamp(self.config.poll_min, self.config.poll_initial),
             _ => self.config.poll_initial,
         }
     }

@@ -1,6 +1,7 @@
 #![allow(clippy::needless_update)] // full literals keep `..Default::default()`: the dialect may grow
 use super::*;
 use crate::dialect::{MISSION_ACK_DATA, MavMissionResult, MavMissionType};
+use crate::mission::MARGIN;
 
 const GROUND: (u8, u8) = (255, 190);
 const FENCE: MavMissionType = MavMissionType::MAV_MISSION_TYPE_FENCE;
