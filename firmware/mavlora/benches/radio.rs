@@ -11,6 +11,9 @@ use std::time::Instant as WallInstant;
 use mavlora::Duration;
 
 use harness_sim::{Direction, PX4_NORMAL, Px4Fc, World};
+
+mod common;
+use common::px4_capture;
 use mavlora::Instant;
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
@@ -24,24 +27,6 @@ const PROFILES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles/");
 
 fn read(name: &str) -> String {
     std::fs::read_to_string(format!("{PROFILES}{name}")).unwrap()
-}
-
-/// 60 s of a PX4 on the Normal profile at full rate, as (time, frame bytes).
-fn px4_capture() -> Vec<(Instant, Vec<u8>)> {
-    let mut fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, 1);
-    let mut out = Vec::new();
-    let mut now = Instant::ZERO;
-    while now < Instant::from_millis(60_000) {
-        fc.handle_timeout(now);
-        while let Some(f) = fc.poll_transmit() {
-            out.push((now, f.into_inner()));
-        }
-        now = fc
-            .poll_timeout()
-            .unwrap()
-            .max(now + Duration::from_micros(1));
-    }
-    out
 }
 
 fn wide() -> SchedulerConfig {

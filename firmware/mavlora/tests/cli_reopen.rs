@@ -10,21 +10,10 @@ use mavlink::MavlinkVersion;
 use serialport::{SerialPort as _, TTYPort};
 
 use mavlora::dialect::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavType};
-use mavlora::wire::{Frame, FrameReader, Sender};
+mod common;
+use common::pty_pair;
 
-/// A pty pair whose descriptors are not inherited: serialport opens them without
-/// close-on-exec, so a router spawned by a test running alongside would hold this pair's
-/// master open and closing it here would never hang the line up.
-fn pty_pair() -> (TTYPort, TTYPort) {
-    let (master, slave) = TTYPort::pair().unwrap();
-    for port in [&master, &slave] {
-        use std::os::fd::{AsRawFd, BorrowedFd};
-        // SAFETY: the descriptor belongs to `port`, alive for this call.
-        let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
-        rustix::io::fcntl_setfd(fd, rustix::io::FdFlags::CLOEXEC).unwrap();
-    }
-    (master, slave)
-}
+use mavlora::wire::{Frame, FrameReader, Sender};
 
 /// Writes heartbeats into `master` until one arrives on `udp` (or 10 s pass).
 fn heartbeat_arrives(master: &mut TTYPort, udp: &UdpSocket, sender: &mut Sender) -> bool {

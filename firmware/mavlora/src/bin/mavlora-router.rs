@@ -33,6 +33,11 @@ struct Options {
     /// Where to send until a ground station talks to us [default: 127.0.0.1:14550].
     #[arg(long)]
     udp: Option<SocketAddr>,
+    /// Send each frame in a datagram of its own, for a ground station that reads only the
+    /// first frame of a datagram [default: frames ready together share a datagram of up to
+    /// 1472 bytes, as QGroundControl, MAVProxy, MAVSDK and mavlink-router accept].
+    #[arg(long, num_args = 0, default_missing_value = "true")]
+    udp_one_frame_per_datagram: Option<bool>,
     /// Local UDP address [default: 127.0.0.1:14555, this host only; 0.0.0.0:14555 opens it
     /// to the network, together with --allow].
     #[arg(long)]
@@ -151,6 +156,9 @@ fn run(o: Options) -> Result<()> {
     let peer = o.udp.unwrap_or(([127, 0, 0, 1], 14550).into());
     let bind = o.udp_bind.unwrap_or(([127, 0, 0, 1], 14555).into());
     let mut udp = UdpEndpoint::spawn(bind, peer, inbox.clone(), stop.clone())?;
+    if o.udp_one_frame_per_datagram.unwrap_or(false) {
+        udp.one_frame_per_datagram();
+    }
     let tcp = match o.tcp_listen {
         Some(addr) => {
             let max = o
@@ -228,6 +236,7 @@ fn run(o: Options) -> Result<()> {
                 tcp.send(f.as_bytes());
             }
         }
+        udp.flush();
         // Only into an open port: a frame leaves the engine numbered and signed, and one
         // dropped at a closed port would read as radio loss at the far end.
         while radio.is_open()
@@ -294,6 +303,7 @@ fn status(
         radio_refused_opens = r.refused_opens,
         gcs_rx = s.gcs_reader.frames(),
         gcs_tx = s.to_gcs_frames,
+        udp_datagrams = udp.datagrams(),
         udp_partials_dropped = udp_partials,
         tcp_clients = t.clients,
         tcp_refused = t.refused,

@@ -5,6 +5,11 @@
 //! [`Lane::Priority`] item (commands, mission, acks: last to go), and counts what it dropped.
 //! [`Lane::Keep`] items (port opened/closed, stop) are never dropped; they are rare.
 //!
+//! A producer that can be slowed down (a serial port: the kernel and the device hold what is
+//! not read) waits with [`Queue::wait_room`] before pushing, so it never reads far ahead of
+//! the consumer and never has its own bytes dropped; one that cannot (UDP) pushes and lets
+//! the queue drop.
+//!
 //! Priority items leave first (a ground command does not wait behind megabytes of radio
 //! bytes when the main loop falls behind); bulk and keep items leave in the order they
 //! entered, so a port's bytes and its open/idle/closed events stay in order.
@@ -59,6 +64,8 @@ struct State<T> {
     next_seq: u64,
     bytes: usize,
     closed: bool,
+    /// A producer waits in [`Queue::wait_room`]: pops must wake it.
+    room_wanted: bool,
     stats: QueueStats,
 }
 
@@ -68,6 +75,7 @@ pub struct Queue<T> {
     capacity: usize,
     state: Mutex<State<T>>,
     ready: Condvar,
+    room: Condvar,
 }
 
 impl<T> Queue<T> {
@@ -80,9 +88,11 @@ impl<T> Queue<T> {
                 next_seq: 0,
                 bytes: 0,
                 closed: false,
+                room_wanted: false,
                 stats: QueueStats::default(),
             }),
             ready: Condvar::new(),
+            room: Condvar::new(),
         }
     }
 
@@ -125,11 +135,34 @@ impl<T> Queue<T> {
         true
     }
 
+    /// Waits until the queue holds at most `bytes` bytes, or is closed, or `deadline`
+    /// passes; returns whether it does now.
+    pub fn wait_room(&self, bytes: usize, deadline: Instant) -> bool {
+        let mut s = self.lock();
+        while s.bytes > bytes && !s.closed {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left == Duration::ZERO {
+                return false;
+            }
+            s.room_wanted = true;
+            s = self
+                .room
+                .wait_timeout(s, left)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+        true
+    }
+
     /// The oldest item, waiting until `deadline` (`None`: forever) for one.
     pub fn pop_until(&self, deadline: Option<Instant>) -> Result<T, PopError> {
         let mut s = self.lock();
         loop {
             if let Some(item) = s.pop() {
+                // Only a waiting producer costs the pop a wake-up.
+                if std::mem::take(&mut s.room_wanted) {
+                    self.room.notify_all();
+                }
                 return Ok(item);
             }
             if s.closed {
@@ -166,6 +199,7 @@ impl<T> Queue<T> {
         }
         drop(s);
         self.ready.notify_all();
+        self.room.notify_all();
     }
 
     /// Drops everything queued now (counted), leaving the queue open.
@@ -273,6 +307,37 @@ mod tests {
         let s = q.stats();
         // Offered = delivered + dropped.
         assert_eq!(s.dropped_items + 10, 100_000);
+    }
+
+    #[test]
+    fn a_paced_producer_waits_for_room_instead_of_losing_bytes() {
+        let q = std::sync::Arc::new(Queue::new(1000));
+        let producer = {
+            let q = q.clone();
+            std::thread::spawn(move || {
+                for i in 0..1000 {
+                    assert!(q.wait_room(300, Instant::now() + Duration::from_secs(10)));
+                    assert!(q.push(i, 100, Lane::Bulk));
+                }
+            })
+        };
+        let mut got = Vec::new();
+        while got.len() < 1000 {
+            assert!(q.bytes() <= 400, "{} bytes queued", q.bytes());
+            got.push(q.pop_until(None).unwrap());
+        }
+        producer.join().unwrap();
+        assert_eq!(got, (0..1000).collect::<Vec<_>>());
+        assert_eq!(q.stats().dropped_items, 0);
+        assert!(q.stats().peak_bytes <= 400);
+    }
+
+    #[test]
+    fn wait_room_gives_up_at_its_deadline() {
+        let q = Queue::new(1000);
+        q.push(1, 500, Lane::Bulk);
+        assert!(!q.wait_room(100, Instant::now() + Duration::from_millis(20)));
+        assert!(q.wait_room(500, Instant::now()));
     }
 
     #[test]

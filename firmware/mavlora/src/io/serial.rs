@@ -20,10 +20,11 @@ use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
 use hostio::device::{DeviceError, Identity, PortName, Reopen};
-use serialport::SerialPort;
+use serialport::{SerialPort, TTYPort};
 use tracing::{error, info, warn};
 
 use super::queue::{Lane, Queue};
+use super::wake::{Ready, Wake};
 use super::{Event, Inbox};
 use crate::schedule::Class;
 use crate::wire::Frame;
@@ -74,8 +75,10 @@ pub struct SerialCounters {
     pub refused_opens: u64,
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct Shared {
+    /// Wakes the reader from its wait on the port: a write failed, or stop.
+    wake: Wake,
     /// The writer's handle on the open port; `None` while closed.
     port: Mutex<Option<Box<dyn SerialPort>>>,
     /// `port` is `Some`, readable without waiting for a write in progress.
@@ -118,7 +121,20 @@ impl SerialLink {
         stop: Arc<AtomicBool>,
     ) -> anyhow::Result<Self> {
         let path = PortName::parse(port).map_err(|e| anyhow::anyhow!("{name} port: {e}"))?;
-        let shared = Arc::new(Shared::default());
+        let shared = Arc::new(Shared {
+            wake: Wake::new()?,
+            port: Mutex::default(),
+            open: AtomicBool::default(),
+            broken: AtomicBool::default(),
+            wrote: AtomicBool::default(),
+            stalled: AtomicBool::default(),
+            opens: AtomicU64::default(),
+            refused_opens: AtomicU64::default(),
+            write_failures: AtomicU64::default(),
+            offered: AtomicU64::default(),
+            written: AtomicU64::default(),
+            dropped: AtomicU64::default(),
+        });
         let out = Arc::new(Queue::new(WRITE_QUEUE_BYTES));
         let s = shared.clone();
         thread::Builder::new()
@@ -179,6 +195,7 @@ impl SerialLink {
     /// afterwards.
     pub fn stop(&mut self) {
         self.out.close(true);
+        self.shared.wake.wake();
         if let Some(w) = self.writer.take()
             && w.join().is_err()
         {
@@ -190,6 +207,7 @@ impl SerialLink {
 impl Drop for SerialLink {
     fn drop(&mut self) {
         self.out.close(true);
+        self.shared.wake.wake();
     }
 }
 
@@ -245,6 +263,7 @@ fn fail(
         .store(e.kind() == ErrorKind::TimedOut, Ordering::Relaxed);
     *port = None;
     s.broken.store(true, Ordering::Relaxed);
+    s.wake.wake();
 }
 
 fn reader(
@@ -282,7 +301,8 @@ fn reader(
         };
         let path = path.to_string_lossy();
         let path = path.as_ref();
-        let mut port = match serialport::new(path, baud).timeout(idle_gap).open() {
+        // Native: its descriptor is what the reader polls (see `read_until_failure`).
+        let mut port = match serialport::new(path, baud).timeout(idle_gap).open_native() {
             Ok(port) => port,
             Err(e) => {
                 open_failures += 1;
@@ -301,7 +321,7 @@ fn reader(
                 .ok()
                 .map(|first| Reopen::after_first_open(port_name, first));
         }
-        let mut writer = match port.try_clone() {
+        let mut writer = match port.try_clone_native() {
             Ok(clone) => clone,
             Err(e) => {
                 warn!(port = name, error = %e, "cannot clone port for writing");
@@ -315,12 +335,12 @@ fn reader(
         s.broken.store(false, Ordering::Relaxed);
         s.wrote.store(false, Ordering::Relaxed);
         s.stalled.store(false, Ordering::Relaxed);
-        *s.port.lock().unwrap_or_else(|e| e.into_inner()) = Some(writer);
+        *s.port.lock().unwrap_or_else(|e| e.into_inner()) = Some(Box::new(writer));
         s.open.store(true, Ordering::Relaxed);
         s.opens.fetch_add(1, Ordering::Relaxed);
         info!(port = name, path, baud, "serial port open");
         inbox.send(Event::Serial(name, SerialEvent::Opened));
-        let stalled = read_until_failure(name, &mut port, inbox, stop, s);
+        let stalled = read_until_failure(name, &mut port, idle_gap, inbox, stop, s);
         vanished = !(stalled && s.stalled.load(Ordering::Relaxed));
         s.open.store(false, Ordering::Relaxed);
         *s.port.lock().unwrap_or_else(|e| e.into_inner()) = None;
@@ -355,14 +375,19 @@ fn refused(name: &'static str, port_name: &PortName, e: &DeviceError, s: &Shared
 }
 
 /// Reads until the port fails, the writer reports a failure (returns `true`) or `stop`.
+/// Between bytes it waits on the port with no timeout, except for the idle gap after bytes
+/// (see [`SerialEvent::Idle`]): an idle link costs no wake-ups.
 fn read_until_failure(
     name: &'static str,
-    port: &mut Box<dyn SerialPort>,
+    port: &mut TTYPort,
+    idle_gap: Duration,
     inbox: &Inbox,
     stop: &AtomicBool,
     s: &Shared,
 ) -> bool {
-    let mut buf = [0u8; 1024];
+    use std::os::fd::{AsRawFd, BorrowedFd};
+    // A pty or a USB adapter hands over up to 4 KB at once: one event for all of it.
+    let mut buf = [0u8; 4096];
     let mut since_bytes = false;
     loop {
         if stop.load(Ordering::Relaxed) {
@@ -370,6 +395,28 @@ fn read_until_failure(
         }
         if s.broken.load(Ordering::Relaxed) {
             return true;
+        }
+        // Read no further ahead of the main loop than the inbox allows; a port that is not
+        // read is a port that must be checked for a writer failure or a stop.
+        if !inbox.wait_room(std::time::Instant::now() + Duration::from_millis(100)) {
+            continue;
+        }
+        // serialport's TTYPort has no `AsFd`, only `AsRawFd`.
+        // SAFETY: the descriptor belongs to `port`, which outlives this borrow.
+        #[allow(unsafe_code)]
+        let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
+        match s.wake.wait_readable(fd, since_bytes.then_some(idle_gap)) {
+            Ok(Ready::Port) => {}
+            Ok(Ready::Woken) => continue,
+            Ok(Ready::Timeout) => {
+                since_bytes = false;
+                inbox.send(Event::Serial(name, SerialEvent::Idle));
+                continue;
+            }
+            Err(e) => {
+                warn!(port = name, error = %e, "waiting on serial port failed");
+                return false;
+            }
         }
         match port.read(&mut buf) {
             Ok(0) => {
@@ -380,12 +427,8 @@ fn read_until_failure(
                 since_bytes = true;
                 inbox.send(Event::Serial(name, SerialEvent::Bytes(buf[..n].to_vec())));
             }
-            Err(e) if e.kind() == ErrorKind::TimedOut => {
-                if since_bytes {
-                    since_bytes = false;
-                    inbox.send(Event::Serial(name, SerialEvent::Idle));
-                }
-            }
+            // Readable but nothing to read: the idle gap restarts at the next wait.
+            Err(e) if e.kind() == ErrorKind::TimedOut => {}
             Err(e) if e.kind() == ErrorKind::Interrupted => {}
             Err(e) => {
                 warn!(port = name, error = %e, "serial port failed");

@@ -134,9 +134,6 @@ pub enum PeerState {
 /// peer made it: not counted against the report.
 const IN_FLIGHT: Duration = Duration::from_secs(1);
 
-/// How often the early conditions (loss moved, peer quiet) are looked at.
-pub const TICK: Duration = Duration::from_millis(200);
-
 /// Sans-IO link-quality engine for one radio link.
 ///
 /// Feed it every frame read from the radio ([`handle_frame`](Self::handle_frame)) and the
@@ -185,6 +182,8 @@ pub struct LinkQuality {
     progress_at: Option<Instant>,
     /// When the early conditions were last looked at.
     checked_at: Option<Instant>,
+    /// When the reader's counters last came in ([`observe`](Self::observe)).
+    observed_at: Option<Instant>,
     /// Our report, made at its time and waiting for [`poll_report`](Self::poll_report).
     due: Option<LINK_QUALITY_DATA>,
 }
@@ -216,6 +215,7 @@ impl LinkQuality {
             sent: VecDeque::new(),
             progress_at: None,
             checked_at: None,
+            observed_at: None,
             due: None,
         }
     }
@@ -276,6 +276,7 @@ impl LinkQuality {
     /// The radio reader's counters at `now` (call after each read): our loss estimate, and
     /// an early report when it moved.
     pub fn observe(&mut self, now: Instant, stats: &ReaderStats) {
+        self.observed_at = Some(now);
         self.own_window
             .push(now, self.peer_frames(stats), stats.lost);
         self.stats = stats.clone();
@@ -476,11 +477,29 @@ impl LinkQuality {
     }
 
     /// When the engine next wants [`handle_timeout`](Self::handle_timeout): the keep-alive,
-    /// or the next look at the early conditions ([`TICK`] after the last, not before the
-    /// shortest interval allows a report).
+    /// or the first moment an early condition can turn true (new counters came in, the
+    /// peer goes quiet, a counted frame leaves the loss window, or one is true already),
+    /// not before the shortest interval allows a report. An idle link wakes nobody: before,
+    /// the conditions were looked at every 200 ms whatever happened.
     pub fn poll_timeout(&self) -> Option<Instant> {
-        let look = self.checked_at.map_or(self.started, |t| t + TICK);
-        Some(self.keepalive_at().min(look.max(self.early_ok_at())))
+        let Some(checked) = self.checked_at else {
+            return Some(self.started);
+        };
+        let quiet = self
+            .heard
+            .filter(|_| !self.quiet_reported)
+            .map(|heard| heard + self.config.quiet_after);
+        let look = [
+            self.observed_at.filter(|t| *t > checked),
+            quiet,
+            self.own_window.next_change(checked),
+            self.early(checked).map(|_| checked),
+        ]
+        .into_iter()
+        .flatten()
+        .min();
+        let keepalive = self.keepalive_at();
+        Some(look.map_or(keepalive, |t| keepalive.min(t.max(self.early_ok_at()))))
     }
 
     /// Makes our report if one is due at `now` (the keep-alive, or early: our loss estimate

@@ -9,7 +9,7 @@ mod window;
 
 pub use engine::{
     LinkQuality, LinkQualityConfig, MONITOR_SHARE, PeerReport, PeerState, REPORT_BYTES,
-    REPORT_BYTES_SIGNED, TICK,
+    REPORT_BYTES_SIGNED,
 };
 pub use monitor::{Direction, Health, LinkMonitor, MonitorConfig, Notice};
 pub use rssi::RssiScale;

@@ -58,6 +58,19 @@ impl LossWindow {
         (total > 0).then(|| lost as f64 / total as f64)
     }
 
+    /// The first moment after `now` at which [`estimate`](Self::estimate) can change with no
+    /// new sample: when the window's start passes the next sample after the current base.
+    /// `None`: only a new sample can change it.
+    pub fn next_change(&self, now: Instant) -> Option<Instant> {
+        let start = window_start(now, self.window);
+        self.samples
+            .iter()
+            .skip(1)
+            .map(|(t, ..)| *t)
+            .find(|t| start.is_none_or(|s| *t > s))
+            .map(|t| t + self.window)
+    }
+
     /// Frames (received + lost) counted within the estimate's span as of `now`.
     pub fn events(&self, now: Instant) -> u64 {
         let Some(&(_, r1, l1)) = self.samples.back() else {
@@ -87,6 +100,26 @@ mod tests {
 
     fn at(ms: u64) -> Instant {
         Instant::from_millis(ms)
+    }
+
+    #[test]
+    fn next_change_is_when_the_start_passes_the_next_sample() {
+        let mut w = LossWindow::new(Duration::from_millis(1000));
+        assert_eq!(w.next_change(at(0)), None);
+        w.push(at(100), 10, 0);
+        // One sample: it stays the base whatever the time.
+        assert_eq!(w.next_change(at(150)), None);
+        w.push(at(300), 10, 5);
+        w.push(at(600), 20, 5);
+        assert_eq!(w.next_change(at(700)), Some(at(1300)));
+        // Checked against the estimate itself: unchanged just before, changed at the time.
+        let before = w.estimate(at(1299));
+        assert_ne!(w.estimate(at(1300)), before);
+        assert_eq!(w.next_change(at(1300)), Some(at(1600)));
+        assert_ne!(w.estimate(at(1600)), w.estimate(at(1599)));
+        // Past the last sample's window nothing changes any more.
+        assert_eq!(w.next_change(at(1600)), None);
+        assert_eq!(w.estimate(at(5000)), w.estimate(at(1600)));
     }
 
     #[test]

@@ -1,4 +1,6 @@
-//! What the end-to-end tests share: the repository root and a child-process guard.
+//! What the end-to-end tests share: the repository root, a child-process guard, pty pairs.
+// Each test program uses its own part of this.
+#![allow(dead_code)]
 
 use std::path::PathBuf;
 use std::process::{Child, Command};
@@ -43,4 +45,18 @@ impl Drop for Guard {
             let _ = c.wait();
         }
     }
+}
+
+/// A pty pair whose descriptors are not inherited: serialport opens them without
+/// close-on-exec, so a router spawned by a test running alongside would hold this pair's
+/// master open and closing it here would never hang the line up.
+pub fn pty_pair() -> (serialport::TTYPort, serialport::TTYPort) {
+    let (master, slave) = serialport::TTYPort::pair().unwrap();
+    for port in [&master, &slave] {
+        use std::os::fd::{AsRawFd, BorrowedFd};
+        // SAFETY: the descriptor belongs to `port`, alive for this call.
+        let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
+        rustix::io::fcntl_setfd(fd, rustix::io::FdFlags::CLOEXEC).unwrap();
+    }
+    (master, slave)
 }

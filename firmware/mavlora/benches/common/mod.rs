@@ -1,0 +1,23 @@
+//! What the benchmarks share: a simulated PX4 flight to replay.
+
+use mavlora::{Duration, Instant};
+
+use harness_sim::{PX4_NORMAL, Px4Fc};
+
+/// 60 s of a PX4 on the Normal profile at full rate, as (time, frame bytes).
+pub fn px4_capture() -> Vec<(Instant, Vec<u8>)> {
+    let mut fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, 1);
+    let mut out = Vec::new();
+    let mut now = Instant::ZERO;
+    while now < Instant::from_millis(60_000) {
+        fc.handle_timeout(now);
+        while let Some(f) = fc.poll_transmit() {
+            out.push((now, f.into_inner()));
+        }
+        now = fc
+            .poll_timeout()
+            .unwrap()
+            .max(now + Duration::from_micros(1));
+    }
+    out
+}
