@@ -101,6 +101,11 @@ impl Process {
         &self.name
     }
 
+    /// The process id (for reading its `/proc` entry).
+    pub fn id(&self) -> u32 {
+        self.child.id()
+    }
+
     pub fn log_path(&self) -> &Path {
         &self.log
     }

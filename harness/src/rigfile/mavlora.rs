@@ -12,7 +12,9 @@
 //!
 //! [mavlora]
 //! suites = ["simulated", "realtime"]  # virtual-clock full-length runs; real binaries over ptys
+//!                                     # ("soak": opt-in, soak_minutes of real time)
 //! seed = 1
+//! soak_minutes = 10                   # length of the "soak" suite's run
 //!
 //! [mavlora.radios]                    # a [radios] name, or a built-in preset name (no loss)
 //! mission = ["lora-bursty", "sik-bursty"]
@@ -29,6 +31,9 @@ use harness_radio::{Preset, RadioSetup};
 /// Profiles folder used when the rig file names none, relative to the rig file.
 pub const DEFAULT_PROFILES_DIR: &str = "../firmware/mavlora/profiles";
 
+/// The `soak` suite's length unless the rig file says (issue 10's real-time soak).
+pub const DEFAULT_SOAK_MINUTES: f64 = 10.0;
+
 /// Which MavLora scenario family runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -39,6 +44,8 @@ pub enum Suite {
     /// The real `mavlora-bridge` and `mavlora-router`, pymavlink fixtures and the radio
     /// emulator over ptys, on the real clock: short runs.
     Realtime,
+    /// The same, one long run on the real clock (`soak_minutes`): opt-in, never a default.
+    Soak,
 }
 
 impl Suite {
@@ -47,6 +54,7 @@ impl Suite {
         match self {
             Suite::Simulated => "simulated",
             Suite::Realtime => "realtime",
+            Suite::Soak => "soak",
         }
     }
 }
@@ -66,6 +74,8 @@ pub struct MavloraSection {
     pub suites: Vec<Suite>,
     /// Seed of every random draw the scenarios make (radio seeds are per radio).
     pub seed: u64,
+    /// Length of the `soak` suite's run, seconds.
+    pub soak_s: f64,
     /// `mavlora-bridge` to start; `None`: next to the `rig` binary.
     pub bridge: Option<PathBuf>,
     /// `mavlora-router` to start; `None`: next to the `rig` binary.
@@ -105,6 +115,7 @@ pub struct RadioRoles {
 pub(super) struct RawMavlora {
     pub suites: Option<Vec<Suite>>,
     pub seed: Option<u64>,
+    pub soak_minutes: Option<f64>,
     pub bridge: Option<String>,
     pub router: Option<String>,
     pub profiles: Option<PathBuf>,
@@ -165,7 +176,7 @@ impl Checker<'_> {
             Some(s) if s.is_empty() => {
                 return Err(self.invalid(
                     &["mavlora", "suites"],
-                    "empty; list \"simulated\" and/or \"realtime\", or remove [mavlora]",
+                    "empty; list \"simulated\", \"realtime\" and/or \"soak\", or remove [mavlora]",
                 ));
             }
             Some(s) => {
@@ -192,6 +203,13 @@ impl Checker<'_> {
                 p => Ok(p.map(|p| self.resolve_program(p))),
             }
         };
+        let soak_minutes = raw.soak_minutes.unwrap_or(DEFAULT_SOAK_MINUTES);
+        if !(1.0..=1440.0).contains(&soak_minutes) {
+            return Err(self.invalid(
+                &["mavlora", "soak_minutes"],
+                format!("{soak_minutes} is out of range 1..=1440 (minutes)"),
+            ));
+        }
         let bridge = program("bridge", raw.bridge)?;
         let router = program("router", raw.router)?;
         let profiles = self.resolve(
@@ -235,6 +253,7 @@ impl Checker<'_> {
         Ok(MavloraSection {
             suites,
             seed: raw.seed.unwrap_or(1),
+            soak_s: soak_minutes * 60.0,
             bridge,
             router,
             profiles,
@@ -315,6 +334,23 @@ c2 = "sik-bursty"
         assert_eq!(m.radios.duty.name, "lora-sf7");
         assert!(m.radios.duty.setup.downlink.burst.is_none());
         assert_eq!(m.radios.sweep.len(), 3);
+    }
+
+    #[test]
+    fn the_soak_runs_only_when_listed_and_its_length_is_checked() {
+        assert_eq!(load(GOOD).unwrap().mavlora.unwrap().soak_s, 600.0);
+        let text = GOOD.replace(
+            "seed = 7",
+            "seed = 7\nsuites = [\"soak\"]\nsoak_minutes = 2.5",
+        );
+        let m = load(&text).unwrap().mavlora.unwrap();
+        assert_eq!((m.suites, m.soak_s), (vec![Suite::Soak], 150.0));
+        let text = GOOD.replace("seed = 7", "seed = 7\nsoak_minutes = 0");
+        let err = load(&text).unwrap_err().to_string();
+        assert!(
+            err.contains("mavlora.soak_minutes") && err.contains("1..=1440"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -70,9 +70,16 @@ pub fn add_trials(
             }));
         }
     }
+    let mut realtime_scenarios = Vec::new();
     if section.suites.contains(&Suite::Realtime) {
+        realtime_scenarios.extend(realtime::scenarios());
+    }
+    if section.suites.contains(&Suite::Soak) {
+        realtime_scenarios.push(realtime::soak::SCENARIO);
+    }
+    if !realtime_scenarios.is_empty() {
         let defaults = Arc::new(session_defaults(rig, section));
-        for scenario in realtime::scenarios() {
+        for scenario in realtime_scenarios {
             let mut declared = Declarations::new();
             let script = (scenario.plan)(&mut declared);
             names.extend(super::names(&declared));
@@ -108,5 +115,6 @@ fn session_defaults(rig: &RigFile, section: &MavloraSection) -> SessionDefaults 
         lossy_radio: section.radios.realtime_lossy.setup.clone(),
         clean_radio: section.radios.realtime_ideal.setup.clone(),
         c2_radio: section.radios.realtime_c2.setup.clone(),
+        soak_s: section.soak_s,
     }
 }

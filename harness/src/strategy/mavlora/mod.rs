@@ -96,6 +96,7 @@ mod tests {
             lossy_radio: sik_with_loss(0.1, 2.0).unwrap(),
             clean_radio: RadioSetup::builtin("sik-64k").unwrap(),
             c2_radio: sik_with_independent_loss(0.1).unwrap(),
+            soak_s: 600.0,
         };
         defaults.options("t", &defaults.clean_radio, dir)
     }

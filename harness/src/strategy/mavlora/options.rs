@@ -151,6 +151,8 @@ pub struct SessionDefaults {
     pub clean_radio: RadioSetup,
     /// SiK with 10 % independent loss per packet, for commands.
     pub c2_radio: RadioSetup,
+    /// Length of the opt-in real-time soak, seconds.
+    pub soak_s: f64,
 }
 
 impl SessionDefaults {
@@ -168,6 +170,7 @@ impl SessionDefaults {
             lossy_radio: sik_with_loss(0.10, 250.0)?,
             clean_radio: RadioSetup::builtin("sik-64k")?,
             c2_radio: sik_with_independent_loss(0.10)?,
+            soak_s: 600.0,
         })
     }
 

@@ -313,6 +313,14 @@ impl MavloraSession {
     }
 
     /// Waits for the GCS to finish its plan, stops everything and collects the evidence.
+    /// The bridge's and the router's process ids (`None`: not running, or no bridge).
+    pub fn pids(&self) -> [Option<u32>; 2] {
+        [
+            self.bridge.as_ref().map(Process::id),
+            self.router.as_ref().map(Process::id),
+        ]
+    }
+
     pub fn finish(mut self) -> Result<SessionReport> {
         let dir = self.options.out_dir.clone();
         let budget = self.options.gcs.budget();

@@ -20,6 +20,9 @@
 //!   ground's radio unplugged and plugged in again: the same;
 //! - [`ground_hijack`]: hostile senders on the ground side while the pilot flies:
 //!   nothing of theirs on the radio, the pilot's commands acked.
+//!
+//! Not in [`scenarios`]: [`soak`], minutes of real time, run only when a rig file lists the
+//! `soak` suite.
 
 pub mod ardupilot;
 pub mod c2_latency;
@@ -28,6 +31,7 @@ pub mod ground_hijack;
 pub mod mission;
 pub mod outage;
 pub mod radio_silence;
+pub mod soak;
 pub mod table_ii;
 
 use anyhow::{Context, Result, bail};
@@ -108,7 +112,7 @@ pub fn run_sessions(
     Ok(reports)
 }
 
-fn keep_evidence(ctx: &mut PhaseContext, label: &str, report: &SessionReport) {
+pub(super) fn keep_evidence(ctx: &mut PhaseContext, label: &str, report: &SessionReport) {
     for file in &report.files {
         let media = if file.extension().is_some_and(|e| e == "json") {
             "application/json"
