@@ -31,6 +31,8 @@ use crate::wire::{Frame, FrameReader};
 pub const DEFAULT_MAX_CLIENTS: usize = 8;
 /// Bytes queued towards one client at most (64 KB: several seconds of expanded telemetry).
 pub const CLIENT_QUEUE_BYTES: usize = 64 * 1024;
+/// Bytes the writer of one client gathers into one write at most.
+const WRITE_BATCH_BYTES: usize = 16 * 1024;
 /// A client's partial frame is dropped after this long without a byte from it.
 pub const CLIENT_IDLE_GAP: Duration = Duration::from_secs(1);
 
@@ -205,8 +207,18 @@ fn add_client(
     thread::Builder::new()
         .name(format!("tcp-tx-{from}"))
         .spawn(move || {
+            let mut batch = Vec::new();
             while let Ok(frame) = client.out.pop_until(None) {
-                if let Err(e) = writer.write_all(&frame) {
+                // Everything queued by now in one write: frames ready together cost one
+                // system call, as on UDP.
+                batch.clear();
+                batch.extend_from_slice(&frame);
+                while batch.len() < WRITE_BATCH_BYTES
+                    && let Ok(more) = client.out.pop_until(Some(std::time::Instant::now()))
+                {
+                    batch.extend_from_slice(&more);
+                }
+                if let Err(e) = writer.write_all(&batch) {
                     warn!(client = %from, error = %e, "TCP write failed");
                     s.remove(from);
                     return;
@@ -220,7 +232,15 @@ fn add_client(
         .spawn(move || {
             let mut frames = FrameReader::new();
             let mut buf = [0u8; 4096];
+            // The idle gap is timed only while a partial frame waits: an idle client costs
+            // no wake-ups (a stop or a removal shuts the socket, which ends the read).
+            let mut timed = true;
             while !stop.load(Ordering::Relaxed) {
+                let partial = frames.buffered() > 0;
+                if partial != timed {
+                    timed = partial;
+                    let _ = reader.set_read_timeout(partial.then_some(CLIENT_IDLE_GAP));
+                }
                 match reader.read(&mut buf) {
                     Ok(0) => break,
                     Ok(n) => frames.push(&buf[..n]),

@@ -229,7 +229,12 @@ impl LinkScheduler {
                 if self.param_bytes + len > PARAM_QUEUE_BYTES {
                     // The ground station re-requests what it misses (PARAM_REQUEST_READ).
                     self.stats.dropped_param += 1;
-                    warn!(%now, "parameter queue full, dropped a PARAM_VALUE");
+                    // A log line at the 1st, 2nd, 4th, 8th... drop: a flood of them fills
+                    // no disk; the status line has the count.
+                    let n = self.stats.dropped_param;
+                    if n.is_power_of_two() {
+                        warn!(%now, dropped = n, "parameter queue full, dropped a PARAM_VALUE (logged at the 1st, 2nd, 4th... drop)");
+                    }
                     return;
                 }
                 self.param_bytes += len;
@@ -268,7 +273,10 @@ impl LinkScheduler {
             } else if let Some(old) = self.priority.pop_front() {
                 self.queued_bytes -= old.as_bytes().len();
                 self.stats.dropped_priority += 1;
-                warn!(%now, msgid = old.message_id(), "queue full of priority frames, dropped one");
+                let n = self.stats.dropped_priority;
+                if n.is_power_of_two() {
+                    warn!(%now, msgid = old.message_id(), dropped = n, "queue full of priority frames, dropped one (logged at the 1st, 2nd, 4th... drop)");
+                }
             } else {
                 break;
             }
