@@ -20,7 +20,9 @@ use proptest::prelude::*;
 use mavlora::Instant;
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::command::Redundancy;
-use mavlora::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd, MavMessage, MavResult};
+use mavlora::dialect::{
+    COMMAND_ACK_DATA, COMMAND_LONG_DATA, HEARTBEAT_DATA, MavCmd, MavMessage, MavResult,
+};
 use mavlora::filter::Profile;
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::SchedulerConfig;
@@ -124,11 +126,40 @@ fn run(plan: &[Planned], loss: f64, burst_at_ms: u64, burst_ms: u64, seed: u64) 
     run_with(plan, loss, burst_at_ms, burst_ms, seed, Copies::Default)
 }
 
+/// Where the burst of [`run_with`] loses frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Burst {
+    /// Acks only (the downlink).
+    Downlink,
+    /// Everything: a radio silence.
+    BothWays,
+}
+
 fn run_with(
     plan: &[Planned],
     loss: f64,
     burst_at_ms: u64,
     burst_ms: u64,
+    seed: u64,
+    copies: Copies,
+) -> Outcome {
+    run_burst(
+        plan,
+        0,
+        loss,
+        (burst_at_ms, burst_ms, Burst::Downlink),
+        seed,
+        copies,
+    )
+}
+
+/// As [`run_with`], the ground's first command `start_ms` in (the link up before it), the
+/// burst where it says.
+fn run_burst(
+    plan: &[Planned],
+    start_ms: u64,
+    loss: f64,
+    (burst_at_ms, burst_ms, burst_where): (u64, u64, Burst),
     seed: u64,
     copies: Copies,
 ) -> Outcome {
@@ -173,7 +204,7 @@ fn run_with(
         queues[p.id].push_back(p);
     }
     let mut waiting: Vec<VecDeque<Outstanding>> = (0..IDS.len()).map(|_| VecDeque::new()).collect();
-    let mut next_new: Vec<Instant> = vec![t0; IDS.len()];
+    let mut next_new: Vec<Instant> = vec![t0 + Duration::from_millis(start_ms); IDS.len()];
     let mut ranks = vec![0usize; IDS.len()];
     let mut last_answer: Vec<Option<usize>> = vec![None; IDS.len()];
     let mut executions: HashMap<u16, usize> = HashMap::new();
@@ -234,13 +265,14 @@ fn run_with(
         // engines
         router.handle_timeout(now);
         bridge.handle_timeout(now);
+        let in_burst = now >= burst.0 && now < burst.1;
+        let uplink_silent = in_burst && burst_where == Burst::BothWays;
         while let Some(f) = router.poll_radio_transmit(now, usize::MAX) {
-            if !rng.chance(loss) {
+            if !uplink_silent && !rng.chance(loss) {
                 up.push_back((now + latency, f));
             }
         }
         while let Some(f) = bridge.poll_radio_transmit(now, usize::MAX) {
-            let in_burst = now >= burst.0 && now < burst.1;
             if !in_burst && !rng.chance(loss) {
                 down.push_back((now + latency, f));
             }
@@ -252,6 +284,12 @@ fn run_with(
         while down.front().is_some_and(|(at, _)| *at <= now) {
             let (_, f) = down.pop_front().unwrap();
             router.handle_radio_bytes(now, f.as_bytes());
+        }
+        // the autopilot: a heartbeat every second, as any does (the link carries
+        // something besides acks)
+        if now.since_epoch().as_millis().is_multiple_of(1000) {
+            let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+            bridge.handle_fc_bytes(now, fc.frame(&hb).as_bytes());
         }
         // the autopilot executes and answers at once
         while let Some(f) = bridge.poll_fc_transmit(now) {
@@ -378,6 +416,47 @@ fn a_repeated_trigger_runs_again_and_a_late_copy_does_not() {
     assert_eq!(
         out.executed[&(MavCmd::MAV_CMD_DO_DIGICAM_CONTROL as u16)].len(),
         3
+    );
+}
+
+#[test]
+fn a_command_sent_into_a_5_s_silence_runs_once_when_it_ends_and_is_acked() {
+    // The link runs 2 s (the router hears the autopilot and times two commands' round
+    // trips), then falls silent both ways for 5 s at 3.5 s, with 10 % loss besides; the
+    // third command goes somewhere before or in the silence, and the ground retries it
+    // every 1.5 s, 5 sends (the soak's silences). The relay has to get it through and its
+    // ack back before the ground gives up, 7.5 s after its first send. Before, its own
+    // resends used up their eight attempts in the silence: it gave the command up, and
+    // the ground's last retry went nowhere.
+    let mut failed = Vec::new();
+    for gap_ms in (0..=2400).step_by(200) {
+        for seed in 1..=5 {
+            let command = |param, gap_ms| Planned {
+                id: 0,
+                param,
+                gap_ms,
+                eager: false,
+            };
+            let plan = [command(1, 0), command(2, 300), command(3, gap_ms)];
+            let silence = (3500, 5000, Burst::BothWays);
+            let out = run_burst(&plan, 2000, 0.1, silence, seed, Copies::Default);
+            let executed = out
+                .executed
+                .get(&(IDS[0] as u16))
+                .cloned()
+                .unwrap_or_default();
+            if out.acked != 3 || executed != [1, 2, 3] {
+                failed.push(format!(
+                    "third {gap_ms} ms after the second, seed {seed}: {out:?}"
+                ));
+            }
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "{} failed:\n{}",
+        failed.len(),
+        failed.join("\n")
     );
 }
 

@@ -318,6 +318,7 @@ fn status(
         missions_failed = s.mission.failed,
         mission_repairs = s.mission.items_repaired,
         command_resends = s.commands.retransmissions,
+        command_blind_resends = s.commands.blind,
         command_copies = s.commands.early_copies,
         command_ground_retries_dropped = s.commands.ground_duplicates,
         commands_queued = s.commands.queued,

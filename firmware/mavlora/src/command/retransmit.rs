@@ -40,6 +40,9 @@ pub struct RetransmitStats {
     /// Commands the ground stopped asking for while a newer one with the same id waited,
     /// or that waited until the ground stopped asking: not sent (further).
     pub abandoned: u64,
+    /// Copies resent while nothing had come from the radio since the last (a silent
+    /// link): one per maximum timeout, and they use up no attempt (in `retransmissions`).
+    pub blind: u64,
 }
 
 /// What to do with a command from the ground.
@@ -96,6 +99,20 @@ impl Pending {
         with_confirmation(&self.frame, &self.msg, c)
     }
 
+    /// A resend at `now` into a link that has been silent since the last copy: it goes as
+    /// that copy again (same attempt), so a silence does not use up the attempts. Never as
+    /// the first copy: the bridge takes attempt 0 for a new command and would run it again.
+    fn resend_blind(&mut self, now: Instant) {
+        if self.attempts < 2 {
+            self.count_send(now);
+            return;
+        }
+        self.sent = now;
+        if let Some(at) = self.sent_at.get_mut(self.attempts as usize - 1) {
+            *at = Some(now);
+        }
+    }
+
     /// Counts a send at `now` (after which [`copy`](Self::copy) is that send's frame).
     fn count_send(&mut self, now: Instant) {
         self.attempts += 1;
@@ -140,6 +157,8 @@ pub struct CommandRetransmitter {
     generations: HashMap<CommandId, (u8, Instant)>,
     /// A waiting command may start.
     wake: Option<Instant>,
+    /// When a frame last came from the radio (see [`CommandRetransmitter::heard_radio`]).
+    heard: Option<Instant>,
     /// Frames due, waiting for [`poll_retransmit`](CommandRetransmitter::poll_retransmit).
     due: VecDeque<OwnedFrame>,
     stats: RetransmitStats,
@@ -167,6 +186,7 @@ impl CommandRetransmitter {
             draining: Vec::new(),
             generations: HashMap::new(),
             wake: None,
+            heard: None,
             due: VecDeque::new(),
             stats: RetransmitStats::default(),
         }
@@ -231,6 +251,29 @@ impl CommandRetransmitter {
     fn resend_after(&self) -> Duration {
         let floor = self.redundancy.map_or(Duration::ZERO, |r| r.spacing);
         self.rtt.rto().max(floor)
+    }
+
+    /// A frame came from the radio at `now` (any frame: the link carries something).
+    pub fn heard_radio(&mut self, now: Instant) {
+        self.heard = Some(now);
+    }
+
+    /// Whether the link has fallen silent: something came from the radio once, and
+    /// nothing since `p`'s last copy. Its timeout then says nothing about the command.
+    fn blind(&self, p: &Pending) -> bool {
+        self.heard.is_some_and(|h| h < p.sent)
+    }
+
+    /// How long after its last copy `p` is resent: the timeout `rto`, or while the link is
+    /// silent the maximum timeout (a resend into silence only keeps the command alive
+    /// until the link returns; before, a 5 s silence used up all eight attempts, and the
+    /// command was never run although the ground still asked for it).
+    fn resend_timeout(&self, p: &Pending, rto: Duration) -> Duration {
+        if self.blind(p) {
+            rto.max(self.max_rto)
+        } else {
+            rto
+        }
     }
 
     /// Commands from `source` in flight.
@@ -593,13 +636,16 @@ impl CommandRetransmitter {
             if p.in_progress {
                 now.saturating_duration_since(p.first_sent) >= window
             } else {
-                Self::early_at(p).is_none() && now.saturating_duration_since(p.sent) >= rto
+                Self::early_at(p).is_none()
+                    && now.saturating_duration_since(p.sent) >= self.resend_timeout(p, rto)
             }
         })?;
         let p = &self.on_air[i];
+        let blind = self.blind(p);
+        let timeout = self.resend_timeout(p, rto);
         if p.in_progress
             || p.attempts >= self.max_attempts
-            || now.saturating_duration_since(p.first_sent) + rto > window
+            || now.saturating_duration_since(p.first_sent) + timeout > window
         {
             let p = self.on_air.swap_remove(i);
             self.stats.given_up += 1;
@@ -614,7 +660,12 @@ impl CommandRetransmitter {
         // congestion (the scheduler's byte budget already paces the link), and doubling the
         // timeout after a lost copy is what pushes the 99th percentile past 3 s.
         let p = &mut self.on_air[i];
-        p.count_send(now);
+        if blind {
+            p.resend_blind(now);
+            self.stats.blind += 1;
+        } else {
+            p.count_send(now);
+        }
         let (id, generation, out) = (p.id, p.generation, p.copy());
         self.stats.retransmissions += 1;
         self.note_sent(id, generation, now);
@@ -651,7 +702,7 @@ impl CommandRetransmitter {
                     p.first_sent + window
                 } else {
                     // After its redundant copies, the timeout runs from the last.
-                    Self::early_at(p).unwrap_or(p.sent + rto)
+                    Self::early_at(p).unwrap_or(p.sent + self.resend_timeout(p, rto))
                 }
             })
             .chain(waiting)

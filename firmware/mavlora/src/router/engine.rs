@@ -414,6 +414,8 @@ impl Router {
             let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
                 continue;
             };
+            // The link carries something: a command's timeout means loss again, not silence.
+            self.commands.heard_radio(now);
             self.quality.handle_frame(now, &frame);
             if self.quality.take_peer_restart() {
                 self.radio_reader.expect_restart(StreamId {
