@@ -88,7 +88,7 @@ fn radio_rate(profile: &str, compact: bool) -> f64 {
 }
 
 fn main() {
-    let capture = px4_capture();
+    let capture = px4_capture(PX4_NORMAL);
     let bytes: usize = capture.iter().map(|(_, b)| b.len()).sum();
     println!(
         "capture: {} frames, {} bytes, 60 s of PX4 Normal at full rate ({:.0} B/s)",

@@ -1,7 +1,8 @@
 //! `cargo bench -p mavlora --bench router_cost`: what the ground router costs the machine.
 //!
-//! 1. **CPU per frame and peak memory.** A simulated PX4 flight (60 s of PX4 Normal at full
-//!    rate) is replayed `MAVLORA_BENCH_ROUNDS` times (default 60, about 1.4 M frames) into
+//! 1. **CPU per frame and peak memory.** A simulated PX4 flight (60 s of PX4 on its USB
+//!    "Config" stream profile, the densest, at full rate) is replayed
+//!    `MAVLORA_BENCH_ROUNDS` times (default 60, about 1.1 M frames) into
 //!    the radio's pty as fast as the pty accepts it; a UDP ground station counts what comes
 //!    out. Measured in the same run, one after the other, on a fresh pty each:
 //!    - the **baseline**: a relay process that reads the same pty the same way, checks each
@@ -38,10 +39,16 @@ use mavlora::wire::{FrameReader, OwnedFrame, Sender};
 
 mod common;
 use common::px4_capture;
+use harness_sim::PX4_CONFIG;
 
-const ROUTER: &str = env!("CARGO_BIN_EXE_mavlora-router");
+/// The router measured: this build's, or `MAVLORA_BENCH_ROUTER` (another build, to compare).
+fn router_program() -> String {
+    std::env::var("MAVLORA_BENCH_ROUTER")
+        .unwrap_or_else(|_| env!("CARGO_BIN_EXE_mavlora-router").to_string())
+}
 const BRIDGE: &str = env!("CARGO_BIN_EXE_mavlora-bridge");
-/// The system id of the replayed autopilot: the frames the ground counts.
+/// The system id of the replayed autopilot: its component 1's frames are what the ground
+/// counts (the router speaks for the vehicle's radio as component 68 besides).
 const VEHICLE: u8 = 1;
 /// Argument that makes this program the baseline relay (it runs itself as a child).
 const RELAY_ARG: &str = "--relay-baseline";
@@ -63,10 +70,13 @@ fn main() {
     fs::write(&key_path, key.to_hex()).unwrap();
     set_mode_600(&key_path);
 
-    let capture: Vec<Vec<u8>> = px4_capture().into_iter().map(|(_, b)| b).collect();
+    let capture: Vec<Vec<u8>> = px4_capture(PX4_CONFIG)
+        .into_iter()
+        .map(|(_, b)| b)
+        .collect();
     let flight_bytes: usize = capture.iter().map(Vec::len).sum();
     println!(
-        "router cost: {} frames ({rounds} replays of 60 s of PX4 Normal, {} B/s) into a pty as fast as it accepts them, out to UDP",
+        "router cost: {} frames ({rounds} replays of 60 s of PX4 Config, {} B/s) into a pty as fast as it accepts them, out to UDP",
         capture.len() * rounds,
         flight_bytes / 60
     );
@@ -178,7 +188,7 @@ fn set_mode_600(path: &Path) {
 }
 
 fn router(pty: &str, sink: SocketAddr, extra: &[&str], log: &Path) -> Child {
-    Command::new(ROUTER)
+    Command::new(router_program())
         .args(["--radio", pty, "--udp", &sink.to_string()])
         .args(["--udp-bind", "127.0.0.1:0"])
         .args(extra)
@@ -270,7 +280,7 @@ impl Sink {
                 datagrams.fetch_add(1, Ordering::Relaxed);
                 reader.push(&buf[..n]);
                 while let Some(r) = reader.next_frame() {
-                    if r.frame.system_id() == VEHICLE {
+                    if (r.frame.system_id(), r.frame.component_id()) == (VEHICLE, 1) {
                         frames.fetch_add(1, Ordering::Relaxed);
                     }
                 }

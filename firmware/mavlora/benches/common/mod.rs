@@ -2,11 +2,12 @@
 
 use mavlora::{Duration, Instant};
 
-use harness_sim::{PX4_NORMAL, Px4Fc};
+use harness_sim::{Px4Fc, StreamSpec};
 
-/// 60 s of a PX4 on the Normal profile at full rate, as (time, frame bytes).
-pub fn px4_capture() -> Vec<(Instant, Vec<u8>)> {
-    let mut fc = Px4Fc::new(PX4_NORMAL, Instant::ZERO, 1);
+/// 60 s of a PX4 on stream profile `profile` (`harness_sim::PX4_NORMAL`, `PX4_CONFIG`) at
+/// full rate, as (time, frame bytes).
+pub fn px4_capture(profile: &'static [StreamSpec]) -> Vec<(Instant, Vec<u8>)> {
+    let mut fc = Px4Fc::new(profile, Instant::ZERO, 1);
     let mut out = Vec::new();
     let mut now = Instant::ZERO;
     while now < Instant::from_millis(60_000) {
