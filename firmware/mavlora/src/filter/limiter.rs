@@ -37,9 +37,8 @@ pub struct FilterStats {
 /// separately. A limited message is due every `1/hz`; a frame arriving on or after its due
 /// time passes and the next due time advances by one interval, so an input that is not a
 /// multiple of the limit still averages the limit (5 Hz limited to 3 Hz gives 3 Hz, not the
-/// 2.5 Hz a plain minimum spacing would). A frame up to 1/8 interval early for its slot
-/// takes it (timing jitter). Catching up is bounded: two forwarded frames are never closer
-/// than 3/8 of an interval, and a quiet period earns no burst.
+/// 2.5 Hz a plain minimum spacing would). Catching up is bounded: two forwarded frames are
+/// never closer than half an interval, and a quiet period earns no burst.
 #[derive(Debug)]
 pub struct RadioFilter {
     profile: Profile,
@@ -92,11 +91,7 @@ impl RadioFilter {
     fn limit(&mut self, stream: StreamId, id: u32, hz: f64, now: Instant) -> Verdict {
         let interval = Duration::from_secs_f64(1.0 / hz);
         let due = self.next_due.entry((stream, id)).or_insert(now);
-        // A frame a little early takes its slot: an autopilot's timing jitters by a few ms,
-        // and a frame 1 ms early would lose its slot to the next one, a whole input period
-        // late (a jittery 4 Hz ArduPilot limited to 3 Hz gave 2.8 Hz). The slots still
-        // advance by whole intervals, so the average stays at the limit.
-        if now + interval / 8 < *due {
+        if now < *due {
             return Verdict::RateLimited;
         }
         *due = (*due + interval).max(now + interval / 2);
@@ -191,9 +186,8 @@ mod tests {
     }
 
     proptest! {
-        /// Whatever the arrival times, forwarded frames k apart are at least (k - 5/8)
-        /// intervals apart (half an interval of catching up, 1/8 early): at most
-        /// `window * hz + 1.625` frames in any window.
+        /// Whatever the arrival times, forwarded frames k apart are at least (k - 1/2)
+        /// intervals apart: at most `window * hz + 1.5` frames in any window.
         #[test]
         fn limit_holds_for_any_arrivals(
             gaps in prop::collection::vec(0u64..1_000_000, 1..300),
@@ -215,7 +209,7 @@ mod tests {
                 for j in i + 1..passes.len() {
                     let spacing = (passes[j] - passes[i]) as f64;
                     // 1 µs of slack for Duration's rounding of the interval
-                    let floor = ((j - i) as f64 - 0.625) * interval - (j - i) as f64;
+                    let floor = ((j - i) as f64 - 0.5) * interval - (j - i) as f64;
                     prop_assert!(spacing >= floor, "{} apart after {} intervals", spacing, j - i);
                 }
             }
