@@ -33,8 +33,6 @@ use crate::wire::Frame;
 pub const WRITE_STALL: Duration = Duration::from_secs(1);
 /// Bytes queued towards one port at most (16 KB: 2.8 s of a 57600-baud radio).
 pub const WRITE_QUEUE_BYTES: usize = 16 * 1024;
-/// Bytes the writer gathers into one write at most.
-const WRITE_BATCH_BYTES: usize = 4096;
 /// First wait before reopening; doubled on each consecutive failure.
 const BACKOFF_MIN: Duration = Duration::from_millis(100);
 /// Longest wait before trying to open a port that cannot be opened.
@@ -58,7 +56,7 @@ pub enum SerialEvent {
 }
 
 /// A port's byte counters: `offered = written + dropped + queued` once the link is stopped
-/// (while running, give or take the frames being written).
+/// (while running, give or take the one frame being written).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct SerialCounters {
     /// Times the port was (re)opened.
@@ -177,8 +175,8 @@ impl SerialLink {
         self.shared.open.load(Ordering::Relaxed) && !self.shared.broken.load(Ordering::Relaxed)
     }
 
-    /// The counters now (never blocks). While the writer runs, the frames it is writing
-    /// are in none of `written`, `dropped` and `queued`; after [`stop`](Self::stop) they add up.
+    /// The counters now (never blocks). While the writer runs, the frame it is writing is
+    /// in none of `written`, `dropped` and `queued`; after [`stop`](Self::stop) they add up.
     pub fn counters(&self) -> SerialCounters {
         let s = &self.shared;
         let q = self.out.stats();
@@ -221,25 +219,15 @@ pub fn frame_gap(bytes_per_s: u32) -> Duration {
 }
 
 fn writer(name: &'static str, out: &Queue<Vec<u8>>, s: &Shared) {
-    let mut batch = Vec::new();
-    while let Ok(first) = out.pop_until(None) {
-        // Everything queued by now in one write (serialport polls before each write: one
-        // poll and one write for a burst of frames, not per frame).
-        batch.clear();
-        batch.extend_from_slice(&first);
-        while batch.len() < WRITE_BATCH_BYTES
-            && let Ok(more) = out.pop_until(Some(std::time::Instant::now()))
-        {
-            batch.extend_from_slice(&more);
-        }
+    while let Ok(frame) = out.pop_until(None) {
         let mut guard = s.port.lock().unwrap_or_else(|e| e.into_inner());
         let Some(port) = guard.as_mut() else {
-            s.dropped.fetch_add(batch.len() as u64, Ordering::Relaxed);
+            s.dropped.fetch_add(frame.len() as u64, Ordering::Relaxed);
             continue;
         };
         let mut done = 0;
-        while done < batch.len() {
-            match port.write(&batch[done..]) {
+        while done < frame.len() {
+            match port.write(&frame[done..]) {
                 Ok(0) => {
                     fail(name, s, &mut guard, &ErrorKind::WriteZero.into());
                     break;
@@ -257,7 +245,7 @@ fn writer(name: &'static str, out: &Queue<Vec<u8>>, s: &Shared) {
             }
         }
         s.dropped
-            .fetch_add((batch.len() - done) as u64, Ordering::Relaxed);
+            .fetch_add((frame.len() - done) as u64, Ordering::Relaxed);
     }
 }
 
