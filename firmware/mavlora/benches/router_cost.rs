@@ -30,7 +30,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use mavlink::MavlinkVersion;
-use serialport::{SerialPort as _, TTYPort};
+use serialport::SerialPort as _;
 
 use mavlora::dialect::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavType};
 use mavlora::io::signing_epoch_now;
@@ -39,7 +39,11 @@ use mavlora::wire::{FrameReader, OwnedFrame, Sender};
 
 mod common;
 use common::px4_capture;
+// The end-to-end tests' pty pairs and child guard.
+#[path = "../tests/common/mod.rs"]
+mod test_common;
 use harness_sim::PX4_CONFIG;
+use test_common::{Guard, pty_pair};
 
 /// The router measured: this build's, or `MAVLORA_BENCH_ROUTER` (another build, to compare).
 fn router_program() -> String {
@@ -197,18 +201,6 @@ fn router(pty: &str, sink: SocketAddr, extra: &[&str], log: &Path) -> Child {
         .unwrap()
 }
 
-/// A pty pair whose descriptors are not inherited by the processes measured.
-fn pty_pair() -> (TTYPort, TTYPort) {
-    let (master, slave) = TTYPort::pair().unwrap();
-    for port in [&master, &slave] {
-        use std::os::fd::{AsRawFd, BorrowedFd};
-        // SAFETY: the descriptor belongs to `port`, alive for this call.
-        let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
-        rustix::io::fcntl_setfd(fd, rustix::io::FdFlags::CLOEXEC).unwrap();
-    }
-    (master, slave)
-}
-
 /// One process's figures for one replay.
 struct Run {
     frames_in: usize,
@@ -298,11 +290,18 @@ impl Drop for Sink {
 
 /// Replays `feed` into a fresh pty read by the process `spawn` starts, and measures that
 /// process from the first replayed byte to the last frame out.
-fn replay(label: &str, mut feed: Feed, spawn: impl FnOnce(&str, SocketAddr) -> Child) -> Run {
+fn replay(
+    label: &'static str,
+    mut feed: Feed,
+    spawn: impl FnOnce(&str, SocketAddr) -> Child,
+) -> Run {
     let (mut master, slave) = pty_pair();
     let sink = Sink::start();
-    let mut child = Guard(spawn(slave.name().as_deref().unwrap(), sink.addr));
-    let pid = child.0.id();
+    let mut child = Guard(
+        Some(spawn(slave.name().as_deref().unwrap(), sink.addr)),
+        label,
+    );
+    let pid = child.0.as_ref().map_or(0, Child::id);
     // Ready when a heartbeat gets through.
     let mut sender = Sender::new(VEHICLE, 1, MavlinkVersion::V2);
     let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
@@ -342,7 +341,7 @@ fn replay(label: &str, mut feed: Feed, spawn: impl FnOnce(&str, SocketAddr) -> C
         if writer.is_finished() && last.1.elapsed() > Duration::from_secs(1) {
             break;
         }
-        if let Ok(Some(status)) = child.0.try_wait() {
+        if let Some(Ok(Some(status))) = child.0.as_mut().map(Child::try_wait) {
             panic!("{label}: exited during the replay: {status}");
         }
         if progress.elapsed() > Duration::from_secs(5) {
@@ -361,16 +360,6 @@ fn replay(label: &str, mut feed: Feed, spawn: impl FnOnce(&str, SocketAddr) -> C
         cpu: after.saturating_sub(before),
         wall,
         peak_rss_kb,
-    }
-}
-
-/// Kills the child on drop.
-struct Guard(Child);
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
     }
 }
 
@@ -464,27 +453,29 @@ fn idle(seconds: u64, dir: &Path) {
     let (_bridge_radio_master, bridge_radio_slave) = pty_pair();
     let sink = Sink::start();
     let profile = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles/px4-normal.toml");
-    let router = Guard(router(
+    let router = router(
         radio_slave.name().as_deref().unwrap(),
         sink.addr,
         &["--unsigned"],
         &dir.join("idle-router.log"),
-    ));
-    let bridge = Guard(
-        Command::new(BRIDGE)
-            .args(["--fc", fc_slave.name().as_deref().unwrap()])
-            .args(["--radio", bridge_radio_slave.name().as_deref().unwrap()])
-            .args(["--profile", profile, "--unsigned"])
-            .stderr(fs::File::create(dir.join("idle-bridge.log")).unwrap())
-            .spawn()
-            .unwrap(),
     );
+    let bridge = Command::new(BRIDGE)
+        .args(["--fc", fc_slave.name().as_deref().unwrap()])
+        .args(["--radio", bridge_radio_slave.name().as_deref().unwrap()])
+        .args(["--profile", profile, "--unsigned"])
+        .stderr(fs::File::create(dir.join("idle-bridge.log")).unwrap())
+        .spawn()
+        .unwrap();
+    let pids = [
+        ("mavlora-router", router.id()),
+        ("mavlora-bridge", bridge.id()),
+    ];
+    let _guards = [
+        Guard(Some(router), "mavlora-router"),
+        Guard(Some(bridge), "mavlora-bridge"),
+    ];
     // Past start-up (ports opened, first heartbeats sent).
     thread::sleep(Duration::from_secs(2));
-    let pids = [
-        ("mavlora-router", router.0.id()),
-        ("mavlora-bridge", bridge.0.id()),
-    ];
     let before: Vec<_> = pids.iter().map(|(_, pid)| threads(*pid)).collect();
     thread::sleep(Duration::from_secs(seconds));
     println!("idle for {seconds} s, ports open, nothing coming in (lower is better):");

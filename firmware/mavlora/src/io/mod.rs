@@ -25,7 +25,6 @@ pub use signing_state::{SAVE_EVERY, SigningStateFile};
 pub use tcp::{DEFAULT_MAX_CLIENTS, TcpCounters, TcpEndpoint};
 pub use tlog::Tlog;
 pub use udp::{MAX_DATAGRAM, UdpEndpoint};
-pub use wake::{Ready, Wake};
 
 /// What the IO threads tell the main loop.
 #[derive(Debug)]

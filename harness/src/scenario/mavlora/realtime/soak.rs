@@ -21,7 +21,7 @@ use anyhow::{Context, Result};
 
 use super::mission::compare;
 use super::{Scenario, Script, Unsigned, ensure_clean, keep_evidence, spec};
-use crate::measurement::{Declarations, Handle, Spec};
+use crate::measurement::{Declarations, Handle};
 use crate::scenario::PhaseContext;
 use crate::strategy::mavlora::{
     GcsPlan, MavloraSession, SessionDefaults, SessionReport, status_field,
@@ -62,19 +62,25 @@ struct Measured {
 const PROGRAMS: [&str; 2] = ["bridge", "router"];
 
 fn plan(d: &mut Declarations) -> Script {
-    let per_program = |d: &mut Declarations, base: &str, f: &dyn Fn(&str) -> Spec| {
-        PROGRAMS.map(|p| d.declare(f(p).describe(format!("{base} (mavlora-{p})"))))
-    };
-    let rss_peak = per_program(
-        d,
-        "peak resident memory (VmHWM) over the soak; limit issue 10's 8 MB",
-        &|p| spec(&format!("soak_{p}_rss_peak_kb"), "kB").at_most(RSS_LIMIT_KB),
-    );
-    let rss_growth = per_program(
-        d,
-        "growth of the memory high-water mark (VmHWM) from half-time to the end; limit issue 10's 5 %",
-        &|p| spec(&format!("soak_{p}_rss_growth_pct"), "%").at_most(GROWTH_LIMIT_PCT),
-    );
+    let rss_peak = PROGRAMS.map(|p| {
+        d.declare(
+            spec(&format!("soak_{p}_rss_peak_kb"), "kB")
+                .at_most(RSS_LIMIT_KB)
+                .describe(format!(
+                    "peak resident memory (VmHWM) over the soak; limit issue 10's 8 MB (mavlora-{p})"
+                )),
+        )
+    });
+    let rss_growth = PROGRAMS.map(|p| {
+        d.declare(
+            spec(&format!("soak_{p}_rss_growth_pct"), "%")
+                .at_most(GROWTH_LIMIT_PCT)
+                .describe(format!(
+                    "growth of the memory high-water mark (VmHWM) from half-time to the end; \
+                     limit issue 10's 5 % (mavlora-{p})"
+                )),
+        )
+    });
     let m = Measured {
         rss_peak,
         rss_growth,
