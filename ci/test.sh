@@ -53,7 +53,13 @@ export CARGO_PROFILE_RELEASE_DEBUG=false
 unlinted=(env -u RUSTC_WORKSPACE_WRAPPER -u CLIPPY_ARGS -u CARGO_PROFILE_RELEASE_DEBUG)
 mkdir -p target
 step "build the programs the rig runs (release; clippy -D warnings on the workspace's crates)"
-cargo build --release --locked --workspace --bins "${features[@]}"
+# `--test model` (harness-radio's, a small one): with one target that needs the dev-dependencies,
+# cargo resolves features with them for the whole build, as the test build below will. Without
+# it the programs' rustix, num-traits, rand and regex-syntax got other features than the tests',
+# so the test build compiled them again with everything above them (mavlink, the generated
+# dialect, tracing-subscriber, every workspace crate). The programs are then also built exactly
+# as the tests see them.
+cargo build --release --locked --workspace --bins --test model "${features[@]}"
 # The rest of `--all-targets` (test binaries, benchmarks) shares every unit just built.
 step "build the tests, benchmarks and firmware (in the background, niced; logs: target/test-build.log, target/firmware-build.log)"
 nice -n 19 cargo build --release --locked --workspace --all-targets "${features[@]}" \
