@@ -95,6 +95,7 @@ fn stubborn_ardupilot_does_not_starve_position_or_drop_commands() {
     w.run_until(secs(120.0));
     // the profile's 3 Hz position, with a lag of at most 1.5 of its periods
     let (hz, p99) = positions(&w, secs(10.0));
+    eprintln!("position {hz:.3} Hz, lag p99 {p99:?}");
     assert!(hz >= 2.8, "position at {hz:.2} Hz, profile asks 3 Hz");
     assert!(
         p99 <= Duration::from_millis(500),
@@ -112,6 +113,7 @@ fn shipped_ardupilot_profile_keeps_position_at_3_hz_from_a_stubborn_ardupilot() 
     let mut w = world("ardupilot-mavlink1.toml", false, stubborn());
     w.run_until(secs(120.0));
     let (hz, p99) = positions(&w, secs(10.0));
+    eprintln!("position {hz:.3} Hz, lag p99 {p99:?}");
     assert!(hz >= 2.8, "position at {hz:.2} Hz, profile asks 3 Hz");
     assert!(p99 <= Duration::from_millis(500), "lag p99 {p99:?}");
     assert_eq!(w.bridge().unwrap().stats().scheduler.dropped_priority, 0);
