@@ -1,25 +1,93 @@
-//! Profile files (TOML, from the operator): any text either parses into a profile whose
-//! rules all name a message id and a rate that is finite and positive, or is refused with an
-//! error that names the origin and a line; never a panic.
+//! Profile files (TOML, from the operator). Invariants, on every input:
+//! - any text either parses into a profile or is refused with an error that names the origin
+//!   and a line (`fuzz.toml:N:` for the profile's own checks, the TOML parser's "line N"
+//!   otherwise); never a panic;
+//! - every rate an accepted profile holds (its default, each message's `radio` and
+//!   `stream_hz`) is within `MIN_RATE_HZ..=MAX_RATE_HZ` (`stream_hz` may also be 0, "stop");
+//! - an accepted profile can be used: the stream requests it makes for the flight controller
+//!   and the radio filter limiting each of its messages at any time never panic (issue 9 saw
+//!   values that passed validation panic there at run time).
 
-use mavlora::filter::Profile;
+use mavlink::{MavHeader, MavlinkVersion, Message as _};
+use mavlora::dialect::MavMessage;
+use mavlora::filter::{
+    Profile, RadioFilter, RadioRule, request_data_stream_requests, set_message_interval_requests,
+};
+use mavlora::wire::encode;
+use mavlora::{Duration, Instant};
+
+const MIN_RATE_HZ: f64 = 1e-3;
+const MAX_RATE_HZ: f64 = 1e6;
+
+fn rate_ok(hz: f64) -> bool {
+    (MIN_RATE_HZ..=MAX_RATE_HZ).contains(&hz)
+}
+
+fn check_rule(rule: RadioRule, what: &str) {
+    if let RadioRule::MaxRate(hz) = rule {
+        assert!(rate_ok(hz), "{what}: radio rate {hz} accepted");
+    }
+}
+
+/// "fuzz.toml:<digit>" or the TOML parser's "line <digit>".
+fn located(message: &str) -> bool {
+    let after = |pat: &str| {
+        message
+            .match_indices(pat)
+            .any(|(i, _)| message[i + pat.len()..].starts_with(|c: char| c.is_ascii_digit()))
+    };
+    after("fuzz.toml:") || after("line ")
+}
 
 pub fn run(data: &[u8]) {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    match Profile::parse(text, "fuzz.toml") {
-        Ok(profile) => {
-            for (_, rule) in profile.rules() {
-                let _ = format!("{rule:?}");
-            }
-        }
+    let profile = match Profile::parse(text, "fuzz.toml") {
+        Ok(profile) => profile,
         Err(e) => {
             let message = e.to_string();
             assert!(
                 message.contains("fuzz.toml"),
                 "error without its origin: {message}"
             );
+            assert!(located(&message), "error without a line: {message}");
+            return;
+        }
+    };
+    check_rule(profile.default_radio(), "defaults");
+    for (id, rule) in profile.rules() {
+        check_rule(rule.radio, &format!("message {id}"));
+        if let Some(hz) = rule.stream_hz {
+            assert!(
+                hz == 0.0 || rate_ok(hz),
+                "message {id}: stream_hz {hz} accepted"
+            );
+        }
+    }
+    let _ = set_message_interval_requests(&profile, 1, 1);
+    let _ = request_data_stream_requests(&profile, 1, 1);
+
+    // Each named message through the filter: twice at once, then far apart (the limiter's
+    // interval arithmetic at the profile's extreme rates).
+    let ids: Vec<u32> = profile.rules().map(|(id, _)| id).collect();
+    let mut filter = RadioFilter::new(profile);
+    let header = MavHeader {
+        system_id: 1,
+        component_id: 1,
+        sequence: 0,
+    };
+    for id in ids {
+        let Some(message) = MavMessage::default_message_from_id(id) else {
+            continue;
+        };
+        let frame = encode(MavlinkVersion::V2, header, &message);
+        for at in [
+            Instant::ZERO,
+            Instant::ZERO,
+            Instant::ZERO + Duration::from_secs(86_400 * 365),
+        ] {
+            let _ = filter.check(&frame, at);
         }
     }
 }
