@@ -51,9 +51,10 @@ fn write_config(dir: &std::path::Path, text: &str) -> std::path::PathBuf {
 
 #[test]
 fn bad_config_names_file_line_and_field() {
-    let dir = tempdir();
+    let tmp = tempdir();
+    let dir = tmp.path();
     let path = write_config(
-        &dir,
+        dir,
         "mode = \"parallel\"\nreceivers = 2\n[link]\nacquire_frames = 0\n",
     );
     let out = Command::new(EMU)
@@ -82,8 +83,9 @@ fn bad_config_names_file_line_and_field() {
 
 #[test]
 fn forwards_the_active_receiver_and_reports_power() {
-    let dir = tempdir();
-    let path = write_config(&dir, "mode = \"parallel\"\nreceivers = 2\n");
+    let tmp = tempdir();
+    let dir = tmp.path();
+    let path = write_config(dir, "mode = \"parallel\"\nreceivers = 2\n");
     let config = Config::new(Mode::Parallel, 2);
     let (mut rx0, rx1, mut fc, mut status) = (Pty::new(), Pty::new(), Pty::new(), Pty::new());
     let _child = Killed(
@@ -198,8 +200,9 @@ fn until_pilot0_shows(rx: &mut Pty, fc: &mut Pty, value: u16, limit: Duration) -
 /// could not take control again after the adapter came back.
 #[test]
 fn a_receiver_that_goes_away_is_heard_again_when_it_comes_back() {
-    let dir = tempdir();
-    let path = write_config(&dir, "mode = \"parallel\"\nreceivers = 2\n");
+    let tmp = tempdir();
+    let dir = tmp.path();
+    let path = write_config(dir, "mode = \"parallel\"\nreceivers = 2\n");
     // A stable name for the receiver, as /dev/serial/by-id gives a USB adapter.
     let link = dir.join("rx0");
     let mut first = Pty::new();
@@ -242,8 +245,9 @@ fn a_receiver_that_goes_away_is_heard_again_when_it_comes_back() {
 /// ever; now it reopens the port for a while, then ends with an error.
 #[test]
 fn ends_when_the_flight_controller_port_is_gone_for_good() {
-    let dir = tempdir();
-    let path = write_config(&dir, "mode = \"parallel\"\nreceivers = 1\n");
+    let tmp = tempdir();
+    let dir = tmp.path();
+    let path = write_config(dir, "mode = \"parallel\"\nreceivers = 1\n");
     let (rx0, fc) = (Pty::new(), Pty::new());
     let started = Instant::now();
     let mut child = Command::new(EMU)
@@ -290,8 +294,9 @@ fn ends_when_the_flight_controller_port_is_gone_for_good() {
 /// rig judges 1.5 periods there). Invariant: what the host takes is held, whole.
 #[test]
 fn a_stopped_device_is_held_and_keeps_its_cadence_in_device_time() {
-    let dir = tempdir();
-    let path = write_config(&dir, "mode = \"parallel\"\nreceivers = 1\n");
+    let tmp = tempdir();
+    let dir = tmp.path();
+    let path = write_config(dir, "mode = \"parallel\"\nreceivers = 1\n");
     let tx_log = dir.join("tx.log");
     let (rx0, mut fc) = (Pty::new(), Pty::new());
     let child = Killed(
@@ -362,12 +367,10 @@ fn a_stopped_device_is_held_and_keeps_its_cadence_in_device_time() {
     drop(rx0);
 }
 
-fn tempdir() -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "multirx-emu-test-{}-{:?}",
-        std::process::id(),
-        std::thread::current().id()
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A folder of the test's own, removed when the test ends (pass or fail).
+fn tempdir() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("multirx-emu-test-")
+        .tempdir()
+        .unwrap()
 }
