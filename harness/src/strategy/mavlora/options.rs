@@ -120,7 +120,8 @@ pub struct SessionOptions {
     pub bridge_profile: PathBuf,
     /// `--compact` of the bridge.
     pub compact: bool,
-    /// `--rate` of the bridge (radio budget, B/s).
+    /// `--rate` of the bridge and the router (radio budget, B/s): by default what the
+    /// simulated world gives the engines for this radio, 80 % of one direction's capacity.
     pub rate: u32,
     /// `--link-quality-period` of both ends (s); `None`: derived from the budget.
     pub link_quality_period: Option<f64>,
@@ -186,7 +187,7 @@ impl SessionDefaults {
             variant: Variant::Bridge,
             bridge_profile: self.profile_dir.join("px4-compact.toml"),
             compact: true,
-            rate: 3000,
+            rate: budget_of(radio),
             link_quality_period: None,
             fc_profile: FcProfile::Normal,
             gcs: GcsPlan::default(),
@@ -228,4 +229,13 @@ pub fn sik_with_independent_loss(loss: f64) -> Result<RadioSetup> {
     setup.uplink = independent(4);
     setup.radio()?;
     Ok(setup)
+}
+
+/// The engines' byte budget for `radio`, as the simulated world sets it. A preset that does not
+/// resolve gets SiK 64k's; the session's radio emulator refuses it with its error anyway.
+fn budget_of(radio: &RadioSetup) -> u32 {
+    const SIK_64K_BUDGET: u32 = 2923;
+    radio.preset.resolve().map_or(SIK_64K_BUDGET, |p| {
+        harness_sim::scheduler_for(Some(&p)).rate_bytes_per_s
+    })
 }

@@ -501,6 +501,7 @@ impl RouterSpawn {
         let mut command = Command::new(&options.router_program);
         command
             .args(["--radio", radio_port])
+            .args(["--rate", &options.rate.to_string()])
             .args(["--udp", &format!("127.0.0.1:{}", self.send_to)])
             .args([
                 "--udp-bind",

@@ -121,11 +121,6 @@ fn run(
     variants: &[Variant],
     unsigned: &Unsigned,
 ) -> Result<()> {
-    // The engines' budget as the simulated rows set it for this radio (80 % of one
-    // direction's capacity): the autopilot's boot parameter burst must wait in the bridge's
-    // queue, not overflow the radio's buffer.
-    let preset = d.clean_radio.preset.resolve()?;
-    let rate = harness_sim::scheduler_for(Some(&preset)).rate_bytes_per_s;
     let mut options = Vec::new();
     for (variant, profile, compact, ..) in VARIANTS {
         let mut o = d.options(
@@ -135,7 +130,9 @@ fn run(
         );
         o.bridge_profile = d.profile_dir.join(profile);
         o.compact = compact;
-        o.rate = rate;
+        // The default `--rate`, the engines' budget as the simulated rows set it for this
+        // radio (80 % of one direction's capacity): the autopilot's boot parameter burst
+        // must wait in the bridge's queue, not overflow the radio's buffer.
         o.link_quality_period = Some(lora_sf7_link_quality_period());
         o.fc_profile = FcProfile::ArduPilot;
         o.gcs = GcsPlan {
