@@ -1,0 +1,326 @@
+use mavlink::MavlinkVersion;
+
+use super::*;
+use crate::command::{ACK_HOLD, Redundancy, radio_confirmation};
+use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd};
+use crate::wire::Sender;
+
+const MS: fn(u64) -> Duration = Duration::from_millis;
+
+fn command(s: &mut Sender, confirmation: u8, param1: f32) -> (OwnedFrame, MavMessage) {
+    let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        confirmation,
+        param1,
+        ..Default::default()
+    });
+    (s.frame(&msg), msg)
+}
+
+fn ack(fc: &mut Sender) -> (OwnedFrame, MavMessage) {
+    let msg = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        result: MavResult::MAV_RESULT_ACCEPTED,
+        ..Default::default()
+    });
+    (fc.frame(&msg), msg)
+}
+
+/// The tag of an ack on the radio and the ack as the autopilot sent it.
+fn untagged(f: &OwnedFrame) -> (AckTag, Vec<u8>) {
+    let Ok(MavMessage::COMMAND_ACK(a)) = f.decode::<MavMessage>() else {
+        panic!("not an ack");
+    };
+    let (tag, plain, _) = crate::command::ack_tag::untag_ack(f, &a).expect("tagged");
+    (tag, plain.as_bytes().to_vec())
+}
+
+fn forwarded_confirmation(v: CacheVerdict) -> u8 {
+    match v {
+        CacheVerdict::Forward(f) => match f.decode::<MavMessage>() {
+            Ok(MavMessage::COMMAND_LONG(c)) => c.confirmation,
+            other => panic!("{other:?}"),
+        },
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_copy_is_dropped_in_flight_and_answered_after_the_ack() {
+    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let (f, m) = command(&mut gcs, 0, 4.0);
+    assert_eq!(forwarded_confirmation(c.command(&f, &m, t0)), 0);
+    // a retry (confirmation + 1) while the FC executes it
+    let (f2, m2) = command(&mut gcs, 1, 4.0);
+    assert_eq!(c.command(&f2, &m2, t0 + MS(300)), CacheVerdict::Drop);
+    let (af, am) = ack(&mut fc);
+    let radio = c
+        .ack(t0, 1, 1, &af, &am)
+        .expect("answers a command from the radio");
+    // the ack was lost on the radio: the next copy gets it again, not a second execution
+    match c.command(&f2, &m2, t0 + MS(1200)) {
+        CacheVerdict::Replay(a) => {
+            // the autopilot's ack again, naming the copy it answers
+            assert_eq!(untagged(&a).1, untagged(&radio).1);
+            assert_eq!(untagged(&radio).0, AckTag::new(0, Some(0)));
+            assert_eq!(untagged(&a).0, AckTag::new(0, Some(1)));
+        }
+        other => panic!("{other:?}"),
+    }
+    // a different command with the same id is new
+    let (f3, m3) = command(&mut gcs, 0, 5.0);
+    assert_eq!(
+        forwarded_confirmation(c.command(&f3, &m3, t0 + MS(1300))),
+        0
+    );
+    assert_eq!(
+        c.stats(),
+        AckCacheStats {
+            forwarded: 2,
+            replayed: 1,
+            dropped: 1,
+            ..Default::default()
+        }
+    );
+}
+
+#[test]
+fn a_late_copy_within_the_router_window_is_not_run_again() {
+    // the camera trigger ran, its acks were lost for 7 s: a copy at 7.1 s is answered
+    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+    c.command(&f, &m, t0);
+    let (af, am) = ack(&mut fc);
+    c.ack(t0, 1, 1, &af, &am);
+    let (late, late_m) = command(&mut gcs, radio_confirmation(0, 7), 1.0);
+    assert!(matches!(
+        c.command(&late, &late_m, t0 + MS(7100)),
+        CacheVerdict::Replay(_)
+    ));
+    assert!(matches!(
+        c.command(&late, &late_m, t0 + ACK_HOLD - MS(1)),
+        CacheVerdict::Replay(_)
+    ));
+}
+
+#[test]
+fn a_deliberate_repeat_runs_again_even_if_its_first_copy_was_lost() {
+    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+    c.command(&f, &m, t0);
+    let (af, am) = ack(&mut fc);
+    c.ack(t0, 1, 1, &af, &am);
+    // the second trigger, 2.5 s later: its first copy arrives
+    let (f2, m2) = command(&mut gcs, radio_confirmation(1, 0), 1.0);
+    assert_eq!(
+        forwarded_confirmation(c.command(&f2, &m2, t0 + MS(2500))),
+        0
+    );
+    c.ack(t0, 1, 1, &af, &am);
+    // a third: only its second copy arrives; still a new command here
+    let (f3, m3) = command(&mut gcs, radio_confirmation(2, 1), 1.0);
+    assert_eq!(
+        forwarded_confirmation(c.command(&f3, &m3, t0 + MS(5000))),
+        0
+    );
+    assert_eq!(c.stats().forwarded, 3);
+}
+
+#[test]
+fn cached_acks_expire_after_the_hold() {
+    let mut c = AckCache::new(MS(5000), MS(1000));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let (f, m) = command(&mut gcs, 0, 4.0);
+    c.command(&f, &m, t0);
+    let (af, am) = ack(&mut fc);
+    c.ack(t0, 1, 1, &af, &am);
+    let (f2, m2) = command(&mut gcs, 1, 4.0);
+    // after the hold a copy is unknown: forwarded (the router never sends one that late)
+    assert_eq!(
+        forwarded_confirmation(c.command(&f2, &m2, t0 + MS(6000))),
+        0
+    );
+    // and a copy unanswered for longer than `in_flight` goes to the FC again
+    assert_eq!(
+        forwarded_confirmation(c.command(&f2, &m2, t0 + MS(7100))),
+        1
+    );
+}
+
+#[test]
+fn acks_on_the_radio_name_the_generation_they_answer() {
+    use crate::command::ack_tag::untag_ack;
+    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let (af, am) = ack(&mut fc);
+    // an ack that answers nothing from the radio goes as the autopilot sent it
+    assert!(c.ack(t0, 1, 1, &af, &am).is_none());
+    for (k, generation) in [0u8, 1, 31].into_iter().enumerate() {
+        let (f, m) = command(&mut gcs, radio_confirmation(generation, 0), 1.0);
+        c.command(&f, &m, t0 + MS(3000 * k as u64));
+        let radio = c.ack(t0, 1, 1, &af, &am).expect("tagged");
+        let MavMessage::COMMAND_ACK(a) = radio.decode::<MavMessage>().unwrap() else {
+            panic!()
+        };
+        let (tag, plain, _) = untag_ack(&radio, &a).expect("tag");
+        assert_eq!(tag, AckTag::new(generation, Some(0)));
+        assert_eq!(plain.as_bytes(), af.as_bytes());
+    }
+}
+
+/// A cache with SiK 64k's redundancy, its link at `loss` since `now`.
+fn redundant(now: Instant, loss: Option<f64>) -> AckCache {
+    let mut c = AckCache::new(ACK_HOLD, MS(1000)).with_redundancy(Redundancy::SIK_64K);
+    c.set_link_loss(now, loss);
+    c
+}
+
+fn repeats(c: &mut AckCache, now: Instant) -> Vec<OwnedFrame> {
+    std::iter::from_fn(|| c.poll_repeat(now)).collect()
+}
+
+#[test]
+fn on_a_lossy_link_an_ack_goes_again_half_a_round_later_naming_no_copy() {
+    let t0 = Instant::from_millis(0);
+    let mut c = redundant(t0, Some(0.1));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let (f, m) = command(&mut gcs, radio_confirmation(4, 0), 1.0);
+    c.command(&f, &m, t0);
+    let (af, am) = ack(&mut fc);
+    let first = c.ack(t0 + MS(10), 1, 1, &af, &am).expect("tagged");
+    assert_eq!(untagged(&first).0, AckTag::new(4, Some(0)));
+    assert_eq!(c.poll_timeout(), Some(t0 + MS(135)));
+    assert!(repeats(&mut c, t0 + MS(134)).is_empty());
+    let again = repeats(&mut c, t0 + MS(135));
+    assert_eq!(again.len(), 1, "once");
+    assert_eq!(
+        untagged(&again[0]),
+        (AckTag::new(4, None), untagged(&first).1)
+    );
+    assert!(repeats(&mut c, t0 + MS(5000)).is_empty());
+    assert_eq!(c.poll_timeout(), None);
+    assert_eq!(c.stats().repeated, 1);
+}
+
+#[test]
+fn a_copy_before_the_repeat_is_answered_by_it_and_one_after_gets_its_own_answer() {
+    let t0 = Instant::from_millis(0);
+    let mut c = redundant(t0, Some(0.1));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+    c.command(&f, &m, t0);
+    let (af, am) = ack(&mut fc);
+    c.ack(t0, 1, 1, &af, &am);
+    // the router's second copy, 40 ms on: the ack would share the first's air packet
+    let (f1, m1) = command(&mut gcs, radio_confirmation(0, 1), 1.0);
+    assert_eq!(c.command(&f1, &m1, t0 + MS(40)), CacheVerdict::Drop);
+    assert_eq!(repeats(&mut c, t0 + MS(125)).len(), 1);
+    // its third copy, a round on: answered, naming that copy, and repeated in turn
+    let (f2, m2) = command(&mut gcs, radio_confirmation(0, 2), 1.0);
+    match c.command(&f2, &m2, t0 + MS(250)) {
+        CacheVerdict::Replay(a) => assert_eq!(untagged(&a).0, AckTag::new(0, Some(2))),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(c.poll_timeout(), Some(t0 + MS(375)));
+    assert_eq!(
+        untagged(&repeats(&mut c, t0 + MS(375))[0]).0,
+        AckTag::new(0, None)
+    );
+    let s = c.stats();
+    assert_eq!(
+        (s.forwarded, s.replayed, s.covered, s.repeated),
+        (1, 1, 1, 2)
+    );
+}
+
+#[test]
+fn a_copy_after_an_overdue_repeat_is_answered_in_its_place() {
+    let t0 = Instant::from_millis(0);
+    let mut c = redundant(t0, None);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+    c.command(&f, &m, t0);
+    let (af, am) = ack(&mut fc);
+    c.ack(t0, 1, 1, &af, &am);
+    let (f1, m1) = command(&mut gcs, radio_confirmation(0, 1), 1.0);
+    assert!(matches!(
+        c.command(&f1, &m1, t0 + MS(200)),
+        CacheVerdict::Replay(_)
+    ));
+    assert!(
+        repeats(&mut c, t0 + MS(200)).is_empty(),
+        "the answer took its place"
+    );
+    assert_eq!(repeats(&mut c, t0 + MS(325)).len(), 1, "the answer's own");
+}
+
+#[test]
+fn untagged_and_in_progress_acks_are_not_repeated() {
+    let t0 = Instant::from_millis(0);
+    let mut c = redundant(t0, Some(0.3));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    // COMMAND_INT: its ack carries no generation, a repeat could answer the next one
+    let int = MavMessage::COMMAND_INT(crate::dialect::COMMAND_INT_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        ..Default::default()
+    });
+    c.command(&gcs.frame(&int), &int, t0);
+    let (af, am) = ack(&mut fc);
+    assert!(c.ack(t0, 1, 1, &af, &am).is_none(), "untagged");
+    assert_eq!(c.poll_timeout(), None);
+    // IN_PROGRESS: only the final ack is repeated
+    let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 2.0);
+    c.command(&f, &m, t0 + MS(10));
+    let busy = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        result: MavResult::MAV_RESULT_IN_PROGRESS,
+        ..Default::default()
+    });
+    c.ack(t0 + MS(20), 1, 1, &fc.frame(&busy), &busy)
+        .expect("tagged");
+    assert_eq!(c.poll_timeout(), None);
+    c.ack(t0 + MS(900), 1, 1, &af, &am).expect("tagged");
+    assert_eq!(c.poll_timeout(), Some(t0 + MS(1025)));
+}
+
+#[test]
+fn on_a_link_measured_clean_for_30_s_an_ack_goes_once() {
+    let mut c = redundant(Instant::ZERO, Some(0.0));
+    let t0 = Instant::from_millis(30_000);
+    c.set_link_loss(t0, Some(0.01));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+    c.command(&f, &m, t0);
+    let (af, am) = ack(&mut fc);
+    c.ack(t0, 1, 1, &af, &am).expect("tagged");
+    assert_eq!(c.poll_timeout(), None);
+    // a copy is answered at once, still once
+    let (f1, m1) = command(&mut gcs, radio_confirmation(0, 1), 1.0);
+    assert!(matches!(
+        c.command(&f1, &m1, t0 + MS(40)),
+        CacheVerdict::Replay(_)
+    ));
+    assert_eq!(c.poll_timeout(), None);
+}

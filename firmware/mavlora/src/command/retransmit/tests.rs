@@ -1,0 +1,473 @@
+use mavlink::MavlinkVersion;
+
+use super::*;
+use crate::command::split_confirmation;
+use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd};
+use crate::wire::Sender;
+
+const MS: fn(u64) -> Duration = Duration::from_millis;
+const GCS: IpAddr = IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
+
+fn command_with(s: &mut Sender, cmd: MavCmd, param1: f32, conf: u8) -> (OwnedFrame, MavMessage) {
+    let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: cmd,
+        param1,
+        confirmation: conf,
+        ..Default::default()
+    });
+    (s.frame(&msg), msg)
+}
+
+fn command(s: &mut Sender, cmd: MavCmd) -> (OwnedFrame, MavMessage) {
+    command_with(s, cmd, 0.0, 0)
+}
+
+fn ack(cmd: MavCmd) -> MavMessage {
+    MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: cmd,
+        result: MavResult::MAV_RESULT_ACCEPTED,
+        ..Default::default()
+    })
+}
+
+/// (param1, generation, attempt) of a radio copy.
+fn sent(f: &OwnedFrame) -> (f32, u8, u8) {
+    let MavMessage::COMMAND_LONG(c) = f.decode::<MavMessage>().unwrap() else {
+        panic!("not a command");
+    };
+    let (g, a) = split_confirmation(c.confirmation);
+    (c.param1, g, a)
+}
+
+/// A tag naming `generation` and no copy.
+fn tag(generation: u8) -> Option<AckTag> {
+    Some(AckTag::new(generation, None))
+}
+
+fn forwarded(a: Admission) -> OwnedFrame {
+    match a {
+        Admission::Forward(f) => f,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// The frame due at `now`, if any: the timer, then the queue.
+fn resend(r: &mut CommandRetransmitter, now: Instant) -> Option<OwnedFrame> {
+    r.handle_timeout(now);
+    r.poll_retransmit()
+}
+
+fn retransmitter() -> CommandRetransmitter {
+    CommandRetransmitter::new(MS(1000), MS(200), MS(1500), 4)
+}
+
+#[test]
+fn resends_until_acked_then_stops() {
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+    let t0 = Instant::from_millis(0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0, GCS, &frame, &msg))),
+        (0.0, 0, 0)
+    );
+    assert_eq!(r.poll_timeout(), Some(t0 + MS(1000)));
+    assert!(resend(&mut r, t0 + MS(999)).is_none());
+    let again = resend(&mut r, t0 + MS(1000)).expect("due");
+    assert_eq!(sent(&again), (0.0, 0, 1), "a retransmission says so");
+    // the ground station's own retry while we are at it goes nowhere
+    let (retry, retry_msg) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 0.0, 1);
+    assert_eq!(
+        r.from_ground(t0 + MS(1500), GCS, &retry, &retry_msg),
+        Admission::Retry
+    );
+    assert!(r.from_radio(t0 + MS(1600), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+    // a second copy's ack, replayed by the bridge, is not the next command's
+    assert!(!r.from_radio(t0 + MS(1700), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+    assert!(resend(&mut r, t0 + MS(10_000)).is_none());
+    let s = r.stats();
+    assert_eq!(
+        (
+            s.commands,
+            s.retransmissions,
+            s.ground_duplicates,
+            s.acked,
+            s.late_acks
+        ),
+        (1, 1, 1, 1, 1)
+    );
+    // the retransmitted command's round trip is ambiguous: no sample (Karn)
+    assert_eq!(r.rtt().samples(), 0);
+}
+
+#[test]
+fn timeout_follows_the_measured_round_trip() {
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut now = Instant::from_millis(0);
+    for k in 0..20 {
+        let (frame, msg) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, k as f32, 0);
+        forwarded(r.from_ground(now, GCS, &frame, &msg));
+        now += MS(150);
+        r.from_radio(now, 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE));
+        now += MS(1000);
+    }
+    assert!(r.rtt().rto() <= MS(300), "{:?}", r.rtt().rto());
+}
+
+#[test]
+fn an_ack_from_another_vehicle_component_or_command_does_not_count() {
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+    let t0 = Instant::from_millis(0);
+    r.from_ground(t0, GCS, &frame, &msg);
+    r.from_radio(t0 + MS(100), 2, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE));
+    r.from_radio(t0 + MS(100), 1, 100, &ack(MavCmd::MAV_CMD_DO_SET_MODE));
+    r.from_radio(t0 + MS(100), 1, 1, &ack(MavCmd::MAV_CMD_NAV_LAND));
+    assert!(resend(&mut r, t0 + MS(1000)).is_some());
+}
+
+#[test]
+fn gives_up_after_the_last_attempt() {
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (frame, msg) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+    r.from_ground(Instant::from_millis(0), GCS, &frame, &msg);
+    let mut resent = 0;
+    let mut now = Instant::from_millis(0);
+    while let Some(t) = r.poll_timeout() {
+        now = now.max(t);
+        if resend(&mut r, now).is_some() {
+            resent += 1;
+        }
+    }
+    assert_eq!(resent, 3, "4 attempts in all");
+    assert_eq!(r.stats().given_up, 1);
+    // a later retry by the ground station within the window is that command again
+    let (retry, retry_msg) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 0.0, 2);
+    let f = forwarded(r.from_ground(now + MS(1600), GCS, &retry, &retry_msg));
+    assert_eq!(sent(&f), (0.0, 0, 4));
+}
+
+#[test]
+fn a_second_command_with_the_same_id_waits_for_the_first() {
+    // DO_SET_MODE mode 4, then mode 5 200 ms later: both go, in order, one at a time
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let (f4, m4) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 4.0, 0);
+    let (f5, m5) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 5.0, 0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0, GCS, &f4, &m4))),
+        (4.0, 0, 0)
+    );
+    assert_eq!(r.from_ground(t0 + MS(200), GCS, &f5, &m5), Admission::Hold);
+    // mode 4's copies continue alone
+    assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (4.0, 0, 1));
+    assert!(r.from_radio(t0 + MS(1300), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+    // mode 4 went twice: mode 5 waits until the second copy's ack can no longer come
+    assert!(resend(&mut r, t0 + MS(1300)).is_none());
+    assert!(!r.from_radio(t0 + MS(1400), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+    let due = r.poll_timeout().unwrap();
+    assert_eq!(due, t0 + MS(2500));
+    assert_eq!(sent(&resend(&mut r, due).unwrap()), (5.0, 1, 0));
+    assert!(r.from_radio(due + MS(300), 1, 1, &ack(MavCmd::MAV_CMD_DO_SET_MODE)));
+    assert_eq!(r.stats().acked, 2);
+}
+
+#[test]
+fn an_identical_new_command_is_a_new_generation() {
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_DIGICAM_CONTROL, 1.0, 0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0, GCS, &f, &m))),
+        (1.0, 0, 0)
+    );
+    r.from_radio(t0 + MS(300), 1, 1, &ack(MavCmd::MAV_CMD_DO_DIGICAM_CONTROL));
+    // the same trigger again, confirmation 0: a new command the bridge must run again
+    let (f2, m2) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_DIGICAM_CONTROL, 1.0, 0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0 + MS(2500), GCS, &f2, &m2))),
+        (1.0, 1, 0)
+    );
+}
+
+#[test]
+fn a_tagged_ack_lets_the_next_command_go_at_once_and_a_late_one_is_swallowed() {
+    // as mode 4 then 5 above, but the bridge names the generation in its acks: mode 5
+    // need not wait for mode 4's late copies' acks, and those never answer mode 5
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+    let (f4, m4) = command_with(&mut gcs, set_mode, 4.0, 0);
+    let (f5, m5) = command_with(&mut gcs, set_mode, 5.0, 0);
+    forwarded(r.from_ground(t0, GCS, &f4, &m4));
+    assert_eq!(r.from_ground(t0 + MS(200), GCS, &f5, &m5), Admission::Hold);
+    assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (4.0, 0, 1));
+    assert!(r.from_radio_tagged(t0 + MS(1300), 1, 1, &ack(set_mode), tag(0)));
+    // mode 5, another generation of the same slot, goes at once
+    assert_eq!(sent(&resend(&mut r, t0 + MS(1300)).unwrap()), (5.0, 1, 0));
+    // the ack of mode 4's second copy comes now: it names mode 4, not mode 5
+    assert!(!r.from_radio_tagged(t0 + MS(1400), 1, 1, &ack(set_mode), tag(0)));
+    assert_eq!((r.stats().acked, r.stats().late_acks), (1, 1));
+    // mode 5 is resent until its own ack comes
+    assert_eq!(sent(&resend(&mut r, t0 + MS(2300)).unwrap()), (5.0, 1, 1));
+    assert!(r.from_radio_tagged(t0 + MS(2400), 1, 1, &ack(set_mode), tag(1)));
+    assert_eq!(r.stats().acked, 2);
+}
+
+#[test]
+fn a_late_ack_of_an_older_generation_is_not_the_newer_ones() {
+    // the same trigger twice: the second is a new generation; the first's late ack
+    // (tagged 0) arriving while the second (1) is on the radio is swallowed
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let cam = MavCmd::MAV_CMD_DO_DIGICAM_CONTROL;
+    let (f, m) = command_with(&mut gcs, cam, 1.0, 0);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (1.0, 0, 1));
+    assert!(r.from_radio_tagged(t0 + MS(1100), 1, 1, &ack(cam), tag(0)));
+    let (f2, m2) = command_with(&mut gcs, cam, 1.0, 0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0 + MS(1200), GCS, &f2, &m2))),
+        (1.0, 1, 0),
+        "no wait for the first's late acks"
+    );
+    assert!(!r.from_radio_tagged(t0 + MS(1300), 1, 1, &ack(cam), tag(0)));
+    assert_eq!(r.stats().late_acks, 1);
+    // the second's copy keeps going until its own ack
+    assert!(resend(&mut r, t0 + MS(2200)).is_some());
+    assert!(r.from_radio_tagged(t0 + MS(2300), 1, 1, &ack(cam), tag(1)));
+    assert_eq!(r.stats().acked, 2);
+}
+
+#[test]
+fn an_ack_flood_of_other_generations_never_completes_a_command() {
+    // hostile or broken radio peer: 1000 acks naming every other generation, and
+    // untagged ones for other vehicles, while generation 0 is on the radio
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+    let (f, m) = command_with(&mut gcs, set_mode, 4.0, 0);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    for k in 0..1000u32 {
+        let g = 1 + (k % 31) as u8;
+        r.from_radio_tagged(t0 + MS(1), 1, 1, &ack(set_mode), tag(g));
+        r.from_radio_tagged(t0 + MS(1), 2 + (k % 200) as u8, 1, &ack(set_mode), None);
+    }
+    assert_eq!(r.stats().acked, 0);
+    // still resent on its timeout, and its own ack completes it
+    assert_eq!(sent(&resend(&mut r, t0 + MS(1000)).unwrap()), (4.0, 0, 1));
+    assert!(r.from_radio_tagged(t0 + MS(1100), 1, 1, &ack(set_mode), tag(0)));
+    assert_eq!(r.stats().acked, 1);
+    assert!(resend(&mut r, t0 + MS(5000)).is_none());
+}
+
+#[test]
+fn a_late_replay_of_an_acked_command_goes_as_that_command() {
+    // the ground's copy (confirmation 3) of a command acked 5 s ago arrives: it goes on
+    // the radio as the same generation with attempt > 0, so the bridge answers it from
+    // its cache instead of running it again
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(0);
+    let cam = MavCmd::MAV_CMD_DO_DIGICAM_CONTROL;
+    let (f, m) = command_with(&mut gcs, cam, 1.0, 0);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    assert!(r.from_radio_tagged(t0 + MS(150), 1, 1, &ack(cam), tag(0)));
+    let (late, late_m) = command_with(&mut gcs, cam, 1.0, 3);
+    let (_, generation, attempt) = sent(&forwarded(r.from_ground(
+        t0 + MS(5000),
+        GCS,
+        &late,
+        &late_m,
+    )));
+    assert_eq!(generation, 0);
+    assert!(attempt > 0, "a copy, not a new command");
+    // its (replayed) ack is the ground's, once; a second replay's ack is swallowed
+    assert!(r.from_radio_tagged(t0 + MS(5150), 1, 1, &ack(cam), tag(0)));
+    assert!(!r.from_radio_tagged(t0 + MS(5200), 1, 1, &ack(cam), tag(0)));
+}
+
+/// A retransmitter with SiK 64k's redundant copies, its link at `loss` from `now`.
+fn redundant(now: Instant, loss: Option<f64>) -> CommandRetransmitter {
+    let mut r = CommandRetransmitter::new(MS(1000), MS(200), MS(1500), MAX_ATTEMPTS)
+        .with_redundancy(Redundancy::SIK_64K);
+    r.set_link_loss(now, loss);
+    r
+}
+
+/// (ms, attempt) of every command sent from `from` to `until` ms, polling every ms.
+fn sends(r: &mut CommandRetransmitter, from: u64, until: u64) -> Vec<(u64, u8)> {
+    (from..=until)
+        .filter_map(|t| resend(r, Instant::from_millis(t)).map(|f| (t, sent(&f).2)))
+        .collect()
+}
+
+#[test]
+fn on_a_lossy_link_a_command_goes_in_separate_packets_of_the_first_two_rounds() {
+    // SiK 64k at 10 % loss: a second copy past one air packet (40 ms), a third half a
+    // round on (125 ms), a fourth a round on (250 ms); then the timeout from the last
+    let t0 = Instant::from_millis(0);
+    let mut r = redundant(t0, Some(0.1));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (f, m) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+    assert_eq!(sent(&forwarded(r.from_ground(t0, GCS, &f, &m))).2, 0);
+    assert_eq!(sends(&mut r, 0, 1249), vec![(40, 1), (125, 2), (250, 3)]);
+    assert_eq!(
+        r.poll_timeout(),
+        Some(t0 + MS(1250)),
+        "initial 1 s after the last"
+    );
+    assert_eq!(sends(&mut r, 1250, 1250), vec![(1250, 4)]);
+    let s = r.stats();
+    assert_eq!((s.redundant, s.early_copies, s.retransmissions), (1, 3, 1));
+}
+
+#[test]
+fn on_a_slow_radio_the_copies_wait_half_a_round() {
+    // 250 B/s (LoRa SF7's budget) carries the 45-byte command in 180 ms, more than the
+    // 40 ms pair gap: no second copy in the first round
+    let t0 = Instant::from_millis(0);
+    let mut r = redundant(t0, Some(0.1)).with_budget(250);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (f, m) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    assert_eq!(sends(&mut r, 0, 1000), vec![(125, 1), (250, 2)]);
+    // SiK 64k's ~3 kB/s carries it in 15 ms: the pair goes
+    let mut r = redundant(t0, Some(0.1)).with_budget(3000);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    assert_eq!(sends(&mut r, 0, 1000), vec![(40, 1), (125, 2), (250, 3)]);
+}
+
+#[test]
+fn the_ack_ends_the_copies_still_planned() {
+    let t0 = Instant::from_millis(0);
+    let mut r = redundant(t0, Some(0.1));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (f, m) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    assert_eq!(sends(&mut r, 0, 100), vec![(40, 1)]);
+    let ack = ack(MavCmd::MAV_CMD_DO_SET_MODE);
+    assert!(r.from_radio_tagged(t0 + MS(101), 1, 1, &ack, Some(AckTag::new(0, Some(0)))));
+    assert!(sends(&mut r, 101, 5000).is_empty());
+    assert_eq!(r.poll_timeout(), None);
+}
+
+#[test]
+fn in_progress_ends_the_copies_still_planned() {
+    let t0 = Instant::from_millis(0);
+    let mut r = redundant(t0, Some(0.1));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (f, m) = command(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    let busy = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        result: MavResult::MAV_RESULT_IN_PROGRESS,
+        ..Default::default()
+    });
+    assert!(r.from_radio_tagged(t0 + MS(20), 1, 1, &busy, tag(0)));
+    assert!(sends(&mut r, 20, 5000).is_empty(), "the vehicle has it");
+}
+
+#[test]
+fn a_link_measured_clean_for_30_s_gets_one_copy_and_a_lossy_reading_starts_over() {
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut r = redundant(Instant::from_millis(0), Some(0.0));
+    // clean for 29.9 s only: still redundant
+    let t1 = Instant::from_millis(29_900);
+    r.set_link_loss(t1, Some(0.01));
+    let set_mode = ack(MavCmd::MAV_CMD_DO_SET_MODE);
+    let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 1.0, 0);
+    let g = sent(&forwarded(r.from_ground(t1, GCS, &f, &m))).1;
+    assert_eq!(sends(&mut r, 29_900, 29_950).len(), 1, "its second copy");
+    assert!(r.from_radio_tagged(t1 + MS(60), 1, 1, &set_mode, tag(g)));
+    // clean for 30 s: one copy, then the timeout
+    let t2 = Instant::from_millis(30_000);
+    r.set_link_loss(t2, Some(0.0));
+    let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 2.0, 0);
+    let g = sent(&forwarded(r.from_ground(t2, GCS, &f, &m))).1;
+    assert_eq!(r.poll_timeout(), Some(t2 + r.rtt().rto()));
+    assert!(sends(&mut r, 30_000, 30_000 + 900).is_empty());
+    assert!(r.from_radio_tagged(t2 + MS(901), 1, 1, &set_mode, tag(g)));
+    // one reading at 2 %, or none, and it starts over
+    for (k, reading) in [Some(0.02), None].into_iter().enumerate() {
+        let t3 = 70_000 + 40_000 * k as u64;
+        r.set_link_loss(Instant::from_millis(t3 - 40_000), Some(0.0));
+        r.set_link_loss(Instant::from_millis(t3), reading);
+        let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 3.0 + k as f32, 0);
+        let g = sent(&forwarded(r.from_ground(
+            Instant::from_millis(t3),
+            GCS,
+            &f,
+            &m,
+        )))
+        .1;
+        assert_eq!(
+            sends(&mut r, t3, t3 + 40),
+            vec![(t3 + 40, 1)],
+            "{reading:?}"
+        );
+        let done = Instant::from_millis(t3 + 41);
+        assert!(r.from_radio_tagged(done, 1, 1, &set_mode, tag(g)));
+    }
+    assert_eq!(r.stats().redundant, 3);
+}
+
+#[test]
+fn the_round_trip_is_measured_from_the_copy_the_ack_names() {
+    // copies at 0, 40 and 125 ms; the vehicle got the third and its ack comes 131 ms
+    // after it: a sample of 131 ms, not 256 ms from the first copy
+    let t0 = Instant::from_millis(0);
+    let mut r = redundant(t0, Some(0.1));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 1.0, 0);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    sends(&mut r, 0, 200);
+    let set_mode = ack(MavCmd::MAV_CMD_DO_SET_MODE);
+    assert!(r.from_radio_tagged(t0 + MS(256), 1, 1, &set_mode, Some(AckTag::new(0, Some(2)))));
+    assert_eq!(r.rtt().srtt(), Some(MS(131)));
+    // the bridge's repeat names no copy, an untagged ack after several copies is
+    // ambiguous (Karn): neither is a sample
+    for (k, t) in [tag(1), None].into_iter().enumerate() {
+        let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 2.0 + k as f32, 0);
+        let start = t0 + MS(10_000 * (k as u64 + 1));
+        forwarded(r.from_ground(start, GCS, &f, &m));
+        sends(&mut r, start.as_millis(), start.as_millis() + 200);
+        assert!(r.from_radio_tagged(start + MS(400), 1, 1, &set_mode, t));
+    }
+    assert_eq!(r.rtt().samples(), 1);
+    assert_eq!(r.stats().rtt_samples, 1);
+}
+
+#[test]
+fn no_resend_comes_sooner_than_the_spacing_after_the_last_copy() {
+    // a round trip measured at 20 ms (a timeout floor of 10 ms): a resend sooner than
+    // half a TDM round after the last copy would share its air packet
+    let mut r = CommandRetransmitter::new(MS(1000), MS(10), MS(1500), 8)
+        .with_redundancy(Redundancy::SIK_64K);
+    r.set_link_loss(Instant::ZERO, Some(0.0));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let set_mode = ack(MavCmd::MAV_CMD_DO_SET_MODE);
+    let mut now = Instant::from_millis(40_000);
+    r.set_link_loss(now, Some(0.0));
+    for k in 0..20 {
+        let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, k as f32, 0);
+        forwarded(r.from_ground(now, GCS, &f, &m));
+        now += MS(20);
+        assert!(r.from_radio(now, 1, 1, &set_mode));
+        now += MS(1000);
+    }
+    assert!(r.rtt().rto() < MS(125), "{:?}", r.rtt().rto());
+    let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 99.0, 0);
+    forwarded(r.from_ground(now, GCS, &f, &m));
+    assert_eq!(r.poll_timeout(), Some(now + MS(125)));
+}
