@@ -401,3 +401,69 @@ fn boot_check_passes_the_device_the_rig_file_names() {
     let ms = first_frame["value"].as_f64().unwrap();
     assert!((0.0..=50.0).contains(&ms), "{ms}");
 }
+
+/// A receiver fixture the host holds past the device's 60 ms silence timeout really
+/// silences the link, and the device rightly gives the pilot up: the fault phase must not
+/// call that a device failure. Here the fixture is stopped (SIGSTOP) for 120 ms every
+/// 0.5 s, so every fault window sees a held stimulus: the window runs again once, then the
+/// phase ends in an error that says the host broke the link, with no verdict on the device.
+#[test]
+fn a_held_receiver_fixture_is_an_error_of_the_rig_not_a_device_failure() {
+    let _turn = realtime_turn();
+    let dir = tempfile::tempdir().unwrap();
+    let marker = format!("RIG_TEST_RUN={}", dir.path().display());
+    let (key, value) = marker.split_once('=').unwrap();
+    let mut child = Command::new(RIG)
+        .args([
+            "run",
+            "rigs/emulated.toml",
+            "--out",
+            dir.path().to_str().unwrap(),
+            "--filter",
+            "multirx::parallel::fault_receiver_flood",
+            "--exact",
+        ])
+        .env(key, value)
+        .current_dir(repo())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let pilot = || {
+        processes_with(&marker)
+            .into_iter()
+            .find(|(_, cmd)| cmd.contains("sbus_receiver.py") && cmd.contains("--name rx0 "))
+            .map(|(pid, _)| rustix::process::Pid::from_raw(pid as i32).unwrap())
+    };
+    let mut holds = 0;
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(380));
+        if let Some(pid) = pilot() {
+            let _ = rustix::process::kill_process(pid, rustix::process::Signal::STOP);
+            std::thread::sleep(std::time::Duration::from_millis(120));
+            let _ = rustix::process::kill_process(pid, rustix::process::Signal::CONT);
+            holds += 1;
+        }
+    };
+    assert!(holds > 10, "the pilot's fixture was held {holds} times");
+    assert_eq!(status.code(), Some(1));
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("results.json")).unwrap())
+            .unwrap();
+    let phase = &record["phases"][0];
+    assert_eq!(phase["name"], "multirx::parallel::fault_receiver_flood");
+    assert_eq!(phase["outcome"], "error", "{phase:#}");
+    let error = phase["error"].as_str().unwrap_or_default();
+    assert!(
+        error.contains("the host, not the device, broke the link"),
+        "{error}"
+    );
+    let log = phase["log"].to_string();
+    assert!(
+        log.contains("window 1: the host held the receiver fixture"),
+        "{log}"
+    );
+}

@@ -6,7 +6,7 @@
 
 use std::time::Duration;
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 
 use super::{ModeLimits, Scenario, Script, SessionOptions};
 use crate::clock::Mono;
@@ -53,9 +53,14 @@ const fn fault(
 /// How long the wire misbehaves.
 const FAULT: Duration = Duration::from_secs(3);
 
+/// Fault windows at most: one more when the fixture playing the receiver was itself held past
+/// the device's silence timeout (then the device lost a link that truly went silent).
+const WINDOWS: u32 = 2;
+
 struct Handles {
     lost_control: Handle,
     foreign: Handle,
+    stimulus_gap: Handle,
 }
 
 fn plan(d: &mut Declarations, l: &ModeLimits, name: &str, fault: &'static str) -> Script {
@@ -77,43 +82,84 @@ fn plan(d: &mut Declarations, l: &ModeLimits, name: &str, fault: &'static str) -
                 )
                 .equal_to(0.0),
         ),
+        stimulus_gap: d.declare(l.session_spec("stimulus_max_gap_ms", "ms", Some(name)).describe(
+            "longest interval between two writes of the receiver fixture in the counted window \
+             (the host holding the stimulus, not the device); a window in which it exceeded the \
+             device's silence timeout is repeated once, as the log says",
+        )),
     };
     Box::new(move |s, ctx, _| run(s, ctx, fault, h))
 }
 
 fn run(s: &MultirxSession, ctx: &mut PhaseContext, fault: &str, h: Handles) -> Result<()> {
-    s.fly(0)?;
-    ctx.log("pilot 1 in control");
-    let from = Mono::now();
-    s.receiver(0).set_line(fault)?;
-    std::thread::sleep(FAULT);
-    let clean = s.receiver(0).set_line("clean")?;
-    let to = Mono::now();
-    if let ReceiverEvent::Line { noise_redrawn, .. } = clean {
+    let silence_ms = s.config.silence_timeout.as_micros() as f64 / 1000.0;
+    for window in 1..=WINDOWS {
+        s.fly(0)?;
+        ctx.log("pilot 1 in control");
+        let from = Mono::now();
+        s.receiver(0).set_line(fault)?;
+        std::thread::sleep(FAULT);
+        let clean = s.receiver(0).set_line("clean")?;
+        let to = Mono::now();
+        let ReceiverEvent::Line {
+            noise_redrawn,
+            max_write_gap_ms,
+            ..
+        } = clean
+        else {
+            unreachable!("set_line waits for a line event")
+        };
         ctx.log(format!(
-            "noise bursts drawn again because they framed as a frame: {noise_redrawn}"
+            "noise bursts drawn again because they framed as a frame: {noise_redrawn}; \
+             longest interval between the fixture's writes: {max_write_gap_ms:.1} ms"
         ));
+        if max_write_gap_ms > silence_ms {
+            ctx.log(format!(
+                "window {window}: the host held the receiver fixture {max_write_gap_ms:.1} ms, \
+                 past the device's {silence_ms} ms silence timeout, so the link truly went \
+                 silent; not counted"
+            ));
+            if window < WINDOWS {
+                continue;
+            }
+            // No verdict on the device from a stimulus the rig could not deliver: an error.
+            bail!(
+                "the receiver fixture was held past the device's {silence_ms} ms silence \
+                 timeout in all {WINDOWS} fault windows (last: {max_write_gap_ms:.1} ms): the \
+                 host, not the device, broke the link"
+            );
+        }
+        // Frames already on their way when the fault began or ended are the wire's, too.
+        std::thread::sleep(Duration::from_millis(100));
+        let during: Vec<_> =
+            s.fc.frames()
+                .into_iter()
+                .filter(|f| f.at >= from && f.at <= to)
+                .collect();
+        let lost = during.iter().filter(|f| !s.shows_pilot(f, 0)).count();
+        // Sticks are channels 1-4: the pilot's value, or neutral once nobody has control.
+        let foreign = during
+            .iter()
+            .filter(|f| {
+                (0..4).any(|k| {
+                    f.channels[k] != pilot_stick(0) && f.channels[k] != s.config.neutral[k]
+                })
+            })
+            .count();
+        ctx.log(format!(
+            "line {fault} for {FAULT:?}: {} frames at the flight controller, {lost} without pilot 1, {foreign} with foreign sticks",
+            during.len()
+        ));
+        ctx.record(h.lost_control, lost as f64);
+        ctx.record(h.foreign, foreign as f64);
+        ctx.record(h.stimulus_gap, max_write_gap_ms);
+        if window > 1 {
+            ctx.annotate(
+                h.lost_control,
+                &format!("window {window}: the earlier ones had a held stimulus (log)"),
+            );
+        }
+        break;
     }
-    // Frames already on their way when the fault began or ended are the wire's, too.
-    std::thread::sleep(Duration::from_millis(100));
-    let during: Vec<_> =
-        s.fc.frames()
-            .into_iter()
-            .filter(|f| f.at >= from && f.at <= to)
-            .collect();
-    let lost = during.iter().filter(|f| !s.shows_pilot(f, 0)).count();
-    // Sticks are channels 1-4: the pilot's value, or neutral once nobody has control.
-    let foreign = during
-        .iter()
-        .filter(|f| {
-            (0..4).any(|k| f.channels[k] != pilot_stick(0) && f.channels[k] != s.config.neutral[k])
-        })
-        .count();
-    ctx.log(format!(
-        "line {fault} for {FAULT:?}: {} frames at the flight controller, {lost} without pilot 1, {foreign} with foreign sticks",
-        during.len()
-    ));
-    ctx.record(h.lost_control, lost as f64);
-    ctx.record(h.foreign, foreign as f64);
     Ok(())
 }
