@@ -187,6 +187,20 @@ fn processes_with(marker: &str) -> Vec<(u32, String)> {
     found
 }
 
+/// `rig run rigs/emulated.toml --out dir --filter phase --exact`, with an environment marker
+/// its children inherit (for [`processes_with`]); the command and the marker.
+fn marked_run(dir: &Path, phase: &str) -> (Command, String) {
+    let marker = format!("RIG_TEST_RUN={}", dir.display());
+    let (key, value) = marker.split_once('=').unwrap();
+    let mut command = Command::new(RIG);
+    command
+        .args(["run", "rigs/emulated.toml", "--out", dir.to_str().unwrap()])
+        .args(["--filter", phase, "--exact"])
+        .env(key, value)
+        .current_dir(repo());
+    (command, marker)
+}
+
 /// Regression: SIGTERM mid-phase exited 143 with the previous run's PASS still in
 /// results.json, and the emulator and fixtures it started kept running.
 #[test]
@@ -205,20 +219,8 @@ fn sigterm_mid_phase_records_interrupted_and_leaves_no_process_behind() {
         r#"{"outcome": "pass", "stale": true}"#,
     )
     .unwrap();
-    let marker = format!("RIG_TEST_RUN={}", dir.path().display());
-    let (key, value) = marker.split_once('=').unwrap();
-    let child = Command::new(RIG)
-        .args([
-            "run",
-            "rigs/emulated.toml",
-            "--out",
-            dir.path().to_str().unwrap(),
-            "--filter",
-            "multirx::parallel::c_loiter",
-            "--exact",
-        ])
-        .env(key, value)
-        .current_dir(repo())
+    let (mut command, marker) = marked_run(dir.path(), "multirx::parallel::c_loiter");
+    let child = command
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -411,20 +413,8 @@ fn boot_check_passes_the_device_the_rig_file_names() {
 fn a_held_receiver_fixture_is_an_error_of_the_rig_not_a_device_failure() {
     let _turn = realtime_turn();
     let dir = tempfile::tempdir().unwrap();
-    let marker = format!("RIG_TEST_RUN={}", dir.path().display());
-    let (key, value) = marker.split_once('=').unwrap();
-    let mut child = Command::new(RIG)
-        .args([
-            "run",
-            "rigs/emulated.toml",
-            "--out",
-            dir.path().to_str().unwrap(),
-            "--filter",
-            "multirx::parallel::fault_receiver_flood",
-            "--exact",
-        ])
-        .env(key, value)
-        .current_dir(repo())
+    let (mut command, marker) = marked_run(dir.path(), "multirx::parallel::fault_receiver_flood");
+    let mut child = command
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()

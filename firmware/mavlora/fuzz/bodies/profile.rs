@@ -11,13 +11,11 @@
 use mavlink::{MavHeader, MavlinkVersion, Message as _};
 use mavlora::dialect::MavMessage;
 use mavlora::filter::{
-    Profile, RadioFilter, RadioRule, request_data_stream_requests, set_message_interval_requests,
+    MAX_RATE_HZ, MIN_RATE_HZ, Profile, RadioFilter, RadioRule, request_data_stream_requests,
+    set_message_interval_requests,
 };
 use mavlora::wire::encode;
 use mavlora::{Duration, Instant};
-
-const MIN_RATE_HZ: f64 = 1e-3;
-const MAX_RATE_HZ: f64 = 1e6;
 
 fn rate_ok(hz: f64) -> bool {
     (MIN_RATE_HZ..=MAX_RATE_HZ).contains(&hz)

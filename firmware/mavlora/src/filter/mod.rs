@@ -7,5 +7,7 @@ mod profile;
 mod stream_rate;
 
 pub use limiter::{FilterStats, RadioFilter, Verdict};
-pub use profile::{DATA_STREAMS, MessageRule, Profile, ProfileError, RadioRule, Unlisted};
+pub use profile::{
+    DATA_STREAMS, MAX_RATE_HZ, MIN_RATE_HZ, MessageRule, Profile, ProfileError, RadioRule, Unlisted,
+};
 pub use stream_rate::{request_data_stream_requests, set_message_interval_requests};

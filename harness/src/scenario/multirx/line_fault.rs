@@ -92,74 +92,92 @@ fn plan(d: &mut Declarations, l: &ModeLimits, name: &str, fault: &'static str) -
 }
 
 fn run(s: &MultirxSession, ctx: &mut PhaseContext, fault: &str, h: Handles) -> Result<()> {
-    let silence_ms = s.config.silence_timeout.as_micros() as f64 / 1000.0;
+    let silence_ms = s.config.silence_timeout.as_secs_f64() * 1000.0;
+    let mut gap_ms = 0.0;
     for window in 1..=WINDOWS {
-        s.fly(0)?;
-        ctx.log("pilot 1 in control");
-        let from = Mono::now();
-        s.receiver(0).set_line(fault)?;
-        std::thread::sleep(FAULT);
-        let clean = s.receiver(0).set_line("clean")?;
-        let to = Mono::now();
-        let ReceiverEvent::Line {
-            noise_redrawn,
-            max_write_gap_ms,
-            ..
-        } = clean
-        else {
-            unreachable!("set_line waits for a line event")
-        };
-        ctx.log(format!(
-            "noise bursts drawn again because they framed as a frame: {noise_redrawn}; \
-             longest interval between the fixture's writes: {max_write_gap_ms:.1} ms"
-        ));
-        if max_write_gap_ms > silence_ms {
-            ctx.log(format!(
-                "window {window}: the host held the receiver fixture {max_write_gap_ms:.1} ms, \
-                 past the device's {silence_ms} ms silence timeout, so the link truly went \
-                 silent; not counted"
-            ));
-            if window < WINDOWS {
-                continue;
+        let (from, to, gap) = fault_window(s, ctx, fault)?;
+        gap_ms = gap;
+        if gap_ms <= silence_ms {
+            count(s, ctx, fault, &h, from, to);
+            ctx.record(h.stimulus_gap, gap_ms);
+            if window > 1 {
+                ctx.annotate(
+                    h.lost_control,
+                    &format!("window {window}: the earlier ones had a held stimulus (log)"),
+                );
             }
-            // No verdict on the device from a stimulus the rig could not deliver: an error.
-            bail!(
-                "the receiver fixture was held past the device's {silence_ms} ms silence \
-                 timeout in all {WINDOWS} fault windows (last: {max_write_gap_ms:.1} ms): the \
-                 host, not the device, broke the link"
-            );
+            return Ok(());
         }
-        // Frames already on their way when the fault began or ended are the wire's, too.
-        std::thread::sleep(Duration::from_millis(100));
-        let during: Vec<_> =
-            s.fc.frames()
-                .into_iter()
-                .filter(|f| f.at >= from && f.at <= to)
-                .collect();
-        let lost = during.iter().filter(|f| !s.shows_pilot(f, 0)).count();
-        // Sticks are channels 1-4: the pilot's value, or neutral once nobody has control.
-        let foreign = during
-            .iter()
-            .filter(|f| {
-                (0..4).any(|k| {
-                    f.channels[k] != pilot_stick(0) && f.channels[k] != s.config.neutral[k]
-                })
-            })
-            .count();
         ctx.log(format!(
-            "line {fault} for {FAULT:?}: {} frames at the flight controller, {lost} without pilot 1, {foreign} with foreign sticks",
-            during.len()
+            "window {window}: the host held the receiver fixture {gap_ms:.1} ms, past the \
+             device's {silence_ms} ms silence timeout, so the link truly went silent; not counted"
         ));
-        ctx.record(h.lost_control, lost as f64);
-        ctx.record(h.foreign, foreign as f64);
-        ctx.record(h.stimulus_gap, max_write_gap_ms);
-        if window > 1 {
-            ctx.annotate(
-                h.lost_control,
-                &format!("window {window}: the earlier ones had a held stimulus (log)"),
-            );
-        }
-        break;
     }
-    Ok(())
+    // No verdict on the device from a stimulus the rig could not deliver: an error.
+    bail!(
+        "the receiver fixture was held past the device's {silence_ms} ms silence timeout in all \
+         {WINDOWS} fault windows (last: {gap_ms:.1} ms): the host, not the device, broke the link"
+    )
+}
+
+/// Pilot 1 flying, the fault on its receiver's wire for [`FAULT`]: the window's bounds and the
+/// fixture's longest interval between writes in it (ms).
+fn fault_window(
+    s: &MultirxSession,
+    ctx: &mut PhaseContext,
+    fault: &str,
+) -> Result<(Mono, Mono, f64)> {
+    s.fly(0)?;
+    ctx.log("pilot 1 in control");
+    let from = Mono::now();
+    s.receiver(0).set_line(fault)?;
+    std::thread::sleep(FAULT);
+    let clean = s.receiver(0).set_line("clean")?;
+    let to = Mono::now();
+    let ReceiverEvent::Line {
+        noise_redrawn,
+        max_write_gap_ms,
+        ..
+    } = clean
+    else {
+        unreachable!("set_line waits for a line event")
+    };
+    ctx.log(format!(
+        "noise bursts drawn again because they framed as a frame: {noise_redrawn}; longest \
+         interval between the fixture's writes: {max_write_gap_ms:.1} ms"
+    ));
+    Ok((from, to, max_write_gap_ms))
+}
+
+/// Records what reached the flight controller in the window: frames without the pilot, frames
+/// with foreign sticks.
+fn count(
+    s: &MultirxSession,
+    ctx: &mut PhaseContext,
+    fault: &str,
+    h: &Handles,
+    from: Mono,
+    to: Mono,
+) {
+    // Frames already on their way when the fault began or ended are the wire's, too.
+    std::thread::sleep(Duration::from_millis(100));
+    let during: Vec<_> =
+        s.fc.frames()
+            .into_iter()
+            .filter(|f| f.at >= from && f.at <= to)
+            .collect();
+    let lost = during.iter().filter(|f| !s.shows_pilot(f, 0)).count();
+    // Sticks are channels 1-4: the pilot's value, or neutral once nobody has control.
+    let foreign = during
+        .iter()
+        .filter(|f| {
+            (0..4).any(|k| f.channels[k] != pilot_stick(0) && f.channels[k] != s.config.neutral[k])
+        })
+        .count();
+    ctx.log(format!(
+        "line {fault} for {FAULT:?}: {} frames at the flight controller, {lost} without pilot 1, {foreign} with foreign sticks",
+        during.len()
+    ));
+    ctx.record(h.lost_control, lost as f64);
+    ctx.record(h.foreign, foreign as f64);
 }

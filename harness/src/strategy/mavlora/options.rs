@@ -231,11 +231,10 @@ pub fn sik_with_independent_loss(loss: f64) -> Result<RadioSetup> {
     Ok(setup)
 }
 
-/// The engines' byte budget for `radio`, as the simulated world sets it. A preset that does not
-/// resolve gets SiK 64k's; the session's radio emulator refuses it with its error anyway.
+/// The engines' byte budget for `radio`, as the simulated world sets it: a burst such as an
+/// autopilot's boot parameters then waits in the bridge's queue instead of overflowing the
+/// radio's buffer. A preset that does not resolve is refused, with its error, by the session's
+/// radio emulator.
 fn budget_of(radio: &RadioSetup) -> u32 {
-    const SIK_64K_BUDGET: u32 = 2923;
-    radio.preset.resolve().map_or(SIK_64K_BUDGET, |p| {
-        harness_sim::scheduler_for(Some(&p)).rate_bytes_per_s
-    })
+    harness_sim::scheduler_for(radio.preset.resolve().ok().as_ref()).rate_bytes_per_s
 }

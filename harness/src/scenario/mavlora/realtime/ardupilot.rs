@@ -130,9 +130,6 @@ fn run(
         );
         o.bridge_profile = d.profile_dir.join(profile);
         o.compact = compact;
-        // The default `--rate`, the engines' budget as the simulated rows set it for this
-        // radio (80 % of one direction's capacity): the autopilot's boot parameter burst
-        // must wait in the bridge's queue, not overflow the radio's buffer.
         o.link_quality_period = Some(lora_sf7_link_quality_period());
         o.fc_profile = FcProfile::ArduPilot;
         o.gcs = GcsPlan {
