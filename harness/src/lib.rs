@@ -1,30 +1,32 @@
 //! The rig: runs C2-link scenarios against MultiRX and MavLora on a bench
 //! (real serial ports) or emulated (pty pairs), and writes evidence.
 //!
-//! Vocabulary (after labgrid and OpenHTF):
+//! Shared by every device, and naming none (vocabulary after labgrid and OpenHTF):
 //! - [`rigfile`]: the rig description (TOML) naming ports, devices, fixtures and limits;
-//! - [`driver`]: binds a resource (a port, a program) and does things with it;
-//! - [`strategy`]: brings devices from files on disk to running and wired;
-//! - [`scenario`]: what is done to the devices and measured;
+//! - [`driver`]: binds a resource (a pty, a program, a fixture, the radio emulator) and does
+//!   things with it;
 //! - [`measurement`]: a value with a unit, limits and an outcome, declared once with its
 //!   dimensions (device, mode, radio...) and recorded through its handle;
+//! - [`runner`]: the phases devices hand it, run as libtest-mimic trials, and the run record
+//!   kept true as they run;
 //! - [`record`]: the saved record of a run, from which [`report`]s are rendered;
-//! - [`px4`]: how the flight controller reads what it is sent;
-//! - [`stats`]: percentiles and rates of the raw samples fixtures report;
-//! - [`harness_radio`] (its own crate): the model of line-of-sight radios (airtime, loss, duty
-//!   cycle) that the radio emulator driver and the simulated worlds run;
-//! - [`runner`]: scenarios as libtest-mimic trials, and the run record.
+//! - [`evidence`]: reproducible builds, certification folders, the trace matrix;
+//! - [`stats`], [`clock`], [`heap`]: percentiles, the monotonic clock fixtures share, the
+//!   allocation meter.
+//!
+//! One folder per device, each owning its scenarios, sessions, drivers, fixture bindings and
+//! report sections: [`multirx`], [`mavlora`]. [`devices`] is the registry that names them.
 
 pub mod clock;
+pub mod devices;
 pub mod driver;
 pub mod evidence;
 pub mod heap;
+pub mod mavlora;
 pub mod measurement;
-pub mod px4;
+pub mod multirx;
 pub mod record;
 pub mod report;
 pub mod rigfile;
 pub mod runner;
-pub mod scenario;
 pub mod stats;
-pub mod strategy;

@@ -4,15 +4,17 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use harness::devices;
 use harness::evidence::{build, certify, manifest};
+use harness::multirx::firmware;
 use harness::record::RunOutcome;
 use harness::report;
 use harness::rigfile::{DeviceSetup, Mode, RigFile};
 use harness::runner::{self, RunOptions};
-use harness::strategy::firmware;
 
 /// Every allocation counted, so the soak can show its memory stays flat.
 #[global_allocator]
@@ -172,10 +174,11 @@ fn execute(command: Command) -> Result<ExitCode> {
             exact,
             list,
         } => {
-            let rig = RigFile::load(&rig)?;
+            let rig = Arc::new(RigFile::load(&rig)?);
             let out_dir = out.unwrap_or_else(|| rig.output_dir());
             let result = runner::run(
-                rig,
+                rig.clone(),
+                devices::of_rig(&rig),
                 RunOptions {
                     out_dir: out_dir.clone(),
                     filter,

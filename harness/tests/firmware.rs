@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
+use harness::multirx::firmware;
 use harness::rigfile::ProbeSelector;
-use harness::strategy::firmware;
 
 fn repo() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -22,7 +22,7 @@ fn firmware_builds_with_a_rig_config_and_reports_its_size() {
     assert_eq!(image.sha256.len(), 64);
 
     // No debug probe on a CI machine: the error must say so, not hang or panic.
-    let driver = harness::driver::probe::ProbeDriver {
+    let driver = harness::multirx::driver::probe::ProbeDriver {
         selector: ProbeSelector::Auto,
         chip: "ATSAMD21G18A".into(),
     };

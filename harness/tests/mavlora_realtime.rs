@@ -9,10 +9,10 @@ use std::process::Command;
 use std::sync::Mutex;
 use std::time::Instant;
 
+use harness::mavlora::realtime::{SessionDefaults, scenarios};
 use harness::measurement::{Declarations, Dimension, Outcome, PTY, Selector};
 use harness::rigfile::RigFile;
-use harness::scenario::PhaseContext;
-use harness::scenario::mavlora::realtime::{SessionDefaults, scenarios};
+use harness::runner::PhaseContext;
 
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
@@ -132,7 +132,7 @@ fn every_scenario_declares_measurements_of_mavlora_over_ptys() {
 /// radio's. Everything PX4 streams goes on air.
 #[test]
 fn transparent_session_carries_unfiltered_telemetry() {
-    use harness::strategy::mavlora::{FcProfile, GcsPlan, MavloraSession, Variant};
+    use harness::mavlora::session::{FcProfile, GcsPlan, MavloraSession, Variant};
     let _serial = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let d = defaults();

@@ -1,15 +1,10 @@
-//! Drivers bind resources (ports, programs) and do things with them
-//! (labgrid's vocabulary): read the flight-controller line, play receivers,
-//! run the emulated device. Every fixture program goes through one driver,
-//! [`fixture`].
+//! Drivers bind resources that every device's rig uses (labgrid's vocabulary): pty pairs and
+//! serial ports, child processes, fixture programs (one driver, [`fixture`]), the device
+//! programs of this workspace, the radio emulator. Device-specific drivers live in the
+//! device's folder.
 
-pub mod fc;
 pub mod fixture;
-pub mod probe;
 pub mod process;
 pub mod program;
 pub mod pty;
 pub mod radio_emulator;
-pub mod receiver;
-pub mod status;
-pub mod tx_probe;

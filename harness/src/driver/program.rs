@@ -1,5 +1,5 @@
-//! The device programs the rig starts when the rig file names none: built by the same
-//! `cargo build` as `rig`, so they are found next to it (or one folder up: a test binary
+//! The device programs the rig starts when the rig file names none (each device module names
+//! its own): built by the same `cargo build` as `rig`, so they are found next to it (or one folder up: a test binary
 //! runs from `target/<profile>/deps/`).
 
 use std::path::PathBuf;
@@ -12,22 +12,6 @@ pub struct Program {
     /// The command that builds it.
     pub build: &'static str,
 }
-
-/// The emulated MultiRX.
-pub const MULTIRX_EMU: Program = Program {
-    name: "multirx-emu",
-    build: "cargo build -p multirx-emulator",
-};
-/// MavLora's bridge, on the drone's companion computer.
-pub const MAVLORA_BRIDGE: Program = Program {
-    name: "mavlora-bridge",
-    build: "cargo build -p mavlora --bins",
-};
-/// MavLora's router, at the ground station.
-pub const MAVLORA_ROUTER: Program = Program {
-    name: "mavlora-router",
-    build: "cargo build -p mavlora --bins",
-};
 
 /// A program is not where it should be.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

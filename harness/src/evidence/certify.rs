@@ -183,7 +183,7 @@ fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
 /// build → the suite (run by the *built* rig, which flashes board rigs as its rig file says) →
 /// the evidence folder, sealed (and signed with `key`). Returns the verdict.
 pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
-    let rig = RigFile::load(&options.rig)?;
+    let rig = std::sync::Arc::new(RigFile::load(&options.rig)?);
     let key = options
         .key
         .as_deref()
@@ -192,7 +192,7 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
     let repo = repo_root(&std::env::current_dir()?)?;
     let requirements_path = repo.join(REQUIREMENTS_FILE);
     let requirements = Requirements::load(&requirements_path)?;
-    let declared = runner::declared_names(RigFile::load(&options.rig)?)?;
+    let declared = runner::declared_names(&rig, &crate::devices::of_rig(&rig))?;
     requirements.check(&declared, &options.rig.display().to_string())?;
 
     let out = std::env::current_dir()?.join(&options.out_dir);

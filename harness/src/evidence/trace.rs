@@ -321,11 +321,13 @@ mod tests {
         ] {
             assert!(reqs.requirements.iter().any(|r| r.id == id), "{id} missing");
         }
-        let rig = crate::rigfile::RigFile::load(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../rigs/emulated.toml"),
-        )
-        .unwrap();
-        let declared = crate::runner::declared_names(rig).unwrap();
+        let rig = std::sync::Arc::new(
+            crate::rigfile::RigFile::load(
+                Path::new(env!("CARGO_MANIFEST_DIR")).join("../rigs/emulated.toml"),
+            )
+            .unwrap(),
+        );
+        let declared = crate::runner::declared_names(&rig, &crate::devices::of_rig(&rig)).unwrap();
         reqs.check(&declared, "rigs/emulated.toml").unwrap();
     }
 

@@ -11,7 +11,6 @@ use crate::record::{RunRecord, write_atomically};
 
 pub mod junit;
 pub mod summary;
-pub mod table_ii;
 
 pub use junit::{JUNIT_FILE, render_junit, write_junit};
 pub use summary::{SUMMARY_FILE, render_summary, write_summary};

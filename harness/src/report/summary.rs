@@ -110,9 +110,9 @@ pub fn render_summary(record: &RunRecord, dir: &Path) -> String {
             out.push('\n');
         }
     }
-    if let Some(table) = super::table_ii::render(record) {
+    for section in crate::devices::summary_sections(record) {
         out.push('\n');
-        out.push_str(&table);
+        out.push_str(&section);
     }
     out.push('\n');
     out.push_str(&closing_line(record, dir));

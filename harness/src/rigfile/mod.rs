@@ -21,12 +21,14 @@ use toml::de::DeTable;
 use crate::measurement::Limits;
 
 mod error;
-mod mavlora;
+
 mod schema;
 
+pub use crate::mavlora::rigfile::{
+    DEFAULT_PROFILES_DIR, MavloraSection, NamedRadio, RadioRoles, Suite,
+};
 pub use error::RigFileError;
 use error::{Location, Locator, dotted};
-pub use mavlora::{DEFAULT_PROFILES_DIR, MavloraSection, NamedRadio, RadioRoles, Suite};
 use schema::RawFile;
 
 /// Output folder used when the rig file names none, relative to the current
@@ -421,7 +423,7 @@ impl RigFile {
 }
 
 /// Turns the raw file into checked public types, or the first error.
-struct Checker<'a> {
+pub(crate) struct Checker<'a> {
     given: &'a Path,
     loc: &'a Locator<'a>,
     base: &'a Path,
@@ -429,11 +431,11 @@ struct Checker<'a> {
 }
 
 impl Checker<'_> {
-    fn invalid(&self, at: &[&str], message: impl Into<String>) -> RigFileError {
+    pub(crate) fn invalid(&self, at: &[&str], message: impl Into<String>) -> RigFileError {
         self.invalid_named(at, dotted(at), message)
     }
 
-    fn invalid_named(
+    pub(crate) fn invalid_named(
         &self,
         at: &[&str],
         field: String,
@@ -449,12 +451,12 @@ impl Checker<'_> {
         }
     }
 
-    fn resolve(&self, p: &Path) -> PathBuf {
+    pub(crate) fn resolve(&self, p: &Path) -> PathBuf {
         normalize(&self.base.join(p))
     }
 
     /// A program name stays as is (found on `PATH`); a path is resolved.
-    fn resolve_program(&self, p: &str) -> PathBuf {
+    pub(crate) fn resolve_program(&self, p: &str) -> PathBuf {
         if p.contains('/') {
             self.resolve(Path::new(p))
         } else {

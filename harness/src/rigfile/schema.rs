@@ -20,7 +20,7 @@ pub(super) struct RawFile {
     pub multirx: Option<RawMultirx>,
     #[serde(default)]
     pub radios: BTreeMap<String, harness_radio::RadioSetup>,
-    pub mavlora: Option<super::mavlora::RawMavlora>,
+    pub mavlora: Option<crate::mavlora::rigfile::RawMavlora>,
     #[serde(default)]
     pub limits: BTreeMap<String, Limits>,
 }

@@ -76,3 +76,11 @@ pub fn on_interrupt(then: impl FnOnce(i32, &'static str) + Send + 'static) -> io
         })?;
     Ok(())
 }
+
+/// Waits for the interrupt handler to end the process: called by a thread that found the run
+/// interrupted, so that it does not end the process first with another exit code.
+pub fn wait_for_exit() -> ! {
+    loop {
+        std::thread::park();
+    }
+}

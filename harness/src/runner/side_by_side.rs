@@ -131,7 +131,7 @@ fn run(name: &str, job: Job) -> PhaseRecord {
             crate::record::now_rfc3339(),
             0.0,
             Vec::new(),
-            Some(super::panicked(payload.as_ref())),
+            Some(super::phase::panicked(payload.as_ref())),
         )
     })
 }

@@ -1,0 +1,442 @@
+//! `[radios]` and `[mavlora]`: the emulated radios a rig offers and which of them each
+//! MavLora scenario uses.
+//!
+//! ```toml
+//! [radios.sik-bursty]                 # a name scenarios refer to
+//! preset = "sik-64k"                  # built in: sik-64k, sik-64k-ecc, lora-sf7, dmd-dl1
+//! # burst: Gilbert-Elliott stepped per ms: 10 % of the time in 250 ms fades
+//! uplink = { seed = 2, burst = { p_good_to_bad = 0.000444, p_bad_to_good = 0.004 } }
+//! downlink = { seed = 1, burst = { p_good_to_bad = 0.000444, p_bad_to_good = 0.004 }, duplicate = 0.01 }
+//! # also per direction: packet_loss, bit_error_rate, reorder = { share, delay_ms },
+//! # silences = [{ at_s, for_s, every_s }] (harness_radio::faults)
+//!
+//! [mavlora]
+//! suites = ["simulated", "realtime"]  # virtual-clock full-length runs; real binaries over ptys
+//!                                     # ("soak": opt-in, soak_minutes of real time)
+//! seed = 1
+//! soak_minutes = 10                   # length of the "soak" suite's run
+//!
+//! [mavlora.radios]                    # a [radios] name, or a built-in preset name (no loss)
+//! mission = ["lora-bursty", "sik-bursty"]
+//! ```
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::rigfile::{Checker, RigFileError};
+use harness_radio::{Preset, RadioSetup};
+
+/// Profiles folder used when the rig file names none, relative to the rig file.
+pub const DEFAULT_PROFILES_DIR: &str = "../firmware/mavlora/profiles";
+
+/// The `soak` suite's length unless the rig file says (issue 10's real-time soak).
+pub const DEFAULT_SOAK_MINUTES: f64 = 10.0;
+
+/// Which MavLora scenario family runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Suite {
+    /// In-process engines and radio model under a virtual clock: the paper's full-length
+    /// flights in seconds, deterministic for a seed.
+    Simulated,
+    /// The real `mavlora-bridge` and `mavlora-router`, pymavlink fixtures and the radio
+    /// emulator over ptys, on the real clock: short runs.
+    Realtime,
+    /// The same, one long run on the real clock (`soak_minutes`): opt-in, never a default.
+    Soak,
+}
+
+impl Suite {
+    /// Lower-case name, as in rig files and trial names.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Suite::Simulated => "simulated",
+            Suite::Realtime => "realtime",
+            Suite::Soak => "soak",
+        }
+    }
+}
+
+/// A radio as scenarios get it: its rig-file name and its setup.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NamedRadio {
+    /// The `[radios]` key, or the built-in preset name.
+    pub name: String,
+    pub setup: RadioSetup,
+}
+
+/// `[mavlora]`, checked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MavloraSection {
+    /// Suites to run, in file order.
+    pub suites: Vec<Suite>,
+    /// Seed of every random draw the scenarios make (radio seeds are per radio).
+    pub seed: u64,
+    /// Length of the `soak` suite's run, seconds.
+    pub soak_s: f64,
+    /// `mavlora-bridge` to start; `None`: next to the `rig` binary.
+    pub bridge: Option<PathBuf>,
+    /// `mavlora-router` to start; `None`: next to the `rig` binary.
+    pub router: Option<PathBuf>,
+    /// Absolute folder of the bridge profiles (`px4-normal.toml`, ...).
+    pub profiles: PathBuf,
+    /// `[mavlora.radios]`: scenario role → radios, each resolved.
+    pub radios: RadioRoles,
+}
+
+/// Which radio each scenario uses. Defaults follow the paper and the issue.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RadioRoles {
+    /// Table II's carrier for the bridge variants; `None`: an ideal wire, as the paper
+    /// measured (the `wired` variant always runs on one).
+    pub table_ii: Option<NamedRadio>,
+    /// Mission upload over slow lossy links.
+    pub mission: Vec<NamedRadio>,
+    /// Command-to-ack latency.
+    pub c2: NamedRadio,
+    /// Attenuation sweep, one per preset.
+    pub sweep: Vec<NamedRadio>,
+    /// Loss on the uplink only.
+    pub blind_drone: NamedRadio,
+    /// Airtime share of the compact profile.
+    pub duty: NamedRadio,
+    /// Real-time runs that measure bandwidth: loss-free.
+    pub realtime_ideal: NamedRadio,
+    /// Real-time mission run: lossy.
+    pub realtime_lossy: NamedRadio,
+    /// Real-time command run: lossy.
+    pub realtime_c2: NamedRadio,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawMavlora {
+    pub suites: Option<Vec<Suite>>,
+    pub seed: Option<u64>,
+    pub soak_minutes: Option<f64>,
+    pub bridge: Option<String>,
+    pub router: Option<String>,
+    pub profiles: Option<PathBuf>,
+    #[serde(default)]
+    pub radios: RawRoles,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawRoles {
+    pub table_ii: Option<String>,
+    pub mission: Option<Vec<String>>,
+    pub c2: Option<String>,
+    pub sweep: Option<Vec<String>>,
+    pub blind_drone: Option<String>,
+    pub duty: Option<String>,
+    pub realtime_ideal: Option<String>,
+    pub realtime_lossy: Option<String>,
+    pub realtime_c2: Option<String>,
+}
+
+/// Radios every rig has without writing them: the built-in presets, loss-free.
+fn builtin(name: &str) -> Option<RadioSetup> {
+    RadioSetup::builtin(name).ok()
+}
+
+impl Checker<'_> {
+    /// Checks `[radios]`: every preset resolves and every direction's settings are accepted
+    /// by the model, so a bad radio fails at load, not mid-run.
+    pub(crate) fn radios(
+        &self,
+        raw: BTreeMap<String, RadioSetup>,
+    ) -> Result<BTreeMap<String, RadioSetup>, RigFileError> {
+        for (name, setup) in &raw {
+            if Preset::builtin(name).is_some() {
+                return Err(self.invalid(
+                    &["radios", name],
+                    format!(
+                        "\"{name}\" is a built-in preset's name; give this radio another name so \
+                         the loss-free built-in stays reachable"
+                    ),
+                ));
+            }
+            setup
+                .radio()
+                .map_err(|e| self.invalid(&["radios", name], e.to_string()))?;
+        }
+        Ok(raw)
+    }
+
+    pub(crate) fn mavlora(
+        &self,
+        raw: RawMavlora,
+        radios: &BTreeMap<String, RadioSetup>,
+    ) -> Result<MavloraSection, RigFileError> {
+        let suites = match raw.suites {
+            None => vec![Suite::Simulated, Suite::Realtime],
+            Some(s) if s.is_empty() => {
+                return Err(self.invalid(
+                    &["mavlora", "suites"],
+                    "empty; list \"simulated\", \"realtime\" and/or \"soak\", or remove [mavlora]",
+                ));
+            }
+            Some(s) => {
+                for (i, x) in s.iter().enumerate() {
+                    if s[..i].contains(x) {
+                        return Err(self.invalid(
+                            &["mavlora", "suites"],
+                            format!("\"{}\" is listed twice", x.as_str()),
+                        ));
+                    }
+                }
+                s
+            }
+        };
+        let program = |key: &str, p: Option<String>| -> Result<Option<PathBuf>, RigFileError> {
+            match p.as_deref() {
+                Some("") => Err(self.invalid(
+                    &["mavlora", key],
+                    format!(
+                        "empty; omit it to use {} next to the rig binary",
+                        key_program(key)
+                    ),
+                )),
+                p => Ok(p.map(|p| self.resolve_program(p))),
+            }
+        };
+        let soak_minutes = raw.soak_minutes.unwrap_or(DEFAULT_SOAK_MINUTES);
+        if !(1.0..=1440.0).contains(&soak_minutes) {
+            return Err(self.invalid(
+                &["mavlora", "soak_minutes"],
+                format!("{soak_minutes} is out of range 1..=1440 (minutes)"),
+            ));
+        }
+        let bridge = program("bridge", raw.bridge)?;
+        let router = program("router", raw.router)?;
+        let profiles = self.resolve(
+            raw.profiles
+                .as_deref()
+                .unwrap_or(Path::new(DEFAULT_PROFILES_DIR)),
+        );
+
+        let r = raw.radios;
+        let one = |key: &str, given: Option<String>, default: &str| {
+            self.named_radio(key, given.as_deref().unwrap_or(default), radios)
+        };
+        let many = |key: &str, given: Option<Vec<String>>, default: &[&str]| {
+            let names: Vec<String> =
+                given.unwrap_or_else(|| default.iter().map(|s| s.to_string()).collect());
+            if names.is_empty() {
+                return Err(self.invalid(
+                    &["mavlora", "radios", key],
+                    "empty; list one radio at least",
+                ));
+            }
+            names
+                .iter()
+                .map(|n| self.named_radio(key, n, radios))
+                .collect::<Result<Vec<_>, _>>()
+        };
+        let roles = RadioRoles {
+            table_ii: r
+                .table_ii
+                .map(|n| self.named_radio("table_ii", &n, radios))
+                .transpose()?,
+            mission: many("mission", r.mission, &["lora-sf7", "sik-64k"])?,
+            c2: one("c2", r.c2, "sik-64k")?,
+            sweep: many("sweep", r.sweep, &["sik-64k", "lora-sf7", "dmd-dl1"])?,
+            blind_drone: one("blind_drone", r.blind_drone, "sik-64k")?,
+            duty: one("duty", r.duty, "lora-sf7")?,
+            realtime_ideal: one("realtime_ideal", r.realtime_ideal, "sik-64k")?,
+            realtime_lossy: one("realtime_lossy", r.realtime_lossy, "sik-64k")?,
+            realtime_c2: one("realtime_c2", r.realtime_c2, "sik-64k")?,
+        };
+        Ok(MavloraSection {
+            suites,
+            seed: raw.seed.unwrap_or(1),
+            soak_s: soak_minutes * 60.0,
+            bridge,
+            router,
+            profiles,
+            radios: roles,
+        })
+    }
+
+    fn named_radio(
+        &self,
+        key: &str,
+        name: &str,
+        radios: &BTreeMap<String, RadioSetup>,
+    ) -> Result<NamedRadio, RigFileError> {
+        let setup = radios.get(name).cloned().or_else(|| builtin(name));
+        match setup {
+            Some(setup) => Ok(NamedRadio {
+                name: name.to_owned(),
+                setup,
+            }),
+            None => {
+                let mut known: Vec<&str> = radios.keys().map(String::as_str).collect();
+                known.extend(Preset::BUILTIN);
+                Err(self.invalid(
+                    &["mavlora", "radios", key],
+                    format!(
+                        "no radio named \"{name}\"; define [radios.{name}] or use one of: {}",
+                        known.join(", ")
+                    ),
+                ))
+            }
+        }
+    }
+}
+
+fn key_program(key: &str) -> &'static str {
+    match key {
+        "bridge" => "mavlora-bridge",
+        _ => "mavlora-router",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rigfile::RigFile;
+
+    const GOOD: &str = r#"[rig]
+name = "t"
+
+[radios.sik-bursty]
+preset = "sik-64k"
+uplink = { seed = 2, burst = { p_good_to_bad = 0.037, p_bad_to_good = 0.333 } }
+downlink = { seed = 1, burst = { p_good_to_bad = 0.037, p_bad_to_good = 0.333 }, silences = [{ at_s = 5.0, for_s = 1.0 }] }
+
+[mavlora]
+seed = 7
+
+[mavlora.radios]
+mission = ["lora-sf7", "sik-bursty"]
+c2 = "sik-bursty"
+"#;
+
+    fn load(text: &str) -> Result<RigFile, RigFileError> {
+        RigFile::from_str(text, "/r/rigs/t.toml")
+    }
+
+    #[test]
+    fn roles_resolve_to_defined_and_built_in_radios() {
+        let rig = load(GOOD).unwrap();
+        let m = rig.mavlora.unwrap();
+        assert_eq!(m.suites, vec![Suite::Simulated, Suite::Realtime]);
+        assert_eq!(m.seed, 7);
+        assert_eq!(m.profiles, PathBuf::from("/r/firmware/mavlora/profiles"));
+        let names: Vec<_> = m.radios.mission.iter().map(|r| r.name.as_str()).collect();
+        assert_eq!(names, ["lora-sf7", "sik-bursty"]);
+        assert!(m.radios.c2.setup.uplink.burst.is_some());
+        // a role left out takes its default, loss-free
+        assert_eq!(m.radios.duty.name, "lora-sf7");
+        assert!(m.radios.duty.setup.downlink.burst.is_none());
+        assert_eq!(m.radios.sweep.len(), 3);
+    }
+
+    #[test]
+    fn the_soak_runs_only_when_listed_and_its_length_is_checked() {
+        assert_eq!(load(GOOD).unwrap().mavlora.unwrap().soak_s, 600.0);
+        let text = GOOD.replace(
+            "seed = 7",
+            "seed = 7\nsuites = [\"soak\"]\nsoak_minutes = 2.5",
+        );
+        let m = load(&text).unwrap().mavlora.unwrap();
+        assert_eq!((m.suites, m.soak_s), (vec![Suite::Soak], 150.0));
+        let text = GOOD.replace("seed = 7", "seed = 7\nsoak_minutes = 0");
+        let err = load(&text).unwrap_err().to_string();
+        assert!(
+            err.contains("mavlora.soak_minutes") && err.contains("1..=1440"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn an_unknown_radio_is_named_with_its_line_and_the_known_ones() {
+        let text = GOOD.replace("c2 = \"sik-bursty\"", "c2 = \"sik-burst\"");
+        let err = load(&text).unwrap_err().to_string();
+        assert!(err.starts_with("/r/rigs/t.toml:14:"), "{err}");
+        assert!(err.contains("mavlora.radios.c2"), "{err}");
+        assert!(
+            err.contains("\"sik-burst\"") && err.contains("sik-bursty, sik-64k"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_radio_the_model_refuses_fails_at_load() {
+        let text = GOOD.replace(
+            "p_bad_to_good = 0.333 } }\ndownlink",
+            "p_bad_to_good = 3.0 } }\ndownlink",
+        );
+        let err = load(&text).unwrap_err().to_string();
+        assert!(err.contains("radios.sik-bursty"), "{err}");
+        assert!(err.contains("out of range"), "{err}");
+        let text = GOOD.replace("preset = \"sik-64k\"", "preset = \"sik-128k\"");
+        let err = load(&text).unwrap_err().to_string();
+        assert!(err.contains("unknown radio preset \"sik-128k\""), "{err}");
+    }
+
+    #[test]
+    fn faults_the_model_refuses_fail_at_load_naming_the_radio() {
+        let good = load(GOOD).unwrap();
+        let m = good.mavlora.unwrap();
+        assert_eq!(m.radios.c2.setup.downlink.silences[0].for_s, 1.0);
+        for (from, to) in [
+            ("for_s = 1.0 }", "for_s = 0.0 }"),
+            ("for_s = 1.0 }", "for_s = 1.0, every_s = 0.5 }"),
+            ("silences = [", "duplicate = 1.5, silences = ["),
+            ("silences = [", "bit_error_rate = -1.0, silences = ["),
+            (
+                "silences = [",
+                "reorder = { share = 0.1, delay_ms = -5.0 }, silences = [",
+            ),
+        ] {
+            let err = load(&GOOD.replace(from, to)).unwrap_err().to_string();
+            assert!(err.contains("radios.sik-bursty"), "{to}: {err}");
+            assert!(err.contains("out of range"), "{to}: {err}");
+        }
+        let err = load(&GOOD.replace("for_s = 1.0 }", "for_s = 1.0, every = 3.0 }"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("/r/rigs/t.toml:7:") && err.contains("every"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_typo_in_a_direction_is_a_syntax_error_naming_the_key() {
+        let text = GOOD.replace("uplink = { seed = 2,", "uplink = { sed = 2,");
+        let err = load(&text).unwrap_err().to_string();
+        assert!(err.contains("sed"), "{err}");
+        assert!(err.starts_with("/r/rigs/t.toml:6:"), "{err}");
+    }
+
+    #[test]
+    fn suites_empty_or_twice_are_refused() {
+        let text = GOOD.replace("seed = 7", "suites = []");
+        assert!(
+            load(&text)
+                .unwrap_err()
+                .to_string()
+                .contains("mavlora.suites: empty")
+        );
+        let text = GOOD.replace("seed = 7", "suites = [\"realtime\", \"realtime\"]");
+        assert!(
+            load(&text)
+                .unwrap_err()
+                .to_string()
+                .contains("listed twice")
+        );
+    }
+
+    #[test]
+    fn a_radio_may_not_shadow_a_built_in_preset() {
+        let text = GOOD.replace("[radios.sik-bursty]", "[radios.sik-64k]");
+        let err = load(&text).unwrap_err().to_string();
+        assert!(err.contains("built-in preset's name"), "{err}");
+    }
+}
