@@ -11,9 +11,10 @@ use clap::{Parser, Subcommand};
 use harness::devices;
 use harness::evidence::{build, certify, manifest};
 use harness::multirx::firmware;
+use harness::multirx::rigfile::{DeviceSetup, Mode};
 use harness::record::RunOutcome;
 use harness::report;
-use harness::rigfile::{DeviceSetup, Mode, RigFile};
+use harness::rigfile::RigFile;
 use harness::runner::{self, RunOptions};
 
 /// Every allocation counted, so the soak can show its memory stays flat.
@@ -199,7 +200,7 @@ fn execute(command: Command) -> Result<ExitCode> {
         }
         Command::Check { rig } => {
             let rig = RigFile::load(&rig)?;
-            if let Some(section) = &rig.multirx {
+            if let Some(section) = &rig.devices.multirx {
                 // Read and checked by RigFile::load.
                 for (&mode, loaded) in &section.device.configs {
                     println!(
@@ -217,7 +218,7 @@ fn execute(command: Command) -> Result<ExitCode> {
                     preset.max_data_rate()
                 );
             }
-            if let Some(m) = &rig.mavlora {
+            if let Some(m) = &rig.devices.mavlora {
                 for suite in &m.suites {
                     println!("mavlora: suite {}", suite.as_str());
                 }
@@ -237,6 +238,7 @@ fn execute(command: Command) -> Result<ExitCode> {
         } => {
             let rig = RigFile::load(&rig)?;
             let section = rig
+                .devices
                 .multirx
                 .as_ref()
                 .context("the rig file has no [multirx] section")?;

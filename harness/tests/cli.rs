@@ -264,6 +264,89 @@ fn sigterm_mid_phase_records_interrupted_and_leaves_no_process_behind() {
     );
 }
 
+/// SIGINT while the real-time MavLora phases run side by side (their programs killed under
+/// them end in errors a moment later): exit 130, the record `interrupted`, every phase in it
+/// once and each running one `interrupted`, and no program left.
+#[test]
+fn sigint_during_realtime_phases_records_each_phase_once_as_interrupted() {
+    let _turn = realtime_turn();
+    for program in ["mavlora-bridge", "mavlora-router"] {
+        let path = Path::new(RIG).with_file_name(program);
+        assert!(
+            path.exists(),
+            "{} missing: run `cargo build -p mavlora --bins` first",
+            path.display()
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let marker = format!("RIG_TEST_RUN={}", dir.path().display());
+    let (key, value) = marker.split_once('=').unwrap();
+    let child = Command::new(RIG)
+        .args(["run", "rigs/emulated.toml", "--out"])
+        .arg(dir.path())
+        .args(["--filter", "mavlora::realtime::"])
+        .env(key, value)
+        .current_dir(repo())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Several sessions up (each a bridge, a router and two fixtures), then a few seconds in.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while processes_with(&marker).len() < 8 && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    let running: Vec<_> = processes_with(&marker)
+        .into_iter()
+        .filter(|(pid, _)| *pid != child.id())
+        .collect();
+    assert!(
+        running.len() >= 8,
+        "the sessions did not start: {running:?}"
+    );
+    rustix::process::kill_process(
+        rustix::process::Pid::from_raw(child.id() as i32).unwrap(),
+        rustix::process::Signal::INT,
+    )
+    .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("results.json")).unwrap())
+            .unwrap();
+    assert_eq!(record["outcome"], "interrupted", "{record:#}");
+    let phases = record["phases"].as_array().unwrap();
+    let mut names: Vec<&str> = phases.iter().map(|p| p["name"].as_str().unwrap()).collect();
+    let interrupted = phases
+        .iter()
+        .filter(|p| p["outcome"] == "interrupted")
+        .count();
+    assert!(
+        interrupted >= 2,
+        "side-by-side phases were running: {record:#}"
+    );
+    for phase in phases {
+        assert!(
+            ["interrupted", "pass"].contains(&phase["outcome"].as_str().unwrap()),
+            "a phase ended by the interrupt is recorded as its error: {phase:#}"
+        );
+    }
+    let count = names.len();
+    names.sort_unstable();
+    names.dedup();
+    assert_eq!(names.len(), count, "a phase recorded twice: {record:#}");
+
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let left = processes_with(&marker);
+    assert!(
+        left.is_empty(),
+        "still running after the rig exited (it started {running:?}): {left:?}"
+    );
+}
+
 /// `rigs/emulated.toml` copied into `dir` with its paths made absolute and
 /// the emulated device replaced by `program`.
 fn emulated_rig_with_program(dir: &Path, program: &Path) -> PathBuf {

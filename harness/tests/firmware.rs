@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use harness::multirx::firmware;
-use harness::rigfile::ProbeSelector;
+use harness::multirx::rigfile::ProbeSelector;
 
 fn repo() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))

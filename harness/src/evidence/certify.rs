@@ -8,8 +8,9 @@ use serde::{Deserialize, Serialize};
 use super::build::{BuildOptions, repo_root};
 use super::trace::{self, REQUIREMENTS_FILE, Requirements, TraceOutcome, TraceRow};
 use super::{html, manifest, sbom, statement};
+use crate::multirx::rigfile::DeviceSetup;
 use crate::record::{PhaseOutcome, RESULTS_FILE, RunOutcome, RunRecord, sha256_file};
-use crate::rigfile::{DeviceSetup, RigFile};
+use crate::rigfile::RigFile;
 use crate::runner;
 
 /// Build options for a rig file: one firmware image per mode config it names.
@@ -24,7 +25,7 @@ pub fn build_options(
     // A board rig's images carry its mode configs; an emulated rig's configs are for the host
     // program (6 receivers and an IFS do not fit the board's UARTs): the crate's default then.
     let firmware_configs = rig
-        .and_then(|r| r.multirx.as_ref())
+        .and_then(|r| r.devices.multirx.as_ref())
         .filter(|m| matches!(m.device.setup, DeviceSetup::Board(_)))
         .map(|m| {
             m.device
@@ -244,7 +245,7 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
         &rig.path,
         inputs.join(rig.path.file_name().context("rig file has no name")?),
     )?;
-    if let Some(m) = &rig.multirx {
+    if let Some(m) = &rig.devices.multirx {
         for (mode, loaded) in &m.device.configs {
             std::fs::copy(&loaded.path, inputs.join(format!("multirx-{mode}.toml")))?;
         }

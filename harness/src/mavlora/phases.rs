@@ -59,7 +59,7 @@ impl Device for Mavlora {
     /// The phases of every suite the rig file asks for, the real-time ones side by side.
     fn phases(&self) -> Result<Vec<Phase>> {
         let mut phases = Vec::new();
-        let Some(section) = &self.rig.mavlora else {
+        let Some(section) = &self.rig.devices.mavlora else {
             return Ok(phases);
         };
         if section.suites.contains(&Suite::Simulated) {

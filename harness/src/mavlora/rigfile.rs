@@ -137,35 +137,7 @@ pub(crate) struct RawRoles {
     pub realtime_c2: Option<String>,
 }
 
-/// Radios every rig has without writing them: the built-in presets, loss-free.
-fn builtin(name: &str) -> Option<RadioSetup> {
-    RadioSetup::builtin(name).ok()
-}
-
 impl Checker<'_> {
-    /// Checks `[radios]`: every preset resolves and every direction's settings are accepted
-    /// by the model, so a bad radio fails at load, not mid-run.
-    pub(crate) fn radios(
-        &self,
-        raw: BTreeMap<String, RadioSetup>,
-    ) -> Result<BTreeMap<String, RadioSetup>, RigFileError> {
-        for (name, setup) in &raw {
-            if Preset::builtin(name).is_some() {
-                return Err(self.invalid(
-                    &["radios", name],
-                    format!(
-                        "\"{name}\" is a built-in preset's name; give this radio another name so \
-                         the loss-free built-in stays reachable"
-                    ),
-                ));
-            }
-            setup
-                .radio()
-                .map_err(|e| self.invalid(&["radios", name], e.to_string()))?;
-        }
-        Ok(raw)
-    }
-
     pub(crate) fn mavlora(
         &self,
         raw: RawMavlora,
@@ -267,7 +239,10 @@ impl Checker<'_> {
         name: &str,
         radios: &BTreeMap<String, RadioSetup>,
     ) -> Result<NamedRadio, RigFileError> {
-        let setup = radios.get(name).cloned().or_else(|| builtin(name));
+        let setup = radios
+            .get(name)
+            .cloned()
+            .or_else(|| RadioSetup::builtin(name).ok());
         match setup {
             Some(setup) => Ok(NamedRadio {
                 name: name.to_owned(),
@@ -323,7 +298,7 @@ c2 = "sik-bursty"
     #[test]
     fn roles_resolve_to_defined_and_built_in_radios() {
         let rig = load(GOOD).unwrap();
-        let m = rig.mavlora.unwrap();
+        let m = rig.devices.mavlora.unwrap();
         assert_eq!(m.suites, vec![Suite::Simulated, Suite::Realtime]);
         assert_eq!(m.seed, 7);
         assert_eq!(m.profiles, PathBuf::from("/r/firmware/mavlora/profiles"));
@@ -338,12 +313,12 @@ c2 = "sik-bursty"
 
     #[test]
     fn the_soak_runs_only_when_listed_and_its_length_is_checked() {
-        assert_eq!(load(GOOD).unwrap().mavlora.unwrap().soak_s, 600.0);
+        assert_eq!(load(GOOD).unwrap().devices.mavlora.unwrap().soak_s, 600.0);
         let text = GOOD.replace(
             "seed = 7",
             "seed = 7\nsuites = [\"soak\"]\nsoak_minutes = 2.5",
         );
-        let m = load(&text).unwrap().mavlora.unwrap();
+        let m = load(&text).unwrap().devices.mavlora.unwrap();
         assert_eq!((m.suites, m.soak_s), (vec![Suite::Soak], 150.0));
         let text = GOOD.replace("seed = 7", "seed = 7\nsoak_minutes = 0");
         let err = load(&text).unwrap_err().to_string();
@@ -382,7 +357,7 @@ c2 = "sik-bursty"
     #[test]
     fn faults_the_model_refuses_fail_at_load_naming_the_radio() {
         let good = load(GOOD).unwrap();
-        let m = good.mavlora.unwrap();
+        let m = good.devices.mavlora.unwrap();
         assert_eq!(m.radios.c2.setup.downlink.silences[0].for_s, 1.0);
         for (from, to) in [
             ("for_s = 1.0 }", "for_s = 0.0 }"),

@@ -7,9 +7,9 @@ use std::process::Command;
 use anyhow::{Context, Result, bail};
 use object::{Object, ObjectSection, SectionFlags, SectionKind};
 
+use super::rigfile::BoardSetup;
 use crate::multirx::driver::probe::{Flashed, ProbeDriver};
 use crate::record::sha256_file;
-use crate::rigfile::BoardSetup;
 
 /// A firmware image built for one config.
 #[derive(Debug, Clone)]

@@ -9,6 +9,7 @@
 //! - [`driver`]: the flight-controller line, receiver fixtures, the status line, the emulated
 //!   device's TX probe, the debug probe;
 //! - [`px4_rc_input`]: how PX4 reads what MultiRX sends it (an independent SBUS decoder);
+//! - [`rigfile`]: the rig file's `[multirx]` section;
 //! - `phases`: the phases a rig file's `[multirx]` asks for.
 
 pub mod boot_check;
@@ -16,6 +17,7 @@ pub mod driver;
 pub mod firmware;
 mod phases;
 pub mod px4_rc_input;
+pub mod rigfile;
 pub mod scenario;
 pub mod session;
 

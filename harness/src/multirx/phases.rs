@@ -9,11 +9,12 @@ use anyhow::{Context, Result};
 
 use super::MULTIRX_EMU;
 use super::firmware::{self, FirmwareImage};
+use super::rigfile::{BoardSetup, DeviceKind, DeviceSetup, Mode};
 use super::scenario::{self, ModeLimits, Scenario, SessionFigures, SessionMeasurements};
 use super::session::MultirxSession;
 use crate::measurement::{Declarations, Dimension, Handle, Selector, Spec};
 use crate::record::{DeviceIdentity, PhaseRecord, now_rfc3339, sha256_file};
-use crate::rigfile::{BoardSetup, DeviceKind, DeviceSetup, Mode, RigFile};
+use crate::rigfile::RigFile;
 use crate::runner::live::lock;
 use crate::runner::{Device, Phase, PhaseContext};
 
@@ -38,7 +39,7 @@ impl Multirx {
 impl Device for Multirx {
     fn phases(&self) -> Result<Vec<Phase>> {
         let mut phases = Vec::new();
-        let Some(section) = &self.rig.multirx else {
+        let Some(section) = &self.rig.devices.multirx else {
             return Ok(phases);
         };
         for &mode in &section.modes {
@@ -67,11 +68,13 @@ impl Device for Multirx {
 
 fn mode_limits(rig: &RigFile, mode: Mode) -> Result<ModeLimits> {
     let loaded = rig
+        .devices
         .multirx
         .as_ref()
         .and_then(|m| m.config(mode))
         .with_context(|| format!("no MultiRX config for mode {mode}"))?;
     let device = rig
+        .devices
         .multirx
         .as_ref()
         .map_or(DeviceKind::Emulated, |m| m.device.kind());
@@ -165,6 +168,7 @@ fn flash_phase(images: &Images, mode: Mode, board: BoardSetup) -> Phase {
         let mut ctx = PhaseContext::new(rig, Path::new(""), declared);
         let result = (|| -> Result<()> {
             let config = &rig
+                .devices
                 .multirx
                 .as_ref()
                 .and_then(|m| m.config(mode))
@@ -260,7 +264,7 @@ fn whole_run_phase(mode: Mode, limits: ModeLimits) -> Phase {
 }
 
 fn identities(rig: &RigFile, images: &[(Mode, FirmwareImage)]) -> Vec<DeviceIdentity> {
-    let Some(section) = &rig.multirx else {
+    let Some(section) = &rig.devices.multirx else {
         return Vec::new();
     };
     let port = Some(section.ports.fc.to_string());

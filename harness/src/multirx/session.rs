@@ -11,6 +11,7 @@ use anyhow::{Context, Result, bail};
 use serialport::TTYPort;
 
 use super::MULTIRX_EMU;
+use super::rigfile::{DeviceSetup, Mode};
 use crate::clock::Mono;
 use crate::driver::process::Process;
 use crate::driver::pty::{PtyLink, PtyPair};
@@ -20,7 +21,7 @@ use crate::multirx::driver::receiver::{Loss, ReceiverFixture, ReceiverSpec};
 use crate::multirx::driver::status::StatusMonitor;
 use crate::multirx::driver::tx_probe;
 use crate::multirx::px4_rc_input::{FcFrame, Px4RcInput, RcReport};
-use crate::rigfile::{DeviceSetup, Mode, PortSpec, RigFile};
+use crate::rigfile::{PortSpec, RigFile};
 use multirx_core::boot::ImageKind;
 
 /// Raw stick value pilot `rx` holds on channels 1–4, distinct per pilot so the
@@ -82,6 +83,7 @@ impl MultirxSession {
         log_dir: &Path,
     ) -> Result<Self> {
         let section = rig
+            .devices
             .multirx
             .as_ref()
             .context("the rig file has no [multirx] section")?;

@@ -86,7 +86,7 @@ pub enum RigFileError {
 
 /// Line and column of a spot in the rig file, 1-based.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) struct Location {
+pub(crate) struct Location {
     pub line: usize,
     pub column: usize,
 }
@@ -105,7 +105,7 @@ impl Location {
 
 /// Finds where dotted keys are in the parsed document, so errors found after
 /// deserializing can name the right line.
-pub(super) struct Locator<'a> {
+pub(crate) struct Locator<'a> {
     text: &'a str,
     doc: &'a DeTable<'a>,
 }
@@ -171,7 +171,7 @@ fn walk<'a>(
 
 /// Joins keys with dots, quoting keys that themselves contain a dot or
 /// space (`limits."multirx.scan.handover_ms"`), as TOML would.
-pub(super) fn dotted(path: &[&str]) -> String {
+pub(crate) fn dotted(path: &[&str]) -> String {
     path.iter()
         .map(|k| {
             if !k.is_empty()

@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 
-use crate::rigfile::ProbeSelector;
+use crate::multirx::rigfile::ProbeSelector;
 
 #[cfg(feature = "flash")]
 mod session;

@@ -37,8 +37,8 @@ fn plan(d: &mut Declarations, l: &ModeLimits) -> Script {
             l.spec("takeover_ms", "ms")
                 .describe("pilot 2's transmitter on → pilot 2 in control at the flight controller")
                 .at_most(match l.mode {
-                    crate::rigfile::Mode::Parallel => 500.0,
-                    crate::rigfile::Mode::Scan => l.handover_ms,
+                    crate::multirx::rigfile::Mode::Parallel => 500.0,
+                    crate::multirx::rigfile::Mode::Scan => l.handover_ms,
                 }),
         ),
         mode_changes: d.declare(

@@ -20,8 +20,8 @@ use anyhow::Result;
 use multirx_core::Config;
 
 use crate::measurement::{Declarations, Dimension, Handle, Spec};
+use crate::multirx::rigfile::{DeviceKind, Mode};
 use crate::multirx::session::{MultirxSession, SessionOptions};
-use crate::rigfile::{DeviceKind, Mode};
 use crate::runner::PhaseContext;
 
 /// One scenario: its measurements (with built-in limits) and its script.

@@ -11,7 +11,7 @@ use probe_rs::probe::list::Lister;
 use probe_rs::{MemoryInterface, Permissions};
 
 use super::{Flashed, ProbeDriver, SAMD21_USER_ROW, check_bootprot, lowest_load_address};
-use crate::rigfile::ProbeSelector;
+use crate::multirx::rigfile::ProbeSelector;
 
 /// See [`ProbeDriver::flash`].
 pub(super) fn flash(driver: &ProbeDriver, elf: &Path) -> Result<Flashed> {
