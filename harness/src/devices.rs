@@ -4,11 +4,13 @@
 //! folder and its lines here.
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use harness_radio::RadioSetup;
 use serde::Deserialize;
 
+use crate::evidence::build::FirmwareCrate;
 use crate::mavlora::rigfile::{MavloraSection, RawMavlora};
 use crate::mavlora::{self, Mavlora};
 use crate::multirx::Multirx;
@@ -19,6 +21,39 @@ use crate::runner::Device;
 
 /// The rig file's top-level tables that describe a device.
 pub const SECTIONS: [&str; 2] = ["multirx", "mavlora"];
+
+/// The device programs the rig starts, with the package each is in (`rig build` builds them
+/// beside the rig).
+pub const PROGRAMS: [(&str, &str); 3] = [
+    ("mavlora", "mavlora-bridge"),
+    ("mavlora", "mavlora-router"),
+    ("multirx-emulator", "multirx-emu"),
+];
+
+/// The firmware `rig build` builds reproducibly.
+pub const FIRMWARE: FirmwareCrate = crate::multirx::firmware::CRATE;
+
+/// The configs `rig build` compiles into [`FIRMWARE`] for this rig, labelled; none: its default.
+pub fn firmware_configs(rig: &RigFile) -> Vec<(String, PathBuf)> {
+    rig.devices
+        .multirx
+        .as_ref()
+        .map(crate::multirx::firmware::build_configs)
+        .unwrap_or_default()
+}
+
+/// The files a rig file's device sections name (device configs), kept with the evidence as
+/// inputs: the name to keep each under, and where it is.
+pub fn input_files(rig: &RigFile) -> Vec<(String, PathBuf)> {
+    let Some(m) = &rig.devices.multirx else {
+        return Vec::new();
+    };
+    m.device
+        .configs
+        .iter()
+        .map(|(mode, loaded)| (format!("multirx-{mode}.toml"), loaded.path.clone()))
+        .collect()
+}
 
 /// Each device's section of a rig file, checked; `None`: the rig does not test that device.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -69,4 +104,11 @@ pub fn of_rig(rig: &Arc<RigFile>) -> Vec<Box<dyn Device>> {
 /// The devices' own sections of the text summary, rendered from a saved record alone.
 pub fn summary_sections(record: &RunRecord) -> Vec<String> {
     mavlora::table_ii::render(record).into_iter().collect()
+}
+
+/// The devices' figures in the certification page, drawn from a saved run (and the files it
+/// attached, in `dir`) alone.
+pub fn html_figures(h: &mut String, dir: &Path, run: &RunRecord) {
+    crate::multirx::evidence::html_figures(h, dir, run);
+    mavlora::evidence::html_figures(h, dir, run);
 }

@@ -91,7 +91,7 @@ impl RigIdentity {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DeviceIdentity {
-    /// Role in the rig, e.g. `multirx`, `bridge`, `router`.
+    /// Role in the rig: the device's name, or the part of it (`bridge`, `router`).
     pub role: String,
     /// Kind, e.g. `emulated` or `board`.
     pub kind: String,
@@ -194,7 +194,7 @@ impl PhaseOutcome {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PhaseRecord {
-    /// Dotted name, e.g. `multirx.parallel.scenario_b`.
+    /// Dotted name: `device.suite.scenario`.
     pub name: String,
     /// Start, RFC 3339 UTC.
     pub started: String,
@@ -449,25 +449,25 @@ pub(crate) mod tests {
     /// A small record with a passing phase, a failing one (one failed and
     /// one unset measurement), an errored one and a skipped one.
     pub(crate) fn sample_record() -> RunRecord {
-        let multirx = |base: &str, mode: &str, unit: &str| {
+        let mux = |base: &str, mode: &str, unit: &str| {
             Spec::new(base, unit)
-                .dim(Dimension::Device, "multirx")
+                .dim(Dimension::Device, "mux")
                 .dim(Dimension::Mode, mode)
         };
         let pty = |base: &str, unit: &str| {
             Spec::new(base, unit)
-                .dim(Dimension::Device, "mavlora")
+                .dim(Dimension::Device, "link")
                 .dim(Dimension::Transport, "pty")
         };
         let mut d1 = Declarations::new();
         let pass = d1.declare(
-            multirx("handover_ms", "parallel", "ms")
+            mux("handover_ms", "parallel", "ms")
                 .describe("time from the active TX off to the other receiver's frames at the FC")
                 .at_most(50.0),
         );
         d1.record(pass, 12.5);
         let marginal = d1.declare(
-            multirx("handover_ms", "scan", "ms")
+            mux("handover_ms", "scan", "ms")
                 .at_most(4500.0)
                 .marginal_above(4000.0),
         );
@@ -483,9 +483,9 @@ pub(crate) mod tests {
         let mut d3 = Declarations::new();
         d3.declare(pty("mission_upload_s", "s").at_most(60.0));
         let mut d4 = Declarations::new();
-        d4.declare(multirx("loiter_entry_ms", "scan", "ms").at_most(100.0));
+        d4.declare(mux("loiter_entry_ms", "scan", "ms").at_most(100.0));
         let mut p1 = PhaseRecord::ran(
-            "multirx.parallel.scenario_b",
+            "mux.parallel.scenario_b",
             "2026-01-31T09:12:03.123Z",
             1.25,
             d1.into_measurements(),
@@ -494,29 +494,29 @@ pub(crate) mod tests {
         p1.log.push("TX 1 off at t=2.000 s".into());
         p1.attachments.push(Attachment {
             name: "fc-capture".into(),
-            path: PathBuf::from("multirx.parallel.scenario_b/fc.sbus"),
+            path: PathBuf::from("mux.parallel.scenario_b/fc.sbus"),
             sha256: sha256_bytes(b"frames"),
             media_type: "application/octet-stream".into(),
         });
         let p2 = PhaseRecord::ran(
-            "mavlora.bridge.bandwidth",
+            "link.bridge.bandwidth",
             "2026-01-31T09:12:05.000Z",
             30.0,
             d2.into_measurements(),
             None,
         );
         let p3 = PhaseRecord::ran(
-            "mavlora.mission_upload",
+            "link.mission_upload",
             "2026-01-31T09:12:35.000Z",
             0.5,
             d3.into_measurements(),
             Some("router exited with status 1 <&>".into()),
         );
         let p4 = PhaseRecord::skipped(
-            "multirx.scan.scenario_c",
+            "mux.scan.scenario_c",
             "2026-01-31T09:12:36.000Z",
             d4.into_measurements(),
-            "scan not in multirx.modes",
+            "scan not in mux.modes",
         );
         let phases = vec![p1, p2, p3, p4];
         RunRecord {
@@ -527,9 +527,9 @@ pub(crate) mod tests {
                 sha256: sha256_bytes(b"rig"),
             },
             devices: vec![DeviceIdentity {
-                role: "multirx".into(),
+                role: "mux".into(),
                 kind: "emulated".into(),
-                description: "multirx-emu 0.1.0".into(),
+                description: "mux-emu 0.1.0".into(),
                 port: Some("/dev/pts/7".into()),
                 firmware_sha256: None,
             }],
@@ -664,21 +664,21 @@ pub(crate) mod tests {
                 &[(Dimension::Radio, "sik_64k"), (Dimension::Transport, "pty")],
             )
             .unwrap();
-        assert_eq!(m.name, "mavlora.pty.sik_64k.bytes_per_s");
+        assert_eq!(m.name, "link.pty.sik_64k.bytes_per_s");
         assert_eq!(m.value, Some(1200.0));
         assert!(
             back.find("bytes_per_s", &[(Dimension::Variant, "compact")])
                 .is_none()
         );
         let handovers: Vec<_> = back
-            .select(&Selector::base("handover_ms").dim(Dimension::Device, "multirx"))
+            .select(&Selector::base("handover_ms").dim(Dimension::Device, "mux"))
             .map(|(p, m)| (p.name.as_str(), m.dimensions.get(Dimension::Mode).unwrap()))
             .collect();
         assert_eq!(
             handovers,
             [
-                ("multirx.parallel.scenario_b", "parallel"),
-                ("multirx.parallel.scenario_b", "scan")
+                ("mux.parallel.scenario_b", "parallel"),
+                ("mux.parallel.scenario_b", "scan")
             ]
         );
         let skipped: Vec<_> = back

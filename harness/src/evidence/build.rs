@@ -26,18 +26,28 @@ use crate::record::{now_rfc3339, sha256_file, write_atomically};
 /// File name of the build record in an output folder.
 pub const BUILD_FILE: &str = "build.json";
 
-/// Where the firmware crate lives in the repository.
-pub const FIRMWARE_CRATE: &str = "firmware/multirx/samd21";
-/// The firmware's binary name (and target).
-const FIRMWARE_TARGET: &str = "thumbv6m-none-eabi";
-const FIRMWARE_BIN: &str = "multirx-samd21";
-/// The host programs a rig run needs, with the package each is in.
-pub const HOST_BINS: [(&str, &str); 4] = [
-    ("harness", "rig"),
-    ("mavlora", "mavlora-bridge"),
-    ("mavlora", "mavlora-router"),
-    ("multirx-emulator", "multirx-emu"),
-];
+/// A device's firmware crate: built once per config compiled in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FirmwareCrate {
+    /// Where it lives in the repository (its own workspace and lock file).
+    pub dir: &'static str,
+    /// Its binary's name.
+    pub bin: &'static str,
+    /// The target it is built for.
+    pub target: &'static str,
+    /// The config it is built with when the rig file names none, in `dir`.
+    pub default_config: &'static str,
+    /// The environment variable the build reads the config's path from.
+    pub config_env: &'static str,
+}
+
+/// The host programs a rig run needs, with the package each is in: the rig and the device
+/// programs it starts.
+fn host_bins() -> Vec<(&'static str, &'static str)> {
+    let mut bins = vec![("harness", "rig")];
+    bins.extend(crate::devices::PROGRAMS);
+    bins
+}
 
 /// What to build.
 #[derive(Debug, Clone)]
@@ -84,7 +94,7 @@ pub struct BuildRecord {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Artifact {
-    /// e.g. `multirx-samd21-parallel.elf`, `rig`.
+    /// The firmware's binary and config label (`<bin>-<mode>.elf`), or a program's name.
     pub name: String,
     /// `firmware` or `host`.
     pub kind: String,
@@ -95,7 +105,7 @@ pub struct Artifact {
     pub sha256: String,
     /// Size in bytes.
     pub size: u64,
-    /// The MultiRX config compiled into a firmware image, with its digest.
+    /// The device config compiled into a firmware image, with its digest.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub config: Option<ConfigInput>,
 }
@@ -159,10 +169,11 @@ pub fn build(options: &BuildOptions) -> Result<BuildRecord> {
     };
 
     let mut artifacts = Vec::new();
+    let firmware = crate::devices::FIRMWARE;
     let configs = if options.firmware_configs.is_empty() {
         vec![(
             "default".to_owned(),
-            repo.join(FIRMWARE_CRATE).join("multirx.toml"),
+            repo.join(firmware.dir).join(firmware.default_config),
         )]
     } else {
         options.firmware_configs.clone()
@@ -173,8 +184,8 @@ pub fn build(options: &BuildOptions) -> Result<BuildRecord> {
             "rig build: firmware with {} ({label})",
             config.strip_prefix(repo).unwrap_or(config).display()
         );
-        let elf = build_firmware(repo, &firmware_target, config, &env)?;
-        let name = format!("{FIRMWARE_BIN}-{label}.elf");
+        let elf = build_firmware(repo, &firmware, &firmware_target, config, &env)?;
+        let name = format!("{}-{label}.elf", firmware.bin);
         let copy = artifacts_dir.join(&name);
         std::fs::copy(&elf, &copy)
             .with_context(|| format!("cannot copy {} to {}", elf.display(), copy.display()))?;
@@ -201,13 +212,14 @@ pub fn build(options: &BuildOptions) -> Result<BuildRecord> {
         cmd.args(["build", "--release", "--locked", "--bins"])
             .arg("--target-dir")
             .arg(&options.target_dir);
-        let mut packages: Vec<&str> = HOST_BINS.iter().map(|(p, _)| *p).collect();
+        let bins = host_bins();
+        let mut packages: Vec<&str> = bins.iter().map(|(p, _)| *p).collect();
         packages.dedup();
         for p in packages {
             cmd.args(["-p", p]);
         }
         run(cmd, "the host programs")?;
-        for (_, bin) in HOST_BINS {
+        for (_, bin) in bins {
             let path = options.target_dir.join("release").join(bin);
             artifacts.push(Artifact {
                 name: bin.into(),
@@ -270,21 +282,22 @@ fn cargo_command(dir: &Path, env: &BuildEnv) -> Command {
 /// Builds the firmware with `config` compiled in; returns the ELF's path.
 fn build_firmware(
     repo: &Path,
+    firmware: &FirmwareCrate,
     target_dir: &Path,
     config: &Path,
     env: &BuildEnv,
 ) -> Result<PathBuf> {
-    let crate_dir = repo.join(FIRMWARE_CRATE);
+    let crate_dir = repo.join(firmware.dir);
     let mut cmd = cargo_command(&crate_dir, env);
     cmd.args(["build", "--release", "--locked"])
         .arg("--target-dir")
         .arg(target_dir)
-        .env("MULTIRX_CONFIG", config);
+        .env(firmware.config_env, config);
     run(cmd, &format!("the firmware with {}", config.display()))?;
     Ok(target_dir
-        .join(FIRMWARE_TARGET)
+        .join(firmware.target)
         .join("release")
-        .join(FIRMWARE_BIN))
+        .join(firmware.bin))
 }
 
 fn run(mut cmd: Command, what: &str) -> Result<()> {

@@ -8,7 +8,6 @@ use serde::{Deserialize, Serialize};
 use super::build::{BuildOptions, repo_root};
 use super::trace::{self, REQUIREMENTS_FILE, Requirements, TraceOutcome, TraceRow};
 use super::{html, manifest, sbom, statement};
-use crate::multirx::rigfile::DeviceSetup;
 use crate::record::{PhaseOutcome, RESULTS_FILE, RunOutcome, RunRecord, sha256_file};
 use crate::rigfile::RigFile;
 use crate::runner;
@@ -22,18 +21,8 @@ pub fn build_options(
 ) -> Result<BuildOptions> {
     let cwd = std::env::current_dir()?;
     let repo = repo_root(&cwd)?;
-    // A board rig's images carry its mode configs; an emulated rig's configs are for the host
-    // program (6 receivers and an IFS do not fit the board's UARTs): the crate's default then.
     let firmware_configs = rig
-        .and_then(|r| r.devices.multirx.as_ref())
-        .filter(|m| matches!(m.device.setup, DeviceSetup::Board(_)))
-        .map(|m| {
-            m.device
-                .configs
-                .iter()
-                .map(|(mode, loaded)| (mode.to_string(), loaded.path.clone()))
-                .collect()
-        })
+        .map(crate::devices::firmware_configs)
         .unwrap_or_default();
     Ok(BuildOptions {
         out_dir: cwd.join(out_dir),
@@ -245,10 +234,8 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
         &rig.path,
         inputs.join(rig.path.file_name().context("rig file has no name")?),
     )?;
-    if let Some(m) = &rig.devices.multirx {
-        for (mode, loaded) in &m.device.configs {
-            std::fs::copy(&loaded.path, inputs.join(format!("multirx-{mode}.toml")))?;
-        }
+    for (name, path) in crate::devices::input_files(&rig) {
+        std::fs::copy(&path, inputs.join(name))?;
     }
     std::fs::copy(&requirements_path, inputs.join("requirements.toml"))?;
     let record = CertifyRecord {
@@ -265,7 +252,7 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
     write_json(&out.join(TRACE_FILE), &trace)?;
     let sbom = sbom::sbom(
         &repo,
-        &repo.join(super::build::FIRMWARE_CRATE),
+        &repo.join(crate::devices::FIRMWARE.dir),
         &build.git_commit,
         &build.finished,
     )?;

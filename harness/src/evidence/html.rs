@@ -14,21 +14,12 @@ use anyhow::{Context, Result};
 
 use super::build::{BUILD_FILE, BuildRecord};
 use super::certify::{CERTIFY_FILE, CertifyRecord, TRACE_FILE};
-use super::svg::{HLine, Series, bar_chart, esc, line_chart};
+use super::svg::esc;
 use super::trace::TraceRow;
-use crate::measurement::{Dimension, Selector};
 use crate::record::{RESULTS_FILE, RunRecord};
 
 /// File name of the page.
 pub const REPORT_FILE: &str = "report.html";
-
-/// The paper's Table II (bytes/s) for each variant the rig reproduces.
-const PAPER_TABLE_II: [(&str, f64); 4] = [
-    ("wired", 11440.0),
-    ("limit", 1536.0),
-    ("limit_filter", 951.0),
-    ("compact", 100.0),
-];
 
 /// Renders the page from the records saved in `dir`.
 pub fn render(dir: &Path) -> Result<String> {
@@ -126,7 +117,7 @@ pub fn render(dir: &Path) -> Result<String> {
     h.push_str("</table>");
 
     h.push_str("<h2>Plots</h2>");
-    plots(&mut h, dir, &run);
+    crate::devices::html_figures(&mut h, dir, &run);
 
     h.push_str("<h2>Measurements against limits</h2><table class=\"meas\"><tr><th>phase</th><th>measurement</th><th>value</th><th>limits</th><th>outcome</th></tr>");
     for p in &run.phases {
@@ -179,7 +170,8 @@ pub fn render(dir: &Path) -> Result<String> {
     Ok(h)
 }
 
-fn figure(h: &mut String, caption: &str, body: &str) {
+/// A drawn plot with its caption.
+pub(crate) fn figure(h: &mut String, caption: &str, body: &str) {
     let _ = write!(
         h,
         "<figure>{body}<figcaption>{}</figcaption></figure>",
@@ -188,7 +180,7 @@ fn figure(h: &mut String, caption: &str, body: &str) {
 }
 
 /// A plot whose data the run did not record: said plainly, not drawn.
-fn missing(h: &mut String, id: &str, title: &str, why: &str) {
+pub(crate) fn missing(h: &mut String, id: &str, title: &str, why: &str) {
     let _ = write!(
         h,
         "<figure><div class=\"missing\" id=\"{}\"><b>{}</b>: not recorded. {}</div></figure>",
@@ -196,277 +188,6 @@ fn missing(h: &mut String, id: &str, title: &str, why: &str) {
         esc(title),
         esc(why)
     );
-}
-
-fn plots(h: &mut String, dir: &Path, run: &RunRecord) {
-    // Table II: bytes/s per variant next to the paper (simulated flight).
-    let sel = Selector::base("bytes_per_s").dim(Dimension::Transport, "simulated");
-    let measured: Vec<(String, f64)> = run
-        .select(&sel)
-        .filter_map(|(_, m)| Some((m.dimensions.get(Dimension::Variant)?.to_owned(), m.value?)))
-        .collect();
-    if measured.is_empty() {
-        missing(
-            h,
-            "plot-table-ii",
-            "Table II bytes/s",
-            "No simulated Table II phase ran.",
-        );
-    } else {
-        let cats: Vec<String> = PAPER_TABLE_II.iter().map(|(v, _)| v.to_string()).collect();
-        let rig: Vec<Option<f64>> = cats
-            .iter()
-            .map(|c| measured.iter().find(|(v, _)| v == c).map(|(_, x)| *x))
-            .collect();
-        let paper: Vec<Option<f64>> = PAPER_TABLE_II.iter().map(|(_, x)| Some(*x)).collect();
-        figure(
-            h,
-            "Radio bytes/s over the flight per Table II variant, this rig (simulated flight) next to \
-             the paper (compact: the paper's < 100 B/s goal). Log scale.",
-            &bar_chart(
-                "plot-table-ii",
-                "Table II bytes/s",
-                "bytes/s",
-                &cats,
-                &[("this run".into(), rig), ("paper".into(), paper)],
-                &[],
-                true,
-            ),
-        );
-    }
-    missing(
-        h,
-        "plot-message-mix",
-        "Message mix by category (paper Fig. 6)",
-        "results.json holds bytes/s and msgs/s per variant only, not counts per message category.",
-    );
-
-    // Handover timelines: which pilot is in control and the output gaps at the FC, per phase.
-    let mut drawn = 0;
-    for p in &run.phases {
-        let Some(a) = p.attachments.iter().find(|a| a.name == "fc-frames") else {
-            continue;
-        };
-        if !(p.name.contains("b_handover")
-            || p.name.contains("c_loiter")
-            || p.name.contains("d_mission"))
-        {
-            continue;
-        }
-        let Ok(csv) = std::fs::read_to_string(dir.join(&a.path)) else {
-            missing(
-                h,
-                &format!("plot-timeline-{}", p.name),
-                &p.name,
-                "The attached fc-frames.csv is not in the folder.",
-            );
-            continue;
-        };
-        let (mut pilot, mut gap) = (Vec::new(), Vec::new());
-        for line in csv.lines().skip(1) {
-            let f: Vec<&str> = line.split(',').collect();
-            let num = |i: usize| f.get(i).and_then(|s| s.parse::<f64>().ok());
-            if let (Some(t), Some(g), Some(pl)) = (num(0), num(1), num(2)) {
-                pilot.push((t / 1000.0, pl));
-                gap.push((t / 1000.0, g));
-            }
-        }
-        let id = format!("plot-timeline-{}", p.name.replace("::", "-"));
-        figure(
-            h,
-            &format!(
-                "{}: output gaps at the flight controller (ms; RC is lost after 500 ms) and the \
-                 pilot channel (raw SBUS value: which transmitter is in control)",
-                p.name
-            ),
-            &line_chart(
-                &id,
-                &format!("Handover timeline {}", p.name),
-                "time (s)",
-                "ms / raw",
-                &[
-                    Series {
-                        name: "gap (ms)".into(),
-                        points: gap,
-                        step: false,
-                    },
-                    Series {
-                        name: "pilot channel".into(),
-                        points: pilot,
-                        step: true,
-                    },
-                ],
-                &[HLine {
-                    y: 21.0,
-                    label: "21 ms gap limit".into(),
-                }],
-                false,
-            ),
-        );
-        drawn += 1;
-    }
-    if drawn == 0 {
-        missing(
-            h,
-            "plot-handover",
-            "Handover timelines",
-            "No MultiRX handover phase ran.",
-        );
-    }
-
-    // Attenuation sweeps per radio.
-    let sweep = run
-        .phases
-        .iter()
-        .flat_map(|p| &p.attachments)
-        .find(|a| a.path.ends_with("attenuation_sweep.csv"));
-    match sweep.and_then(|a| std::fs::read_to_string(dir.join(&a.path)).ok()) {
-        Some(csv) => {
-            let mut series: Vec<Series> = Vec::new();
-            for line in csv.lines().skip(1) {
-                let f: Vec<&str> = line.split(',').collect();
-                let (Some(name), Some(db), Some(loss)) = (
-                    f.first(),
-                    f.get(1).and_then(|s| s.parse::<f64>().ok()),
-                    f.get(5).and_then(|s| s.parse::<f64>().ok()),
-                ) else {
-                    continue;
-                };
-                match series.iter_mut().find(|s| s.name == *name) {
-                    Some(s) => s.points.push((db, loss)),
-                    None => series.push(Series {
-                        name: name.to_string(),
-                        points: vec![(db, loss)],
-                        step: false,
-                    }),
-                }
-            }
-            figure(
-                h,
-                "Packet loss against path attenuation, per radio (simulated sweep)",
-                &line_chart(
-                    "plot-attenuation",
-                    "Attenuation sweep",
-                    "attenuation (dB)",
-                    "loss (%)",
-                    &series,
-                    &[],
-                    false,
-                ),
-            );
-        }
-        None => missing(
-            h,
-            "plot-attenuation",
-            "Attenuation sweeps",
-            "No attenuation sweep ran.",
-        ),
-    }
-
-    // Mission upload: totals per radio (relay against a naive relay).
-    let uploads: Vec<(String, String, f64)> = run
-        .select(&Selector::base("mission_upload_s"))
-        .filter_map(|(_, m)| {
-            Some((
-                m.dimensions.get(Dimension::Radio)?.to_owned(),
-                m.dimensions
-                    .get(Dimension::Variant)
-                    .unwrap_or("relay")
-                    .to_owned(),
-                m.value?,
-            ))
-        })
-        .collect();
-    if uploads.is_empty() {
-        missing(
-            h,
-            "plot-mission",
-            "Mission upload",
-            "No mission upload phase ran.",
-        );
-    } else {
-        let mut radios: Vec<String> = uploads.iter().map(|u| u.0.clone()).collect();
-        radios.dedup();
-        let col = |variant: &str| -> Vec<Option<f64>> {
-            radios
-                .iter()
-                .map(|r| {
-                    uploads
-                        .iter()
-                        .find(|u| &u.0 == r && u.1 == variant)
-                        .map(|u| u.2)
-                })
-                .collect()
-        };
-        figure(
-            h,
-            "Mission upload time per radio, MavLora relay against a naive relay (limit 300 s). \
-             Progress over time (items acknowledged against time) is not recorded: totals only.",
-            &bar_chart(
-                "plot-mission",
-                "Mission upload",
-                "s",
-                &radios,
-                &[
-                    ("relay".into(), col("relay")),
-                    ("naive".into(), col("naive")),
-                ],
-                &[HLine {
-                    y: 300.0,
-                    label: "limit 300 s".into(),
-                }],
-                false,
-            ),
-        );
-    }
-
-    // Command latency: the percentiles recorded, against the TMPR limits.
-    let lat: Vec<(String, f64)> = run
-        .phases
-        .iter()
-        .flat_map(|p| &p.measurements)
-        .filter(|m| m.name.starts_with("mavlora.c2_latency_p"))
-        .filter_map(|m| {
-            Some((
-                m.name.trim_start_matches("mavlora.c2_latency_").to_owned(),
-                m.value?,
-            ))
-        })
-        .collect();
-    if lat.is_empty() {
-        missing(
-            h,
-            "plot-latency",
-            "Command latency",
-            "No command latency phase ran.",
-        );
-    } else {
-        let cats: Vec<String> = lat.iter().map(|l| l.0.clone()).collect();
-        figure(
-            h,
-            "Command round-trip latency under 10 % loss: the percentiles results.json records, \
-             against the TMPR limits (3 s medium, 5 s low). The full distribution (each command's \
-             latency) is not recorded.",
-            &bar_chart(
-                "plot-latency",
-                "Command latency",
-                "ms",
-                &cats,
-                &[("latency".into(), lat.iter().map(|l| Some(l.1)).collect())],
-                &[
-                    HLine {
-                        y: 3000.0,
-                        label: "3 s (medium TMPR)".into(),
-                    },
-                    HLine {
-                        y: 5000.0,
-                        label: "5 s (low TMPR)".into(),
-                    },
-                ],
-                false,
-            ),
-        );
-    }
 }
 
 const CSS: &str = "body{font-family:sans-serif;max-width:72em;margin:1em auto;padding:0 1em}\
@@ -491,6 +212,7 @@ mod tests {
     use crate::evidence::build::Artifact;
     use crate::evidence::certify::Verdict;
     use crate::evidence::trace::{Requirements, matrix};
+    use crate::measurement::Dimension;
     use crate::record::tests::sample_record;
 
     /// An evidence folder with the sample run, a build record, a trace matrix and an

@@ -150,7 +150,7 @@ pub fn sbom(repo: &Path, firmware: &Path, commit: &str, timestamp: &str) -> Resu
             "component": {
                 "type": "application",
                 "bom-ref": "rig-build",
-                "name": "multirx-mavlora-rig",
+                "name": "c2-rig",
                 "version": commit,
             },
         },

@@ -14,7 +14,7 @@ pub const PROVENANCE_FILE: &str = "provenance.intoto.json";
 pub const TEST_RESULT_FILE: &str = "test-result.intoto.json";
 
 /// URI of the build type (what `buildDefinition.externalParameters` means).
-const BUILD_TYPE: &str = "urn:multirx-mavlora:rig-build:v1";
+const BUILD_TYPE: &str = "urn:c2-rig:rig-build:v1";
 
 fn subjects(build: &BuildRecord) -> Vec<Value> {
     build
@@ -59,7 +59,7 @@ pub fn provenance(build: &BuildRecord) -> Value {
                 ],
             },
             "runDetails": {
-                "builder": { "id": "urn:multirx-mavlora:rig", "version": {
+                "builder": { "id": "urn:c2-rig:rig", "version": {
                     "rig": env!("CARGO_PKG_VERSION"),
                 }},
                 "metadata": { "startedOn": build.started, "finishedOn": build.finished },
@@ -125,9 +125,9 @@ mod tests {
             started: "a".into(),
             finished: "b".into(),
             artifacts: vec![Artifact {
-                name: "multirx-samd21-default.elf".into(),
+                name: "mux-samd21-default.elf".into(),
                 kind: "firmware".into(),
-                path: "artifacts/multirx-samd21-default.elf".into(),
+                path: "artifacts/mux-samd21-default.elf".into(),
                 sha256: "ab".repeat(32),
                 size: 1,
                 config: None,
@@ -145,7 +145,7 @@ mod tests {
             t["predicate"]["failedTests"]
                 .as_array()
                 .unwrap()
-                .contains(&json!("mavlora.bridge.bandwidth"))
+                .contains(&json!("link.bridge.bandwidth"))
         );
     }
 

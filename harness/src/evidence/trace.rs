@@ -291,15 +291,9 @@ mod tests {
 
     #[test]
     fn glob_matches_segments_and_runs() {
-        assert!(glob("multirx.*.handover_ms", "multirx.scan.handover_ms"));
-        assert!(!glob(
-            "multirx.*.handover_ms",
-            "multirx.scan.handover_silent_ms"
-        ));
-        assert!(glob(
-            "multirx.*.b_handover.*",
-            "multirx.scan.b_handover.rc_losses"
-        ));
+        assert!(glob("mux.*.handover_ms", "mux.scan.handover_ms"));
+        assert!(!glob("mux.*.handover_ms", "mux.scan.handover_silent_ms"));
+        assert!(glob("mux.*.b_handover.*", "mux.scan.b_handover.rc_losses"));
         assert!(glob("a", "a") && !glob("a", "ab") && !glob("a*", "b"));
     }
 
@@ -334,9 +328,9 @@ mod tests {
     #[test]
     fn a_pattern_matching_nothing_is_an_error_naming_file_and_line() {
         let text = "[[requirement]]\nid = \"X\"\ntext = \"t\"\nsource = \"s\"\n\
-                    covered_by = [\n  \"multirx.*.handover_ms\",\n  \"multirx.*.handover_msec\",\n]\n";
+                    covered_by = [\n  \"mux.*.handover_ms\",\n  \"mux.*.handover_msec\",\n]\n";
         let reqs = Requirements::parse(Path::new("req.toml"), text).unwrap();
-        let declared = vec!["multirx.scan.handover_ms".to_owned()];
+        let declared = vec!["mux.scan.handover_ms".to_owned()];
         let err = reqs.check(&declared, "rig.toml").unwrap_err().to_string();
         assert!(err.starts_with("req.toml:7: requirement X"), "{err}");
         // A device the rig does not measure at all is not an error: the row is uncovered there.
@@ -348,16 +342,16 @@ mod tests {
     fn uncovered_is_never_pass_and_a_missing_measurement_is_not_run() {
         let text = "[[requirement]]\nid = \"D\"\ntext = \"t\"\nsource = \"s\"\ncovered_by = []\n\
                     [[requirement]]\nid = \"B\"\ntext = \"t\"\nsource = \"s\"\n\
-                    covered_by = [\"multirx.*.handover_ms\"]\n\
+                    covered_by = [\"mux.*.handover_ms\"]\n\
                     [[requirement]]\nid = \"T\"\ntext = \"t\"\nsource = \"s\"\n\
-                    covered_by = [\"mavlora.*.bytes_per_s\"]\n";
+                    covered_by = [\"link.*.bytes_per_s\"]\n";
         let reqs = Requirements::parse(Path::new("req.toml"), text).unwrap();
         let record = sample_record();
         let declared: Vec<String> = vec![
-            "multirx.parallel.handover_ms".into(),
-            "multirx.scan.handover_ms".into(),
-            "multirx.lost.handover_ms".into(),
-            "mavlora.pty.sik_64k.bytes_per_s".into(),
+            "mux.parallel.handover_ms".into(),
+            "mux.scan.handover_ms".into(),
+            "mux.lost.handover_ms".into(),
+            "link.pty.sik_64k.bytes_per_s".into(),
         ];
         let rows = matrix(&reqs, &declared, &record);
         assert_eq!(rows[0].outcome, TraceOutcome::Uncovered);

@@ -13,11 +13,11 @@ use super::{Dimension, Dimensions, Limits, Measurement, Outcome, flat_name};
 /// let mut phase = Declarations::new();
 /// let handover = phase.declare(
 ///     Spec::new("handover_ms", "ms")
-///         .dim(Dimension::Device, "multirx")
+///         .dim(Dimension::Device, "dut")
 ///         .dim(Dimension::Mode, "parallel")
 ///         .at_most(50.0),
 /// );
-/// assert_eq!(phase.get(handover).name, "multirx.parallel.handover_ms");
+/// assert_eq!(phase.get(handover).name, "dut.parallel.handover_ms");
 /// assert_eq!(phase.get(handover).outcome, Outcome::Unset);
 /// assert_eq!(phase.record(handover, 12.5).outcome, Outcome::Pass);
 /// let m = phase.get(handover);

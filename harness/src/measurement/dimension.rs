@@ -19,7 +19,7 @@ pub enum Dimension {
     /// A built thing measured rather than the running device: `firmware`
     /// (the flashed image). Named in the device's place.
     Artifact,
-    /// Device under test: `multirx`, `mavlora`.
+    /// Device under test: its folder's name in the rig.
     Device,
     /// MultiRX mode: `parallel`, `scan`.
     Mode,
@@ -81,7 +81,7 @@ pub const PX4: &str = "px4";
 pub const RELAY: &str = "relay";
 
 /// A measurement's dimensions, each at most once, in [`Dimension`] order.
-/// Serialized as a JSON object (`{"device": "multirx", "mode": "parallel"}`).
+/// Serialized as a JSON object (`{"device": "dut", "mode": "fast"}`).
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(transparent)]
 pub struct Dimensions(BTreeMap<Dimension, String>);
@@ -111,7 +111,7 @@ impl Dimensions {
 /// The flat, dotted name of a measurement, as readers of `results.json`, the
 /// reports and the rig file's `[limits]` keys know it: the dimensions'
 /// values in [`Dimension`] order, then the base name
-/// (`multirx.parallel.b_handover.max_output_gap_ms`).
+/// (`dut.fast.handover.max_gap_ms`).
 ///
 /// The one place names are made. Three values stay out, so that names read as
 /// they did before measurements had dimensions: the device when an artifact
@@ -153,6 +153,7 @@ pub struct Selector {
     base: Option<String>,
     equal: Vec<(Dimension, String)>,
     present: Vec<Dimension>,
+    absent: Vec<Dimension>,
 }
 
 impl Selector {
@@ -189,6 +190,12 @@ impl Selector {
         self
     }
 
+    /// Only those without dimension `dim`.
+    pub fn lacks(mut self, dim: Dimension) -> Self {
+        self.absent.push(dim);
+        self
+    }
+
     /// Whether `m` is one of them.
     pub fn matches(&self, m: &Measurement) -> bool {
         self.base.as_deref().is_none_or(|b| m.base() == Some(b))
@@ -197,5 +204,6 @@ impl Selector {
                 .iter()
                 .all(|(d, v)| m.dimensions.get(*d) == Some(v.as_str()))
             && self.present.iter().all(|d| m.dimensions.get(*d).is_some())
+            && self.absent.iter().all(|d| m.dimensions.get(*d).is_none())
     }
 }

@@ -8,7 +8,7 @@
 //! each through the [`Handle`] that gives. Its [`Outcome`] is computed from
 //! the value and the limits at that moment and saved with both in the
 //! record's [`Measurement`], so a reviewer can check the verdict without
-//! rerunning. The flat name readers know (`multirx.parallel.handover_ms`) is
+//! rerunning. The flat name readers know (`dut.fast.handover_ms`) is
 //! made from the dimensions in one place, [`flat_name`]; reports select by
 //! dimension ([`Selector`]), never by picking names apart.
 
@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 #[serde(deny_unknown_fields)]
 pub struct Measurement {
     /// Dotted name made from the dimensions and base name by [`flat_name`],
-    /// e.g. `multirx.scan.handover_ms`; rig files override limits by this
+    /// e.g. `dut.fast.handover_ms`; rig files override limits by this
     /// name.
     pub name: String,
     /// What the measurement is of (device, mode, radio...); empty in

@@ -7,9 +7,34 @@ use std::process::Command;
 use anyhow::{Context, Result, bail};
 use object::{Object, ObjectSection, SectionFlags, SectionKind};
 
-use super::rigfile::BoardSetup;
+use super::rigfile::{BoardSetup, DeviceSetup, MultirxSection};
+use crate::evidence::build::FirmwareCrate;
 use crate::multirx::driver::probe::{Flashed, ProbeDriver};
 use crate::record::sha256_file;
+
+/// The SAMD21 firmware crate, built with a mode's config compiled in.
+pub const CRATE: FirmwareCrate = FirmwareCrate {
+    dir: "firmware/multirx/samd21",
+    bin: "multirx-samd21",
+    target: "thumbv6m-none-eabi",
+    default_config: "multirx.toml",
+    config_env: "MULTIRX_CONFIG",
+};
+
+/// The configs a reproducible build compiles into firmware images, labelled by mode. A board
+/// rig's images carry its mode configs; an emulated rig's configs are for the host program
+/// (6 receivers and an IFS do not fit the board's UARTs): none, so the crate's default.
+pub fn build_configs(section: &MultirxSection) -> Vec<(String, PathBuf)> {
+    if !matches!(section.device.setup, DeviceSetup::Board(_)) {
+        return Vec::new();
+    }
+    section
+        .device
+        .configs
+        .iter()
+        .map(|(mode, loaded)| (mode.to_string(), loaded.path.clone()))
+        .collect()
+}
 
 /// A firmware image built for one config.
 #[derive(Debug, Clone)]

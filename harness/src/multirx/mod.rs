@@ -14,6 +14,7 @@
 
 pub mod boot_check;
 pub mod driver;
+pub mod evidence;
 pub mod firmware;
 mod phases;
 pub mod px4_rc_input;

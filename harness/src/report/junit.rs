@@ -221,10 +221,10 @@ mod tests {
         assert_eq!(
             names,
             [
-                "multirx.parallel.scenario_b",
-                "mavlora.bridge.bandwidth",
-                "mavlora.mission_upload",
-                "multirx.scan.scenario_c"
+                "mux.parallel.scenario_b",
+                "link.bridge.bandwidth",
+                "link.mission_upload",
+                "mux.scan.scenario_c"
             ]
         );
         let TestCaseStatus::NonSuccess { kind, message, .. } = &suite.test_cases[1].status else {
@@ -233,8 +233,8 @@ mod tests {
         assert_eq!(*kind, NonSuccessKind::Failure);
         assert_eq!(
             message.as_ref().unwrap().as_str(),
-            "mavlora.pty.sik_64k.bytes_per_s = 1200 B/s (limit: x <= 951 B/s); \
-             mavlora.pty.position_rate = unset (limit: x >= 3 Hz)"
+            "link.pty.sik_64k.bytes_per_s = 1200 B/s (limit: x <= 951 B/s); \
+             link.pty.position_rate = unset (limit: x >= 3 Hz)"
         );
         let TestCaseStatus::NonSuccess { kind, message, .. } = &suite.test_cases[2].status else {
             panic!("phase 3 should error");
@@ -257,15 +257,12 @@ mod tests {
         let case = &report.test_suites[0].test_cases[0];
         let p = props(case);
         for want in [
-            ("multirx.parallel.handover_ms", "12.5"),
-            ("multirx.parallel.handover_ms.unit", "ms"),
-            ("multirx.parallel.handover_ms.limits", "x <= 50 ms"),
-            ("multirx.parallel.handover_ms.outcome", "pass"),
-            ("multirx.scan.handover_ms.outcome", "marginal"),
-            (
-                "attachment.fc-capture",
-                "multirx.parallel.scenario_b/fc.sbus",
-            ),
+            ("mux.parallel.handover_ms", "12.5"),
+            ("mux.parallel.handover_ms.unit", "ms"),
+            ("mux.parallel.handover_ms.limits", "x <= 50 ms"),
+            ("mux.parallel.handover_ms.outcome", "pass"),
+            ("mux.scan.handover_ms.outcome", "marginal"),
+            ("attachment.fc-capture", "mux.parallel.scenario_b/fc.sbus"),
         ] {
             assert!(p.contains(&want), "{want:?} not in {p:?}");
         }
@@ -279,6 +276,6 @@ mod tests {
             .map(|p| (p.name.as_str(), p.value.as_str()))
             .collect();
         assert!(suite_props.contains(&("tool.git_commit", "0123abcd")));
-        assert!(suite_props.contains(&("device.multirx.port", "/dev/pts/7")));
+        assert!(suite_props.contains(&("device.mux.port", "/dev/pts/7")));
     }
 }

@@ -80,12 +80,12 @@ mod tests {
         }
         let summary = std::fs::read_to_string(&paths.summary).unwrap();
         assert!(
-            summary.contains("mavlora.pty.sik_64k.bytes_per_s"),
+            summary.contains("link.pty.sik_64k.bytes_per_s"),
             "{summary}"
         );
         let xml = std::fs::read_to_string(&paths.junit).unwrap();
         assert!(
-            xml.contains("mavlora.pty.sik_64k.bytes_per_s = 1200 B/s"),
+            xml.contains("link.pty.sik_64k.bytes_per_s = 1200 B/s"),
             "{xml}"
         );
     }

@@ -188,16 +188,13 @@ mod tests {
         let limits = col("x ");
         assert!(limits.iter().all(|&c| c == limits[0]), "{text}");
         assert!(
-            text.contains("mavlora.pty.sik_64k.bytes_per_s  1200 B/s  x <= 951 B/s"),
+            text.contains("link.pty.sik_64k.bytes_per_s  1200 B/s  x <= 951 B/s"),
             "{text}"
         );
         assert!(text.contains("UNSET"), "{text}");
         assert!(text.contains("marginal"), "{text}");
         assert!(text.contains("error: router exited"), "{text}");
-        assert!(
-            text.contains("skipped: scan not in multirx.modes"),
-            "{text}"
-        );
+        assert!(text.contains("skipped: scan not in mux.modes"), "{text}");
         assert_eq!(
             text.lines().last().unwrap(),
             "rig: 4 phases, 1 passed, 1 failed, 1 errored, 1 skipped; \

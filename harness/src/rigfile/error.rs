@@ -4,7 +4,6 @@ use std::io;
 use std::ops::Range;
 use std::path::PathBuf;
 
-use multirx_core::config::ConfigFileError;
 use toml::de::{DeTable, DeValue};
 
 /// Why a rig file was rejected. Each variant's message starts with
@@ -48,12 +47,12 @@ pub enum RigFileError {
         line: usize,
         /// 1-based column, in characters.
         column: usize,
-        /// Dotted key, e.g. `multirx.ports.receivers`.
+        /// Dotted key, e.g. `rig.name` or a device section's key.
         field: String,
         /// What is wrong and what is accepted.
         message: String,
     },
-    /// A MultiRX config file the rig file names cannot be read; the
+    /// A device config file the rig file names cannot be read; the
     /// location is the rig file's key that names it.
     #[error("{}:{line}:{column}: {field}: cannot read {}: {source}", path.display(), config.display())]
     ConfigRead {
@@ -61,26 +60,26 @@ pub enum RigFileError {
         path: PathBuf,
         line: usize,
         column: usize,
-        /// `multirx.device.configs.<mode>`.
+        /// The dotted key that names the config.
         field: String,
         /// The config file.
         config: PathBuf,
         #[source]
         source: io::Error,
     },
-    /// A MultiRX config file is refused by the core (bad TOML, a value
-    /// MultiRX cannot fly with) or does not fit the board; the location is
+    /// A device config file is refused by the device's own checks (bad TOML, a value the
+    /// device cannot fly with, a config that does not fit the board); its error starts with
     /// the config file's line and key.
     #[error("{}:{source} ({field} in {})", config.display(), path.display())]
     Config {
         /// The rig file, as given.
         path: PathBuf,
-        /// `multirx.device.configs.<mode>`.
+        /// The dotted key that names the config.
         field: String,
         /// The config file.
         config: PathBuf,
         #[source]
-        source: Box<ConfigFileError>,
+        source: Box<dyn std::error::Error + Send + Sync>,
     },
 }
 
@@ -129,7 +128,7 @@ impl<'a> Locator<'a> {
                 break;
             }
             // A `[header]` table's value span is the header; an implicit one
-            // (`multirx` in `[multirx.ports]`) has the key's span.
+            // (`a` in `[a.b]`) has the key's span.
             best = value.span();
             match value.get_ref() {
                 DeValue::Table(t) => table = t,

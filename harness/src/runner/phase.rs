@@ -121,8 +121,8 @@ fn names(declared: &Declarations) -> Vec<String> {
         .collect()
 }
 
-/// A phase's own folder in the output folder: `multirx::parallel::b_handover` →
-/// `multirx.parallel.b_handover`.
+/// A phase's own folder in the output folder: `device::suite::scenario` →
+/// `device.suite.scenario`.
 pub fn phase_dir(out_dir: &Path, name: &str) -> PathBuf {
     out_dir.join(name.replace("::", "."))
 }
