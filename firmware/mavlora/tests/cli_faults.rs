@@ -5,8 +5,8 @@
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
-use std::net::{TcpListener, TcpStream, UdpSocket};
-use std::path::{Path, PathBuf};
+use std::net::{TcpStream, UdpSocket};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
@@ -22,19 +22,8 @@ use mavlora::dialect::{
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender};
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mavlora-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
+mod common;
+use common::{free_port, temp_dir};
 
 /// Starts the router on `radio`, its UDP bound to `udp_port`, sending to `gcs`, plus `extra`.
 fn router(dir: &Path, radio: &TTYPort, udp_port: u16, gcs: &UdpSocket, extra: &[&str]) -> Child {

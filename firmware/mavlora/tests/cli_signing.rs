@@ -4,42 +4,17 @@
 use std::os::unix::fs::PermissionsExt as _;
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 const ROUTER: &str = env!("CARGO_BIN_EXE_mavlora-router");
 const BRIDGE: &str = env!("CARGO_BIN_EXE_mavlora-bridge");
 
-/// Runs a binary with `args` in `dir`; its exit code and stderr (killed after 10 s).
-fn run(bin: &str, dir: &Path, args: &[&str]) -> (Option<i32>, String) {
-    let mut child = Command::new(bin)
-        .args(args)
-        .current_dir(dir)
-        .env("NO_COLOR", "1")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while child.try_wait().unwrap().is_none() && Instant::now() < deadline {
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let _ = child.kill();
-    let out = child.wait_with_output().unwrap();
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn temp_dir(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("mavlora-signing-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod common;
+use common::{run, temp_dir};
 
 #[test]
 fn without_key_or_unsigned_both_binaries_refuse_to_start() {
-    let dir = temp_dir("nokey");
+    let dir = temp_dir("signing-nokey");
     let router = ["--radio", "/dev/null/none", "--udp-bind", "127.0.0.1:0"];
     let (code, stderr) = run(ROUTER, &dir, &router);
     assert_eq!(code, Some(2), "{stderr}");
@@ -88,7 +63,7 @@ fn run_for(bin: &str, dir: &Path, args: &[&str], wait: Duration) -> (Option<i32>
 
 #[test]
 fn readable_truncated_and_raw_keys_are_refused_naming_the_file() {
-    let dir = temp_dir("badkey");
+    let dir = temp_dir("signing-badkey");
     let key = dir.join("radio.key");
     let args = [
         "--radio",

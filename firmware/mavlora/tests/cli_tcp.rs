@@ -3,7 +3,7 @@
 //! bytes at a time (TCP keeps no message boundaries).
 
 use std::io::{Read, Write};
-use std::net::{TcpListener, TcpStream, UdpSocket};
+use std::net::{TcpStream, UdpSocket};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -15,13 +15,8 @@ use mavlora::dialect::{
 };
 use mavlora::wire::{FrameReader, Sender};
 
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
+mod common;
+use common::free_port;
 
 /// Reads frames from `read` until one with `id` arrives or `timeout` passes.
 fn wait_for(read: &mut dyn Read, id: u32, timeout: Duration, mut poke: impl FnMut()) -> bool {

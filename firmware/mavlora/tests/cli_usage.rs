@@ -3,36 +3,13 @@
 //! panic (exit status 101) at run time.
 
 use std::path::Path;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
-/// Runs a binary with `args` in `dir`; its exit code and stderr (killed after 10 s).
+mod common;
+use common::temp_dir;
+
+/// Runs a binary `--unsigned` with `args` in `dir` to its end: exit code and stderr.
 fn run(bin: &str, dir: &Path, args: &[&str]) -> (Option<i32>, String) {
-    let mut child = Command::new(bin)
-        .arg("--unsigned")
-        .args(args)
-        .current_dir(dir)
-        .env("RUST_LOG", "info")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while child.try_wait().unwrap().is_none() && Instant::now() < deadline {
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let _ = child.kill();
-    let out = child.wait_with_output().unwrap();
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn temp_dir(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("mavlora-usage-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::run(bin, dir, &[&["--unsigned"], args].concat())
 }
 
 const ROUTER: &str = env!("CARGO_BIN_EXE_mavlora-router");
@@ -40,7 +17,7 @@ const BRIDGE: &str = env!("CARGO_BIN_EXE_mavlora-bridge");
 
 #[test]
 fn out_of_range_durations_on_the_command_line_are_usage_errors() {
-    let dir = temp_dir("flags");
+    let dir = temp_dir("usage-flags");
     let radio = ["--radio", "/dev/null/none", "--udp-bind", "127.0.0.1:0"];
     for (flag, value, name) in [
         ("--status-interval", "-1", "status-interval"),
@@ -81,7 +58,7 @@ fn out_of_range_durations_on_the_command_line_are_usage_errors() {
 
 #[test]
 fn out_of_range_values_in_a_config_file_name_the_file_line_and_key() {
-    let dir = temp_dir("config");
+    let dir = temp_dir("usage-config");
     std::fs::write(
         dir.join("router.toml"),
         "radio = \"/dev/null/none\"\nudp_bind = \"127.0.0.1:0\"\nstatus_interval = -1.0\n",
@@ -96,7 +73,7 @@ fn out_of_range_values_in_a_config_file_name_the_file_line_and_key() {
 
 #[test]
 fn profile_rates_too_small_to_schedule_name_the_file_and_line() {
-    let dir = temp_dir("profile");
+    let dir = temp_dir("usage-profile");
     for (body, line) in [
         ("[defaults]\nradio = 1e-30\n", 2),
         ("[messages.ATTITUDE]\nstream_hz = 2\nradio = 1e-30\n", 3),

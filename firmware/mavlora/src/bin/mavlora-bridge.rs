@@ -6,20 +6,18 @@
 use mavlora::Duration;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use tracing::info;
 
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::io::{
-    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, SerialEvent, SerialLink, UsageError,
-    frame_gap, on_signal,
+    Event, Program, RadioOptions, SerialEvent, SerialLink, Side, StatusReport, UsageError,
+    frame_gap,
 };
 
 /// MavLora bridge: flight controller serial port <-> radio serial port.
@@ -51,19 +49,43 @@ struct Options {
     system_id: Option<u8>,
 }
 
-fn main() -> ExitCode {
-    mavlora::io::main(|o: &mut Options| &mut o.shared, run)
+/// The flight controller's baud rate unless `--fc-baud` says.
+const FC_BAUD: u32 = 921_600;
+
+impl Program for Options {
+    const NAME: &'static str = "mavlora-bridge";
+
+    fn shared(&mut self) -> &mut RadioOptions {
+        &mut self.shared
+    }
+
+    fn start_options(&self) -> serde_json::Value {
+        serde_json::json!({
+            "fc": self.fc,
+            "fc_baud": self.fc_baud.unwrap_or(FC_BAUD),
+            "profile": self.profile,
+            "compact": self.compact.unwrap_or(false),
+            "coalesce_ms": self.coalesce_ms.unwrap_or(0),
+        })
+    }
+
+    fn run(self, report: &mut StatusReport) -> Result<()> {
+        run(self, report)
+    }
 }
 
-fn run(o: Options) -> Result<()> {
+fn main() -> ExitCode {
+    mavlora::io::main::<Options>()
+}
+
+fn run(o: Options, report: &mut StatusReport) -> Result<()> {
     let fc_path = o.fc.context("no flight-controller port: --fc or `fc`")?;
-    let radio_path = o.shared.radio_port()?;
+    let setup = o.shared.setup(1, "bridge")?;
     let profile = match o.profile {
         Some(p) => Profile::load(&p)?,
         None => Profile::parse("", "(no profile: everything passes)")?,
     };
-    let (rate, burst) = (o.shared.rate(), o.shared.burst());
-    let mut config = BridgeConfig::new(profile, o.shared.scheduler()?);
+    let mut config = BridgeConfig::new(profile, setup.scheduler);
     let coalesce_ms = o.coalesce_ms;
     if coalesce_ms.is_some_and(|ms| ms > 60_000) {
         return Err(UsageError::option("coalesce_ms", "must be at most 60000 ms").into());
@@ -81,139 +103,97 @@ fn run(o: Options) -> Result<()> {
     if let Some(id) = o.system_id {
         config.system_id = id;
     }
-    let mut signing = o.shared.signing(1, "bridge")?;
-    config.signing = signing.config.clone();
-    let signing_label = signing.label();
-    config.quality = o.shared.link_quality(config.signing.is_some());
-    let status_every = o.shared.status_every();
+    config.signing = setup.signing.config.clone();
+    config.quality = setup.quality;
 
-    let inbox = Inbox::new(INBOX_BYTES);
-    on_signal(inbox.clone())?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let fc_baud = o.fc_baud.unwrap_or(921_600);
-    let fc_gap = frame_gap(fc_baud / 10);
-    let mut fc = SerialLink::spawn("fc", &fc_path, fc_baud, fc_gap, inbox.clone(), stop.clone())?;
-    let radio_baud = o.shared.radio_baud();
-    let radio_gap = frame_gap(rate.min(radio_baud / 10));
-    let mut radio = SerialLink::spawn(
-        "radio",
-        &radio_path,
-        radio_baud,
-        radio_gap,
-        inbox.clone(),
-        stop.clone(),
-    )?;
-    let clock = Clock::start();
+    let fc_baud = o.fc_baud.unwrap_or(FC_BAUD);
+    let fc = setup.spawn("fc", &fc_path, fc_baud, frame_gap(fc_baud / 10))?;
+    let (rate, burst) = (setup.rate, setup.burst);
+    let station = setup.open_radio()?;
     let compact = config.compact.is_some();
-    let mut bridge = Bridge::new(config, clock.now())?;
+    let bridge = Bridge::new(config, station.now())?;
     info!(
         rate,
         burst,
         compact,
-        signing = signing_label,
+        signing = station.signing_label(),
         "bridge running"
     );
-    let mut next_status = clock.now() + status_every;
-    loop {
-        let now = clock.now();
-        let deadline = bridge
-            .poll_timeout()
-            .unwrap_or(now + Duration::from_secs(1))
-            .min(next_status);
-        match inbox.recv_timeout(clock.until(deadline)) {
-            Ok(Event::Serial("fc", SerialEvent::Bytes(b))) => {
-                bridge.handle_fc_bytes(clock.now(), &b);
-            }
-            Ok(Event::Serial("fc", SerialEvent::Idle)) => bridge.handle_fc_idle(clock.now()),
-            Ok(Event::Serial("fc", SerialEvent::Closed)) => bridge.fc_port_closed(),
-            Ok(Event::Serial(_, SerialEvent::Closed)) => bridge.radio_port_closed(),
-            Ok(Event::Serial(_, SerialEvent::Bytes(b))) => {
-                bridge.handle_radio_bytes(clock.now(), &b);
-            }
-            Ok(Event::Serial(_, SerialEvent::Idle)) => bridge.handle_radio_idle(clock.now()),
-            Ok(Event::Serial(..) | Event::Udp(..) | Event::Tcp(..)) | Err(PopError::Timeout) => {}
-            Ok(Event::Stop) => {
-                info!("signal received, shutting down");
-                break;
-            }
-            Err(PopError::Closed) => break,
-        }
-        let now = clock.now();
-        bridge.handle_timeout(now);
-        while let Some(f) = bridge.poll_fc_transmit(now) {
-            fc.write(f.as_bytes());
-        }
-        // Only into an open port: a frame leaves the engine numbered and signed, and one
-        // dropped at a closed port would read as radio loss at the far end.
-        while radio.is_open()
-            && let Some(f) = bridge.poll_radio_transmit(now, usize::MAX)
-        {
-            radio.write(f.as_bytes());
-        }
-        if let Some(file) = &mut signing.state_file {
-            file.tick(now, || bridge.signing_state(now));
-        }
-        if now >= next_status {
-            status(signing_label, &bridge, &fc, &radio, &inbox);
-            next_status = now + status_every;
-        }
-    }
-    stop.store(true, Ordering::Relaxed);
-    if let Some(file) = &signing.state_file
-        && let Some(state) = bridge.signing_state(clock.now())
-    {
-        file.save(&state)?;
-    }
-    fc.stop();
-    radio.stop();
-    status(signing_label, &bridge, &fc, &radio, &inbox);
-    Ok(())
+    station.run(bridge, FcSide { fc }, report)
 }
 
-fn status(signing: &str, bridge: &Bridge, fc: &SerialLink, radio: &SerialLink, inbox: &Inbox) {
-    let s = bridge.stats();
-    let peer_loss = bridge.quality().peer().and_then(|p| p.loss_ratio);
-    let (f, r, inbox) = (fc.counters(), radio.counters(), inbox.stats());
-    info!(
-        fc_rx = s.fc_reader.frames(),
-        fc_tx = s.to_fc_frames,
-        fc_dropped_bytes = f.dropped_bytes,
-        fc_write_failures = f.write_failures,
-        fc_partials_dropped = s.fc_reader.partials_dropped,
-        fc_opens = f.opens,
-        fc_refused_opens = f.refused_opens,
-        radio_rx = s.radio_reader.frames(),
-        radio_lost = s.radio_reader.lost,
-        radio_bad_crc = s.radio_reader.bad_crc,
-        radio_tx = s.scheduler.sent_frames,
-        radio_tx_bytes = s.scheduler.sent_bytes,
-        radio_offered_bytes = r.offered_bytes,
-        radio_written_bytes = r.written_bytes,
-        radio_dropped_bytes = r.dropped_bytes,
-        radio_queued_bytes = r.queued_bytes,
-        radio_write_failures = r.write_failures,
-        radio_partials_dropped = s.radio_reader.partials_dropped,
-        radio_opens = r.opens,
-        radio_refused_opens = r.refused_opens,
-        filtered = s.filter.filtered,
-        rate_limited = s.filter.rate_limited,
-        replaced = s.scheduler.replaced,
-        compact_batches = s.compact.batches,
-        config_acks = s.config_acks,
-        fc_reboots = s.fc_reboots,
-        missions = s.mission.completed,
-        command_acks_replayed = s.commands.replayed,
-        command_copies_dropped = s.commands.dropped,
-        command_acks_repeated = s.commands.repeated,
-        rejected_unsigned = s.signing.unsigned,
-        rejected_bad_signature = s.signing.bad_signature,
-        rejected_replayed = s.signing.replayed,
-        rejected_stale = s.signing.stale,
-        radio_tx_unsigned = s.signing.sent_unsigned,
-        signing = %signing,
-        inbox_dropped = inbox.dropped_items,
-        inbox_peak_bytes = inbox.peak_bytes,
-        peer_loss = ?peer_loss,
-        "status"
-    );
+/// The bridge's side of the loop: the flight controller's port.
+struct FcSide {
+    fc: SerialLink,
+}
+
+/// What the bridge counts beyond the radio link (status lines; STATUS-JSON.md).
+#[derive(Debug, Serialize)]
+struct BridgeCounters {
+    fc_rx: u64,
+    fc_tx: u64,
+    fc_dropped_bytes: u64,
+    fc_write_failures: u64,
+    fc_partials_dropped: u64,
+    fc_opens: u64,
+    fc_refused_opens: u64,
+    filtered: u64,
+    rate_limited: u64,
+    replaced: u64,
+    compact_batches: u64,
+    config_acks: u64,
+    fc_reboots: u64,
+    missions: u64,
+    command_acks_replayed: u64,
+    command_copies_dropped: u64,
+    command_acks_repeated: u64,
+}
+
+impl Side<Bridge> for FcSide {
+    type Counters = BridgeCounters;
+    type Gauges = ();
+
+    fn handle(&mut self, bridge: &mut Bridge, now: mavlora::Instant, event: Event) {
+        match event {
+            Event::Serial("fc", SerialEvent::Bytes(b)) => bridge.handle_fc_bytes(now, &b),
+            Event::Serial("fc", SerialEvent::Idle) => bridge.handle_fc_idle(now),
+            Event::Serial("fc", SerialEvent::Closed) => bridge.fc_port_closed(),
+            _ => {}
+        }
+    }
+
+    fn transmit(&mut self, bridge: &mut Bridge, now: mavlora::Instant) {
+        while let Some(f) = bridge.poll_fc_transmit(now) {
+            self.fc.write(f.as_bytes());
+        }
+    }
+
+    fn status(&self, bridge: &Bridge) -> (BridgeCounters, ()) {
+        let (s, f) = (bridge.stats(), self.fc.counters());
+        let counters = BridgeCounters {
+            fc_rx: s.fc_reader.frames(),
+            fc_tx: s.to_fc_frames,
+            fc_dropped_bytes: f.dropped_bytes,
+            fc_write_failures: f.write_failures,
+            fc_partials_dropped: s.fc_reader.partials_dropped,
+            fc_opens: f.opens,
+            fc_refused_opens: f.refused_opens,
+            filtered: s.filter.filtered,
+            rate_limited: s.filter.rate_limited,
+            replaced: s.scheduler.replaced,
+            compact_batches: s.compact.batches,
+            config_acks: s.config_acks,
+            fc_reboots: s.fc_reboots,
+            missions: s.mission.completed,
+            command_acks_replayed: s.commands.replayed,
+            command_copies_dropped: s.commands.dropped,
+            command_acks_repeated: s.commands.repeated,
+        };
+        (counters, ())
+    }
+
+    fn stop(&mut self) -> Result<()> {
+        self.fc.stop();
+        Ok(())
+    }
 }

@@ -3,22 +3,19 @@
 //!
 //! Exit codes: 0 after SIGINT/SIGTERM, 1 on a configuration or setup error, 2 on bad usage.
 
-use mavlora::Duration;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use tracing::{info, warn};
 
+use mavlora::Instant;
 use mavlora::io::{
-    Clock, Decibels, Event, INBOX_BYTES, Inbox, Percent, PopError, RadioOptions, Seconds,
-    SerialEvent, SerialLink, TcpEndpoint, Tlog, UdpEndpoint, UsageError, frame_gap, on_signal,
-    signing_epoch_now,
+    Decibels, Event, Percent, Program, RadioOptions, Seconds, Side, StatusReport, TcpEndpoint,
+    Tlog, UdpEndpoint, UsageError, signing_epoch_now,
 };
 use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
 use mavlora::signing::{SigningConfig, SigningKey};
@@ -85,21 +82,49 @@ struct Options {
     link_noise_rise: Option<Decibels>,
 }
 
-fn main() -> ExitCode {
-    mavlora::io::main(|o: &mut Options| &mut o.shared, run)
+/// Where the router sends until a ground station talks to it, unless `--udp` says.
+const UDP_PEER: ([u8; 4], u16) = ([127, 0, 0, 1], 14550);
+/// Its UDP address unless `--udp-bind` says: this host only.
+const UDP_BIND: ([u8; 4], u16) = ([127, 0, 0, 1], 14555);
+
+impl Program for Options {
+    const NAME: &'static str = "mavlora-router";
+
+    fn shared(&mut self) -> &mut RadioOptions {
+        &mut self.shared
+    }
+
+    fn start_options(&self) -> serde_json::Value {
+        let allow: Option<Vec<String>> =
+            (self.allow.as_ref()).map(|a| a.iter().map(ToString::to_string).collect());
+        serde_json::json!({
+            "ground_signing": if self.ground_key.is_some() { "on" } else { "OFF" },
+            "udp": self.udp.unwrap_or(UDP_PEER.into()).to_string(),
+            "udp_bind": self.udp_bind.unwrap_or(UDP_BIND.into()).to_string(),
+            "tcp_listen": self.tcp_listen.map(|a| a.to_string()),
+            "allow": allow,
+            "allow_sysid": self.allow_sysid,
+            "tlog": self.tlog,
+        })
+    }
+
+    fn run(self, report: &mut StatusReport) -> Result<()> {
+        run(self, report)
+    }
 }
 
-fn run(o: Options) -> Result<()> {
-    let radio_path = o.shared.radio_port()?;
-    let (rate, burst) = (o.shared.rate(), o.shared.burst());
-    let mut config = RouterConfig::new(o.shared.scheduler()?);
+fn main() -> ExitCode {
+    mavlora::io::main::<Options>()
+}
+
+fn run(o: Options, report: &mut StatusReport) -> Result<()> {
+    let setup = o.shared.setup(2, "router")?;
+    let mut config = RouterConfig::new(setup.scheduler);
     if let Some(p) = o.gcs_heartbeat_period {
         config.gcs_heartbeat_period = p.into();
     }
-    let mut signing = o.shared.signing(2, "router")?;
-    config.signing = signing.config.clone();
-    let signing_label = signing.label();
-    config.quality = o.shared.link_quality(config.signing.is_some());
+    config.signing = setup.signing.config.clone();
+    config.quality = setup.quality;
     if let Some(p) = o.link_degraded {
         config.monitor.degraded = p.fraction();
     }
@@ -144,17 +169,14 @@ fn run(o: Options) -> Result<()> {
         info!(key = %path.display(), "ground signing on");
     }
     info!(allow = ?config.ground.allow.iter().map(ToString::to_string).collect::<Vec<_>>(), allow_sysid = ?config.ground.allow_sysid, "ground policy");
-    let status_every = o.shared.status_every();
-    let mut tlog = match o.tlog {
+    let tlog = match o.tlog {
         Some(p) => Some(Tlog::create(&p).with_context(|| format!("creating {}", p.display()))?),
         None => None,
     };
 
-    let inbox = Inbox::new(INBOX_BYTES);
-    on_signal(inbox.clone())?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let peer = o.udp.unwrap_or(([127, 0, 0, 1], 14550).into());
-    let bind = o.udp_bind.unwrap_or(([127, 0, 0, 1], 14555).into());
+    let (inbox, stop) = (setup.inbox(), setup.stop_flag());
+    let bind = o.udp_bind.unwrap_or(UDP_BIND.into());
+    let peer = o.udp.unwrap_or(UDP_PEER.into());
     let mut udp = UdpEndpoint::spawn(bind, peer, inbox.clone(), stop.clone())?;
     if o.udp_one_frame_per_datagram.unwrap_or(false) {
         udp.one_frame_per_datagram();
@@ -168,102 +190,144 @@ fn run(o: Options) -> Result<()> {
         }
         None => None,
     };
-    let radio_baud = o.shared.radio_baud();
-    let gap = frame_gap(rate.min(radio_baud / 10));
-    let mut radio = SerialLink::spawn(
-        "radio",
-        &radio_path,
-        radio_baud,
-        gap,
-        inbox.clone(),
-        stop.clone(),
-    )?;
-    let clock = Clock::start();
-    let mut router = Router::new(config, clock.now())?;
-    info!(rate, burst, signing = signing_label, "router running");
-    let mut next_status = clock.now() + status_every;
-    let record = |tlog: &mut Option<Tlog>, bytes: &[u8]| {
-        if let Some(t) = tlog
+    let (rate, burst) = (setup.rate, setup.burst);
+    let station = setup.open_radio()?;
+    let router = Router::new(config, station.now())?;
+    info!(
+        rate,
+        burst,
+        signing = station.signing_label(),
+        "router running"
+    );
+    station.run(router, GroundSide { udp, tcp, tlog }, report)
+}
+
+/// The router's side of the loop: ground stations on UDP and TCP, and the tlog.
+struct GroundSide {
+    udp: UdpEndpoint,
+    tcp: Option<TcpEndpoint>,
+    tlog: Option<Tlog>,
+}
+
+impl GroundSide {
+    /// Records a frame in the tlog; a failed write stops the tlog, never the router.
+    fn record(&mut self, bytes: &[u8]) {
+        if let Some(t) = &mut self.tlog
             && let Err(e) = t.record(bytes)
         {
             warn!(error = %e, "tlog write failed, logging stopped");
-            *tlog = None;
+            self.tlog = None;
         }
-    };
-    loop {
-        let now = clock.now();
-        let deadline = router
-            .poll_timeout()
-            .unwrap_or(now + Duration::from_secs(1))
-            .min(next_status);
-        match inbox.recv_timeout(clock.until(deadline)) {
-            Ok(Event::Serial(_, SerialEvent::Bytes(b))) => {
-                router.handle_radio_bytes(clock.now(), &b);
+    }
+}
+
+/// What the router counts beyond the radio link (status lines; STATUS-JSON.md).
+#[derive(Debug, Serialize)]
+struct RouterCounters {
+    gcs_rx: u64,
+    gcs_tx: u64,
+    udp_datagrams: u64,
+    udp_partials_dropped: u64,
+    tcp_refused: u64,
+    tcp_dropped_bytes: u64,
+    tcp_partials_dropped: u64,
+    expanded: u64,
+    heartbeats_thinned: u64,
+    missions_accepted: u64,
+    missions_failed: u64,
+    mission_repairs: u64,
+    command_resends: u64,
+    command_blind_resends: u64,
+    command_copies: u64,
+    command_ground_retries_dropped: u64,
+    commands_queued: u64,
+    command_late_acks: u64,
+    commands_abandoned: u64,
+    ground_rejected: u64,
+}
+
+/// The router's levels beyond the radio link's.
+#[derive(Debug, Serialize)]
+struct RouterGauges {
+    tcp_clients: usize,
+}
+
+impl Side<Router> for GroundSide {
+    type Counters = RouterCounters;
+    type Gauges = RouterGauges;
+
+    // One whole frame each (framed per datagram / per client where it entered), let through
+    // only as far as the ground policy allows; the tlog records what it let through, and only
+    // a sender it accepted becomes the UDP peer.
+    fn handle(&mut self, router: &mut Router, now: Instant, event: Event) {
+        let (frame, from, udp) = match event {
+            Event::Udp(frame, from) => (frame, from, true),
+            Event::Tcp(frame, from) => (frame, from, false),
+            _ => return,
+        };
+        let input = router.handle_gcs_input(now, from.ip(), &frame);
+        report(from, &input);
+        if input.learn_peer() {
+            if udp {
+                self.udp.learn(from);
             }
-            Ok(Event::Serial(_, SerialEvent::Idle)) => router.handle_radio_idle(clock.now()),
-            Ok(Event::Serial(_, SerialEvent::Closed)) => router.radio_port_closed(),
-            // One whole frame each (framed per datagram / per client where it entered), let
-            // through only as far as the ground policy allows; the tlog records what it let
-            // through, and only a sender it accepted becomes the UDP peer.
-            Ok(Event::Udp(frame, from)) => {
-                let input = router.handle_gcs_input(clock.now(), from.ip(), &frame);
-                report(from, &input);
-                if input.learn_peer() {
-                    udp.learn(from);
-                    record(&mut tlog, &frame);
-                }
-            }
-            Ok(Event::Tcp(frame, from)) => {
-                let input = router.handle_gcs_input(clock.now(), from.ip(), &frame);
-                report(from, &input);
-                if input.learn_peer() {
-                    record(&mut tlog, &frame);
-                }
-            }
-            Ok(Event::Serial(_, SerialEvent::Opened)) | Err(PopError::Timeout) => {}
-            Ok(Event::Stop) => {
-                info!("signal received, shutting down");
-                break;
-            }
-            Err(PopError::Closed) => break,
+            self.record(&frame);
         }
-        let now = clock.now();
-        router.handle_timeout(now);
+    }
+
+    fn transmit(&mut self, router: &mut Router, _now: Instant) {
         while let Some(f) = router.poll_gcs_transmit() {
-            record(&mut tlog, f.as_bytes());
-            udp.send(f.as_bytes());
-            if let Some(tcp) = &tcp {
+            self.record(f.as_bytes());
+            self.udp.send(f.as_bytes());
+            if let Some(tcp) = &self.tcp {
                 tcp.send(f.as_bytes());
             }
         }
-        udp.flush();
-        // Only into an open port: a frame leaves the engine numbered and signed, and one
-        // dropped at a closed port would read as radio loss at the far end.
-        while radio.is_open()
-            && let Some(f) = router.poll_radio_transmit(now, usize::MAX)
-        {
-            radio.write(f.as_bytes());
-        }
-        if let Some(file) = &mut signing.state_file {
-            file.tick(now, || router.signing_state(now));
-        }
-        if now >= next_status {
-            status(signing_label, &router, &radio, &udp, tcp.as_ref(), &inbox);
-            next_status = now + status_every;
+        self.udp.flush();
+    }
+
+    fn status(&self, router: &Router) -> (RouterCounters, RouterGauges) {
+        let s = router.stats();
+        let t = self
+            .tcp
+            .as_ref()
+            .map(TcpEndpoint::counters)
+            .unwrap_or_default();
+        let (_, udp_partials, _) = self.udp.framing().snapshot();
+        let counters = RouterCounters {
+            gcs_rx: s.gcs_reader.frames(),
+            gcs_tx: s.to_gcs_frames,
+            udp_datagrams: self.udp.datagrams(),
+            udp_partials_dropped: udp_partials,
+            tcp_refused: t.refused,
+            tcp_dropped_bytes: t.dropped_bytes,
+            tcp_partials_dropped: t.partials_dropped,
+            expanded: s.expanded_frames,
+            heartbeats_thinned: s.filter.rate_limited,
+            missions_accepted: s.mission.accepted,
+            missions_failed: s.mission.failed,
+            mission_repairs: s.mission.items_repaired,
+            command_resends: s.commands.retransmissions,
+            command_blind_resends: s.commands.blind,
+            command_copies: s.commands.early_copies,
+            command_ground_retries_dropped: s.commands.ground_duplicates,
+            commands_queued: s.commands.queued,
+            command_late_acks: s.commands.late_acks,
+            commands_abandoned: s.commands.abandoned,
+            ground_rejected: s.ground.total(),
+        };
+        let gauges = RouterGauges {
+            tcp_clients: t.clients,
+        };
+        (counters, gauges)
+    }
+
+    fn stop(&mut self) -> Result<()> {
+        match &mut self.tlog {
+            Some(t) => t.flush().context("flushing tlog"),
+            None => Ok(()),
         }
     }
-    stop.store(true, Ordering::Relaxed);
-    if let Some(file) = &signing.state_file
-        && let Some(state) = router.signing_state(clock.now())
-    {
-        file.save(&state)?;
-    }
-    radio.stop();
-    if let Some(t) = &mut tlog {
-        t.flush().context("flushing tlog")?;
-    }
-    status(signing_label, &router, &radio, &udp, tcp.as_ref(), &inbox);
-    Ok(())
 }
 
 /// Logs a rejection the router says is due (at most one per source and reason per 10 s).
@@ -271,67 +335,4 @@ fn report(from: SocketAddr, input: &GroundInput) {
     if let Some(why) = input.report {
         warn!(%from, %why, rejected = input.rejected, "ground input rejected (reported once per 10 s)");
     }
-}
-
-fn status(
-    signing: &str,
-    router: &Router,
-    radio: &SerialLink,
-    udp: &UdpEndpoint,
-    tcp: Option<&TcpEndpoint>,
-    inbox: &Inbox,
-) {
-    let s = router.stats();
-    let peer_loss = router.quality().peer().and_then(|p| p.loss_ratio);
-    let r = radio.counters();
-    let t = tcp.map(TcpEndpoint::counters).unwrap_or_default();
-    let (_, udp_partials, _) = udp.framing().snapshot();
-    let inbox = inbox.stats();
-    info!(
-        radio_rx = s.radio_reader.frames(),
-        radio_lost = s.radio_reader.lost,
-        radio_bad_crc = s.radio_reader.bad_crc,
-        radio_tx = s.scheduler.sent_frames,
-        radio_tx_bytes = s.scheduler.sent_bytes,
-        radio_offered_bytes = r.offered_bytes,
-        radio_written_bytes = r.written_bytes,
-        radio_dropped_bytes = r.dropped_bytes,
-        radio_queued_bytes = r.queued_bytes,
-        radio_write_failures = r.write_failures,
-        radio_partials_dropped = s.radio_reader.partials_dropped,
-        radio_opens = r.opens,
-        radio_refused_opens = r.refused_opens,
-        gcs_rx = s.gcs_reader.frames(),
-        gcs_tx = s.to_gcs_frames,
-        udp_datagrams = udp.datagrams(),
-        udp_partials_dropped = udp_partials,
-        tcp_clients = t.clients,
-        tcp_refused = t.refused,
-        tcp_dropped_bytes = t.dropped_bytes,
-        tcp_partials_dropped = t.partials_dropped,
-        inbox_dropped = inbox.dropped_items,
-        inbox_dropped_priority = inbox.dropped_priority,
-        inbox_peak_bytes = inbox.peak_bytes,
-        expanded = s.expanded_frames,
-        heartbeats_thinned = s.filter.rate_limited,
-        missions_accepted = s.mission.accepted,
-        missions_failed = s.mission.failed,
-        mission_repairs = s.mission.items_repaired,
-        command_resends = s.commands.retransmissions,
-        command_blind_resends = s.commands.blind,
-        command_copies = s.commands.early_copies,
-        command_ground_retries_dropped = s.commands.ground_duplicates,
-        commands_queued = s.commands.queued,
-        command_late_acks = s.commands.late_acks,
-        commands_abandoned = s.commands.abandoned,
-        ground_rejected = s.ground.total(),
-        rejected_unsigned = s.signing.unsigned,
-        rejected_bad_signature = s.signing.bad_signature,
-        rejected_replayed = s.signing.replayed,
-        rejected_stale = s.signing.stale,
-        radio_tx_unsigned = s.signing.sent_unsigned,
-        signing = %signing,
-        peer_loss = ?peer_loss,
-        "status"
-    );
 }

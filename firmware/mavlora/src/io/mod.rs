@@ -1,6 +1,9 @@
 //! The IO driver of the two binaries (feature `cli`): serial ports that reopen, a UDP
-//! endpoint that learns its peer, a TCP listener for ground stations, a `.tlog` writer, the wall clock. The engines never see
-//! any of it: this module turns IO into `handle_*_bytes(now, bytes)` calls.
+//! endpoint that learns its peer, a TCP listener for ground stations, a `.tlog` writer, the
+//! wall clock, the status lines (log and JSON, [`StatusReport`]). The engines never see any of
+//! it: this module turns IO into `handle_*_bytes(now, bytes)` calls. What both binaries do
+//! alike is here once: their options ([`RadioOptions`], [`main`]), start-up ([`Setup`]), main
+//! loop ([`Station`]) and the radio link's status ([`RadioCounters`]).
 
 mod clock;
 mod framing;
@@ -8,6 +11,8 @@ mod options;
 mod queue;
 mod serial;
 mod signing_state;
+mod station;
+mod status;
 mod tcp;
 mod tlog;
 mod udp;
@@ -16,12 +21,14 @@ mod wake;
 pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
 pub use framing::{DatagramFramer, FramingCounters};
 pub use options::{
-    Decibels, DecibelsError, Percent, PercentError, RadioOptions, RadioSigning, Seconds,
+    Decibels, DecibelsError, Percent, PercentError, Program, RadioOptions, RadioSigning, Seconds,
     SecondsError, UsageError, main,
 };
 pub use queue::{Lane, PopError, Queue, QueueStats};
 pub use serial::{SerialCounters, SerialEvent, SerialLink, frame_gap};
 pub use signing_state::{SAVE_EVERY, SigningStateFile};
+pub use station::{RadioEngine, Setup, Side, Station};
+pub use status::{Joined, RadioCounters, RadioGauges, RadioStats, Status, StatusReport};
 pub use tcp::{DEFAULT_MAX_CLIENTS, TcpCounters, TcpEndpoint};
 pub use tlog::Tlog;
 pub use udp::{MAX_DATAGRAM, UdpEndpoint};
@@ -105,20 +112,28 @@ pub fn on_signal(inbox: Inbox) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A binary's `main`: logging set up, then `run`; an error is logged and exits with status 2
-/// if it is a usage error (a [`UsageError`]: an option or config-file value; a
-/// [`ProfileError`](crate::filter::ProfileError): the profile), else 1 (clap has already
-/// exited with 2 on bad flags).
+/// A binary's `main`: logging set up, then `run`; an error is logged and exits with the
+/// status [`exit_code`] gives it (clap has already exited with 2 on bad flags).
 pub fn run_main(run: impl FnOnce() -> anyhow::Result<()>) -> std::process::ExitCode {
     hostio::logging::init("info");
-    match run() {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            tracing::error!("{e:#}");
-            let usage = e
-                .chain()
-                .any(|c| c.is::<UsageError>() || c.is::<crate::filter::ProfileError>());
-            std::process::ExitCode::from(if usage { 2 } else { 1 })
+    let result = run();
+    if let Err(e) = &result {
+        tracing::error!("{e:#}");
+    }
+    std::process::ExitCode::from(exit_code(&result))
+}
+
+/// The exit status for a binary's result: 0, 2 for a usage error (a [`UsageError`]: an option
+/// or config-file value; a [`ProfileError`](crate::filter::ProfileError): the profile), else 1.
+pub fn exit_code(result: &anyhow::Result<()>) -> u8 {
+    match result {
+        Ok(()) => 0,
+        Err(e)
+            if e.chain()
+                .any(|c| c.is::<UsageError>() || c.is::<crate::filter::ProfileError>()) =>
+        {
+            2
         }
+        Err(_) => 1,
     }
 }

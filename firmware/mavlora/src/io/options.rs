@@ -10,7 +10,7 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 
-use super::{SigningStateFile, run_main, signing_from_key_file};
+use super::{SigningStateFile, StatusReport, run_main, signing_from_key_file};
 use crate::schedule::SchedulerConfig;
 use crate::signing::SigningConfig;
 
@@ -44,6 +44,11 @@ pub struct RadioOptions {
     /// Seconds between status lines, 0.1..=86400 [default: 5].
     #[arg(long)]
     pub status_interval: Option<Seconds>,
+    /// Also write the status as JSON lines to this file, created or truncated (`-`: stdout):
+    /// a start line, a status line every --status-interval and a stop line; schema
+    /// `c2-status/1`, every field in firmware/hostio/STATUS-JSON.md.
+    #[arg(long)]
+    pub status_json: Option<PathBuf>,
     /// MAVLink 2 signing key file for the radio link (64 hex characters, mode 600): our
     /// radio frames are signed, unsigned or replayed ones from the radio are dropped.
     /// Required unless --unsigned.
@@ -136,6 +141,18 @@ impl RadioOptions {
     /// Time between `LINK_QUALITY` reports, when given (the engine has its default).
     pub fn link_quality_period(&self) -> Option<Duration> {
         self.link_quality_period.map(Duration::from)
+    }
+
+    /// What the start line shows of these options, defaults applied (STATUS-JSON.md).
+    pub fn start_options(&self) -> serde_json::Value {
+        serde_json::json!({
+            "radio": self.radio,
+            "radio_baud": self.radio_baud(),
+            "rate": self.rate(),
+            "burst": self.burst(),
+            "signing": if self.unsigned.unwrap_or(false) { "OFF" } else { "on" },
+            "status_interval_s": self.status_every().as_secs_f64(),
+        })
     }
 
     /// Time between status lines.
@@ -357,18 +374,41 @@ impl UsageError {
     }
 }
 
-/// A binary's `main`: parses its options `T` (bad usage exits with 2), then, with logging
-/// set up, reads the config file `--config` names under the flags and calls `run` (an error
-/// exits with 1, see [`run_main`]). `shared` finds the [`RadioOptions`] in a `T`.
-pub fn main<T>(
-    shared: fn(&mut T) -> &mut RadioOptions,
-    run: fn(T) -> anyhow::Result<()>,
-) -> ExitCode
-where
-    T: clap::Parser + serde::de::DeserializeOwned + Default,
-{
-    let matches = T::command().get_matches();
-    run_main(|| run(load_options(&matches, shared)?))
+/// A binary: its options (one struct, both its clap parser and its config file's serde
+/// schema), and what it runs with them.
+pub trait Program: clap::Parser + serde::de::DeserializeOwned + Default {
+    /// Its name on the status lines.
+    const NAME: &'static str;
+    /// Where its [`RadioOptions`] are.
+    fn shared(&mut self) -> &mut RadioOptions;
+    /// Its own options that matter on its start line, beside the [`RadioOptions`]' (effective
+    /// values, defaults applied).
+    fn start_options(&self) -> serde_json::Value;
+    /// Runs it; it reports its status to `report` and ends with the stop line's final status.
+    fn run(self, report: &mut StatusReport) -> anyhow::Result<()>;
+}
+
+/// A binary's `main`: parses its options `P` (bad usage exits with 2), then, with logging
+/// set up, reads the config file `--config` names under the flags, opens the status file
+/// (`--status-json`) with its start line and calls [`Program::run`] (an error exits with 1 or
+/// 2, see [`run_main`]). A program that ends before it got running still gets its stop line,
+/// with the error.
+pub fn main<P: Program>() -> ExitCode {
+    let matches = P::command().get_matches();
+    run_main(|| {
+        let mut options: P = load_options(&matches, P::shared)?;
+        let mut report = StatusReport::open(P::NAME, options.shared().status_json.as_deref())?;
+        let mut shown = options.shared().start_options();
+        if let (serde_json::Value::Object(all), serde_json::Value::Object(own)) =
+            (&mut shown, options.start_options())
+        {
+            all.extend(own);
+        }
+        report.start(&shown)?;
+        let result = options.run(&mut report);
+        report.stop::<()>(None, &result);
+        result
+    })
 }
 
 /// The options given in `matches`, over those of the config file they name, over

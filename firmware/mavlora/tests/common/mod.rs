@@ -1,9 +1,13 @@
-//! What the end-to-end tests share: the repository root, a child-process guard, pty pairs.
+//! What the end-to-end tests share: the repository root, a child-process guard, pty pairs,
+//! temp folders and free ports, a binary run to its end, the checks of a status JSON file
+//! ([`status_json`]).
 // Each test program uses its own part of this.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
-use std::process::{Child, Command};
+pub mod status_json;
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -59,4 +63,44 @@ pub fn pty_pair() -> (serialport::TTYPort, serialport::TTYPort) {
         rustix::io::fcntl_setfd(fd, rustix::io::FdFlags::CLOEXEC).unwrap();
     }
     (master, slave)
+}
+
+/// A folder of the test's own, `mavlora-<name>-<pid>` in the temp folder.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mavlora-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A local TCP (and, in practice, UDP) port nobody uses now.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Runs `bin` with `args` in `dir` until it exits (killed after 10 s): its exit code and
+/// stderr (logging at `info`, no colours).
+pub fn run(bin: &str, dir: &Path, args: &[&str]) -> (Option<i32>, String) {
+    let mut child = Command::new(bin)
+        .args(args)
+        .current_dir(dir)
+        .env("RUST_LOG", "info")
+        .env("NO_COLOR", "1")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while child.try_wait().unwrap().is_none() && Instant::now() < deadline {
+        thread::sleep(Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }

@@ -8,6 +8,9 @@ use std::time::Instant as HostInstant;
 use multirx_core::boot::{BootReport, ImageKind, ResetCause, build_id};
 use multirx_core::{Config, Instant, Multiplexer};
 
+use hostio::status::{Kind, StatusWriter};
+use serde::Serialize;
+
 use crate::clock::DeviceClock;
 use crate::ports::{Input, Output, Source};
 use crate::tap::TxTap;
@@ -23,19 +26,52 @@ const STOP_CHECK: std::time::Duration = std::time::Duration::from_millis(100);
 /// How often the boot line is repeated.
 const BOOT_LINE_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 
-/// Counters printed at exit.
+/// What the device counts: on its status lines (`firmware/hostio/STATUS-JSON.md`) and the
+/// log line it ends with, by the same names.
+#[derive(Debug, Default, Clone, Serialize)]
+pub struct Counters {
+    /// Frames handed whole to the flight controller's port.
+    pub frames_out: u64,
+    /// Frames the flight controller's port did not take (full, failed or gone).
+    pub frames_dropped: u64,
+    /// Status lines written to the status port.
+    pub status_lines: u64,
+    /// Longest interval between two frames handed to the output port, as the
+    /// device itself timed it (ms): separates our cadence from transport jitter.
+    pub max_gap_ms: f64,
+    /// How long the host held the device clock in all ([`DeviceClock`]), ms.
+    pub host_held_ms: f64,
+}
+
+/// A status of the emulated device: its counters; it has no gauges.
+#[derive(Debug, Default, Clone, Serialize)]
+pub struct Status {
+    pub counters: Counters,
+    pub gauges: Gauges,
+}
+
+/// No levels to report (an empty `gauges` object, as every program's status line has).
+#[derive(Debug, Default, Clone, Serialize)]
+pub struct Gauges {}
+
+/// How a run ended.
 #[derive(Debug, Default)]
 pub struct RunStats {
-    pub frames_out: u64,
-    /// Longest interval between two frames handed to the output port, as the
-    /// device itself timed it: separates our cadence from transport jitter.
-    pub max_gap: std::time::Duration,
-    /// How long the host held the device clock in all ([`DeviceClock`]).
-    pub held: std::time::Duration,
-    pub frames_dropped: u64,
-    pub status_lines: u64,
+    pub status: Status,
     /// Why the run ended early: the flight-controller port is gone for good.
     pub fc_gone: Option<String>,
+}
+
+/// Status lines written to a file every `every` while the device runs.
+pub struct StatusJson<'a> {
+    pub writer: &'a mut StatusWriter,
+    pub every: std::time::Duration,
+}
+
+/// [`StatusJson`] as the loop keeps it.
+struct Periodic<'a> {
+    json: StatusJson<'a>,
+    next: HostInstant,
 }
 
 pub struct Device {
@@ -95,13 +131,26 @@ impl Device {
 
     /// Runs until `stop` is set or the flight-controller port is gone for good
     /// (nobody can be served: the emulated device ends instead of idling on).
-    pub fn run(&mut self, inputs: Receiver<Input>, stop: &AtomicBool) -> RunStats {
+    /// With `json`, writes a status line every period.
+    pub fn run(
+        &mut self,
+        inputs: Receiver<Input>,
+        stop: &AtomicBool,
+        json: Option<StatusJson>,
+    ) -> RunStats {
         self.flush();
+        let mut periodic = json.map(|json| Periodic {
+            next: HostInstant::now() + json.every,
+            json,
+        });
         let mut fc_gone = None;
         while !stop.load(Ordering::Relaxed) {
             if let Some(why) = self.fc.gone() {
                 fc_gone = Some(why);
                 break;
+            }
+            if let Some(p) = &mut periodic {
+                self.status_line(p);
             }
             self.account();
             let due = self.mux.poll_timeout().expect("the output never stops");
@@ -152,13 +201,38 @@ impl Device {
             self.service();
         }
         RunStats {
-            frames_out: self.fc.written,
-            max_gap: self.max_gap,
-            held: self.clock.held(),
-            frames_dropped: self.fc.dropped,
-            status_lines: self.status.as_ref().map_or(0, |s| s.written),
+            status: self.snapshot(),
             fc_gone,
         }
+    }
+
+    /// The counters now.
+    fn snapshot(&self) -> Status {
+        Status {
+            counters: Counters {
+                frames_out: self.fc.written,
+                frames_dropped: self.fc.dropped,
+                status_lines: self.status.as_ref().map_or(0, |s| s.written),
+                max_gap_ms: self.max_gap.as_secs_f64() * 1000.0,
+                host_held_ms: self.clock.held().as_secs_f64() * 1000.0,
+            },
+            gauges: Gauges {},
+        }
+    }
+
+    /// Writes a status line when one is due. The write is the host's work, held whole like a
+    /// port's; a failed one is logged, never stops the device.
+    fn status_line(&mut self, p: &mut Periodic) {
+        let now = HostInstant::now();
+        if now < p.next {
+            return;
+        }
+        p.next = now + p.json.every;
+        let status = self.snapshot();
+        self.clock.ran();
+        p.json.writer.write_periodic(Kind::Status, &status);
+        self.clock.handed_off();
+        self.worked = true;
     }
 
     /// Brings the device clock up to now: a hold in the pass so far must be

@@ -22,9 +22,12 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
+use hostio::status::StatusWriter;
 use multirx_core::Config;
+use multirx_core::boot::{ImageKind, build_id};
+use serde::Serialize;
 
-use device::Device;
+use device::{Device, Status, StatusJson};
 use ports::{Output, Source, open_sbus, spawn_reader};
 
 /// MultiRX receiver multiplexer, emulated on a host over serial ports.
@@ -50,12 +53,51 @@ struct Args {
     /// seconds, a line per frame): a probe on the TX pin, for the rig.
     #[arg(long)]
     tx_log: Option<std::path::PathBuf>,
+    /// Write the device's status as JSON lines to this file, created or truncated (`-`:
+    /// stdout): a start line, a status line every --status-interval and a stop line; schema
+    /// `c2-status/1`, every field in firmware/hostio/STATUS-JSON.md.
+    #[arg(long)]
+    status_json: Option<std::path::PathBuf>,
+    /// Seconds between status lines in --status-json, 0.1..=86400.
+    #[arg(long, default_value = "5", value_parser = seconds)]
+    status_interval: Duration,
+}
+
+/// A period option: 0.1..=86400 seconds.
+fn seconds(text: &str) -> Result<Duration, String> {
+    match text.trim().parse::<f64>() {
+        Ok(s) if (0.1..=86_400.0).contains(&s) => Ok(Duration::from_secs_f64(s)),
+        _ => Err(format!("{text} is not a number of seconds in 0.1..=86400")),
+    }
+}
+
+/// The start line's options: what the device runs and where.
+#[derive(Serialize)]
+struct StartOptions<'a> {
+    config: &'a std::path::Path,
+    mode: &'a str,
+    receivers: u8,
+    frame_period_ms: u64,
+    /// As on the boot line: 16 hex digits.
+    config_hash: String,
+    build_id: String,
+    rx: &'a [String],
+    fc: &'a str,
+    status: Option<&'a str>,
+    ifs: Option<&'a str>,
+    tx_log: Option<&'a std::path::Path>,
+    status_interval_s: f64,
 }
 
 fn main() -> ExitCode {
     hostio::logging::init("info");
     let args = Args::parse();
-    match run(args) {
+    let (mut json, mut last) = (None, None);
+    let result = run(args, &mut json, &mut last);
+    if let Some(w) = &mut json {
+        w.stop(if result.is_ok() { 0 } else { 1 }, &result, last.as_ref());
+    }
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("multirx-emu: error: {e:#}");
@@ -64,7 +106,9 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(args: Args) -> Result<()> {
+/// Runs the device; the status file, once open, is left in `json` for the stop line, with the
+/// last status in `last` if the device ran.
+fn run(args: Args, json: &mut Option<StatusWriter>, last: &mut Option<Status>) -> Result<()> {
     let text = std::fs::read_to_string(&args.config)
         .with_context(|| format!("cannot read {}", args.config.display()))?;
     let config =
@@ -76,6 +120,28 @@ fn run(args: Args) -> Result<()> {
             config.receivers,
             args.receivers.len()
         );
+    }
+    if let Some(path) = &args.status_json {
+        let mut w = StatusWriter::create(path, "multirx-emu")?;
+        let hash = config.identity_hash();
+        w.start(
+            env!("CARGO_PKG_VERSION"),
+            &StartOptions {
+                config: &args.config,
+                mode: config.mode.as_str(),
+                receivers: config.receivers,
+                frame_period_ms: config.frame_period.as_millis(),
+                config_hash: format!("{hash:016x}"),
+                build_id: format!("{:016x}", build_id(ImageKind::Emulated, hash)),
+                rx: &args.receivers,
+                fc: &args.fc,
+                status: args.status.as_deref(),
+                ifs: args.ifs.as_deref(),
+                tx_log: args.tx_log.as_deref(),
+                status_interval_s: args.status_interval.as_secs_f64(),
+            },
+        )?;
+        *json = Some(w);
     }
     if args.ifs.is_some() && config.ifs_channels.is_empty() {
         tracing::warn!("--ifs given but the config names no [ifs] channels; IFS input ignored");
@@ -124,15 +190,17 @@ fn run(args: Args) -> Result<()> {
     hostio::realtime::request("engine");
     let tap = args.tx_log.as_deref().map(tap::TxTap::create).transpose()?;
     let mut device = Device::new(config, fc, status, tap);
-    let stats = device.run(rx, &stop);
-    tracing::info!(
-        frames_out = stats.frames_out,
-        frames_dropped = stats.frames_dropped,
-        max_gap_ms = stats.max_gap.as_secs_f64() * 1000.0,
-        host_held_ms = stats.held.as_secs_f64() * 1000.0,
-        status_lines = stats.status_lines,
-        "stopped"
+    let every = args.status_interval;
+    let stats = device.run(
+        rx,
+        &stop,
+        json.as_mut().map(|writer| StatusJson { writer, every }),
     );
+    match hostio::status::fields(&stats.status) {
+        Ok(fields) => tracing::info!("stopped {fields}"),
+        Err(e) => tracing::error!(error = %e, "status not rendered"),
+    }
+    *last = Some(stats.status);
     if let Some(why) = stats.fc_gone {
         anyhow::bail!("flight-controller port gone for good: {why}");
     }

@@ -43,6 +43,18 @@ impl Drop for Killed {
     }
 }
 
+/// The emulator on `config`, with a receiver port per `rx` (in receiver order) and `fc`;
+/// stdin closed.
+fn emu(config: &std::path::Path, rx: &[&str], fc: &str) -> Command {
+    let mut command = Command::new(EMU);
+    command.arg("--config").arg(config);
+    for port in rx {
+        command.args(["--rx", port]);
+    }
+    command.args(["--fc", fc]).stdin(Stdio::null());
+    command
+}
+
 fn write_config(dir: &std::path::Path, text: &str) -> std::path::PathBuf {
     let path = dir.join("multirx.toml");
     std::fs::write(&path, text).unwrap();
@@ -89,11 +101,8 @@ fn forwards_the_active_receiver_and_reports_power() {
     let config = Config::new(Mode::Parallel, 2);
     let (mut rx0, rx1, mut fc, mut status) = (Pty::new(), Pty::new(), Pty::new(), Pty::new());
     let _child = Killed(
-        Command::new(EMU)
-            .args(["--config", path.to_str().unwrap()])
-            .args(["--rx", &rx0.path(), "--rx", &rx1.path()])
-            .args(["--fc", &fc.path(), "--status", &status.path()])
-            .stdin(Stdio::null())
+        emu(&path, &[&rx0.path(), &rx1.path()], &fc.path())
+            .args(["--status", &status.path()])
             .spawn()
             .unwrap(),
     );
@@ -209,11 +218,7 @@ fn a_receiver_that_goes_away_is_heard_again_when_it_comes_back() {
     std::os::unix::fs::symlink(first.path(), &link).unwrap();
     let (rx1, mut fc) = (Pty::new(), Pty::new());
     let mut child = Killed(
-        Command::new(EMU)
-            .args(["--config", path.to_str().unwrap()])
-            .args(["--rx", link.to_str().unwrap(), "--rx", &rx1.path()])
-            .args(["--fc", &fc.path()])
-            .stdin(Stdio::null())
+        emu(&path, &[link.to_str().unwrap(), &rx1.path()], &fc.path())
             .stderr(Stdio::piped())
             .spawn()
             .unwrap(),
@@ -242,18 +247,19 @@ fn a_receiver_that_goes_away_is_heard_again_when_it_comes_back() {
 }
 
 /// Regression: with its flight-controller port gone the emulator ran on for
-/// ever; now it reopens the port for a while, then ends with an error.
+/// ever; now it reopens the port for a while, then ends with an error, which its
+/// status file's stop line gives with the final counters.
 #[test]
 fn ends_when_the_flight_controller_port_is_gone_for_good() {
     let tmp = tempdir();
     let dir = tmp.path();
     let path = write_config(dir, "mode = \"parallel\"\nreceivers = 1\n");
+    let json = dir.join("emu.jsonl");
     let (rx0, fc) = (Pty::new(), Pty::new());
     let started = Instant::now();
-    let mut child = Command::new(EMU)
-        .args(["--config", path.to_str().unwrap()])
-        .args(["--rx", &rx0.path(), "--fc", &fc.path()])
-        .stdin(Stdio::null())
+    let mut child = emu(&path, &[&rx0.path()], &fc.path())
+        .arg("--status-json")
+        .arg(&json)
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
@@ -286,6 +292,19 @@ fn ends_when_the_flight_controller_port_is_gone_for_good() {
         err.contains("flight-controller port gone for good"),
         "{err}"
     );
+    let stop = status_lines(&json).pop().unwrap();
+    assert_eq!(stop["kind"], "stop", "{stop}");
+    assert_eq!(stop["exit_code"], 1, "{stop}");
+    assert!(
+        stop["error"]
+            .as_str()
+            .is_some_and(|e| e.starts_with("flight-controller port gone for good")),
+        "{stop}"
+    );
+    assert!(
+        stop["counters"]["frames_out"].as_u64().unwrap() > 0,
+        "{stop}"
+    );
     drop(rx0);
 }
 
@@ -300,12 +319,9 @@ fn a_stopped_device_is_held_and_keeps_its_cadence_in_device_time() {
     let tx_log = dir.join("tx.log");
     let (rx0, mut fc) = (Pty::new(), Pty::new());
     let child = Killed(
-        Command::new(EMU)
-            .args(["--config", path.to_str().unwrap()])
-            .args(["--rx", &rx0.path(), "--fc", &fc.path()])
+        emu(&path, &[&rx0.path()], &fc.path())
             .arg("--tx-log")
             .arg(&tx_log)
-            .stdin(Stdio::null())
             .spawn()
             .unwrap(),
     );
@@ -365,6 +381,149 @@ fn a_stopped_device_is_held_and_keeps_its_cadence_in_device_time() {
         host_gap * 1000.0
     );
     drop(rx0);
+}
+
+/// The complete lines of a status JSON file, each parsed with `serde_json` (a line still
+/// being written is left out); panics naming a complete line that is not JSON.
+fn status_lines(path: &std::path::Path) -> Vec<serde_json::Value> {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let complete = &text[..text.rfind('\n').map_or(0, |i| i + 1)];
+    complete
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l}")))
+        .collect()
+}
+
+/// The emulator's counters (firmware/hostio/STATUS-JSON.md).
+const COUNTERS: [&str; 5] = [
+    "frames_out",
+    "frames_dropped",
+    "status_lines",
+    "max_gap_ms",
+    "host_held_ms",
+];
+
+/// `--status-json`: a start line naming what runs, status lines while it runs (read here
+/// while it runs), a stop line with the final counters; every line whole, schema
+/// `c2-status/1`, counters never going down, and `frames_out` every frame the flight
+/// controller side read.
+#[test]
+fn status_json_reports_from_start_to_stop_every_frame_out() {
+    let tmp = tempdir();
+    let dir = tmp.path();
+    let path = write_config(dir, "mode = \"parallel\"\nreceivers = 1\n");
+    let json = dir.join("emu.jsonl");
+    let (mut rx0, mut fc) = (Pty::new(), Pty::new());
+    let mut child = Killed(
+        emu(&path, &[&rx0.path()], &fc.path())
+            .args(["--status-interval", "0.2", "--status-json"])
+            .arg(&json)
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    // Read everything the flight controller side gets, until the device has stopped.
+    let mut bytes = 0usize;
+    let mut buf = [0u8; 512];
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_millis(1500) {
+        let _ = rx0.master.write_all(&sticks(1234));
+        if let Ok(n) = fc.master.read(&mut buf) {
+            bytes += n;
+        }
+        std::thread::sleep(Duration::from_millis(7));
+    }
+    let running = status_lines(&json);
+    let statuses_while_running = running.iter().filter(|l| l["kind"] == "status").count();
+    let ok = Command::new("kill")
+        .args(["-TERM", &child.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let exit = child.0.wait().unwrap();
+    while let Ok(n) = fc.master.read(&mut buf) {
+        if n == 0 {
+            break;
+        }
+        bytes += n;
+    }
+    assert!(exit.success(), "{exit:?}");
+    assert!(statuses_while_running >= 2, "{running:?}");
+
+    let text = std::fs::read_to_string(&json).unwrap();
+    assert!(text.ends_with('\n'), "{text}");
+    let lines = status_lines(&json);
+    let kinds: Vec<&str> = lines.iter().map(|l| l["kind"].as_str().unwrap()).collect();
+    assert_eq!(kinds[0], "start", "{text}");
+    assert_eq!(*kinds.last().unwrap(), "stop", "{text}");
+    assert!(
+        kinds[1..kinds.len() - 1].iter().all(|&k| k == "status"),
+        "{kinds:?}"
+    );
+    for line in &lines {
+        assert_eq!(line["schema"], "c2-status/1", "{line}");
+        assert_eq!(line["program"], "multirx-emu", "{line}");
+    }
+    let start = &lines[0];
+    assert_eq!(start["pid"], child.0.id(), "{start}");
+    assert_eq!(start["options"]["mode"], "parallel", "{start}");
+    assert_eq!(start["options"]["receivers"], 1, "{start}");
+    let hash = Config::new(Mode::Parallel, 1).identity_hash();
+    assert_eq!(
+        start["options"]["config_hash"],
+        format!("{hash:016x}"),
+        "{start}"
+    );
+    let counted = &lines[1..];
+    for pair in counted.windows(2) {
+        for name in COUNTERS {
+            let (a, b) = (&pair[0]["counters"][name], &pair[1]["counters"][name]);
+            assert!(
+                b.as_f64().unwrap() >= a.as_f64().unwrap(),
+                "{name} went down:\n{}\n{}",
+                pair[0],
+                pair[1]
+            );
+        }
+    }
+    let stop = lines.last().unwrap();
+    assert_eq!(stop["exit_code"], 0, "{stop}");
+    assert!(stop["error"].is_null(), "{stop}");
+    assert_eq!(stop["gauges"], serde_json::json!({}), "{stop}");
+    let counters = stop["counters"].as_object().unwrap();
+    assert_eq!(counters.len(), COUNTERS.len(), "{stop}");
+    let frames_out = counters["frames_out"].as_u64().unwrap();
+    assert!(frames_out > 100, "{stop}");
+    assert_eq!(counters["frames_dropped"], 0, "{stop}");
+    // Every frame handed to the port, and no other byte, reached the flight controller side.
+    assert_eq!(bytes as u64, 25 * frames_out, "{stop}");
+    assert!(counters["max_gap_ms"].as_f64().unwrap() > 0.0, "{stop}");
+}
+
+/// A status path that cannot be created ends the device at start with status 1 and an
+/// error naming it.
+#[test]
+fn a_status_path_that_cannot_be_created_is_an_error_naming_it() {
+    let tmp = tempdir();
+    let dir = tmp.path();
+    let path = write_config(dir, "mode = \"parallel\"\nreceivers = 1\n");
+    let file = dir.join("a-file");
+    std::fs::write(&file, "").unwrap();
+    for json in [
+        dir.join("no-such-folder").join("emu.jsonl"),
+        file.join("emu.jsonl"),
+    ] {
+        let (rx0, fc) = (Pty::new(), Pty::new());
+        let out = emu(&path, &[&rx0.path()], &fc.path())
+            .arg("--status-json")
+            .arg(&json)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(json.to_str().unwrap()), "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
 }
 
 /// A folder of the test's own, removed when the test ends (pass or fail).
