@@ -32,8 +32,14 @@ pub enum Kind {
     Start,
     /// The counters now, once every status period.
     Status,
+    /// Something happened, written when it did: `event` names it, the other fields are the
+    /// event's (a router's link announcement: `link_notice`).
+    Event,
     /// The last line: how the program ends, and its final counters if it got running.
     Stop,
+    /// A kind added since this reader was written: readers pass over it (never written).
+    #[serde(other, skip_serializing)]
+    Other,
 }
 
 /// The status file could not be opened or written.
@@ -89,6 +95,14 @@ struct Envelope<'a, T: ?Sized> {
     mono_s: f64,
     #[serde(flatten)]
     body: &'a T,
+}
+
+/// The body of an event line.
+#[derive(Serialize)]
+struct Event<'a, T: ?Sized> {
+    event: &'a str,
+    #[serde(flatten)]
+    fields: &'a T,
 }
 
 /// The body of a start line.
@@ -181,6 +195,12 @@ impl StatusWriter {
             }
             _ => {}
         }
+    }
+
+    /// Writes an event line: `event` names what happened, `fields` (a struct or map) say the
+    /// rest. A failure is logged, as a status line's is.
+    pub fn event<T: Serialize + ?Sized>(&mut self, event: &str, fields: &T) {
+        self.write_periodic(Kind::Event, &Event { event, fields });
     }
 
     /// Writes the start line: `version`, this process's id and `options` (a struct or map).

@@ -98,6 +98,8 @@ fn pymavlink_ground_station_is_told_of_an_uplink_loss_and_its_end() {
                 .args(["--udp-bind", "127.0.0.1:0", "--link-quality-period", "1"])
                 .arg("--key")
                 .arg(&key)
+                .arg("--status-json")
+                .arg(dir.join("router.status.jsonl"))
                 .spawn()
                 .unwrap(),
         ),
@@ -194,6 +196,43 @@ fn pymavlink_ground_station_is_told_of_an_uplink_loss_and_its_end() {
     // once per change: no uplink message repeats the one before it, none before the cut
     assert!(uplink.windows(2).all(|w| w[0].1 != w[1].1), "{texts:?}");
     assert!(uplink.iter().all(|(t, _)| *t >= cut_at - 1.0), "{texts:?}");
+    // The router's status file has each announcement as an event line, in the order the
+    // ground station got them (it may have announced more after the ground station left).
+    let status = std::fs::read_to_string(dir.join("router.status.jsonl")).unwrap();
+    let events: Vec<Value> = status
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+        .filter(|l| l["kind"] == "event" && l["event"] == "link_notice")
+        .collect();
+    let announced: Vec<&str> = events.iter().map(|e| e["text"].as_str().unwrap()).collect();
+    let seen_texts: Vec<&str> = texts
+        .iter()
+        .map(|(_, t)| t.as_str())
+        .filter(|t| t.starts_with("Uplink") || t.starts_with("Downlink"))
+        .collect();
+    assert!(
+        announced.starts_with(&seen_texts),
+        "status file {announced:?}, ground station {seen_texts:?}"
+    );
+    for e in &events {
+        assert!(
+            ["uplink", "downlink"].contains(&e["direction"].as_str().unwrap()),
+            "{e}"
+        );
+        assert!(
+            ["ok", "degraded", "lost", "silent"].contains(&e["health"].as_str().unwrap()),
+            "{e}"
+        );
+    }
+    assert!(
+        events
+            .iter()
+            .any(|e| e["direction"] == "uplink" && e["health"] != "ok")
+            && events
+                .iter()
+                .any(|e| e["direction"] == "uplink" && e["health"] == "ok"),
+        "the cut and its end are events: {events:?}"
+    );
     drop(fc);
     let _ = std::fs::remove_dir_all(&dir);
 }

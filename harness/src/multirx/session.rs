@@ -242,6 +242,8 @@ impl MultirxSession {
                     command.args(["--ifs", &device_inputs[receiver_ports.len()]]);
                 }
                 command.arg("--tx-log").arg(log_dir.join(TX_LOG));
+                // Its counters as data, kept with the phase's evidence.
+                command.arg("--status-json").arg(log_dir.join(EMU_STATUS));
                 let mut process =
                     Process::spawn("multirx-emu", command, &log_dir.join("multirx-emu.log"))?;
                 std::thread::sleep(Duration::from_millis(50));
@@ -426,6 +428,10 @@ impl MultirxSession {
         if let Some(mut device) = self.device.take() {
             device.stop(Duration::from_secs(2));
             logs.push(device.log_path().to_path_buf());
+            let status = self.log_dir.join(EMU_STATUS);
+            if status.exists() {
+                logs.push(status);
+            }
         }
         logs.extend(self.tx_log.clone().filter(|p| p.exists()));
         self.fc.stop();
@@ -440,3 +446,5 @@ impl MultirxSession {
 
 /// The emulated device's TX probe file, in the session's log folder.
 const TX_LOG: &str = "multirx-tx.log";
+/// The emulated device's status file (`--status-json`), in the session's log folder.
+const EMU_STATUS: &str = "multirx-emu.status.jsonl";

@@ -15,7 +15,7 @@ use super::{
     Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, RadioSigning, SerialEvent,
     SerialLink, frame_gap, on_signal,
 };
-use crate::quality::LinkQualityConfig;
+use crate::quality::{LinkQualityConfig, Notice};
 use crate::schedule::SchedulerConfig;
 use crate::signing::SigningState;
 use crate::time::{Duration, Instant};
@@ -44,11 +44,13 @@ pub trait RadioEngine {
     fn radio_stats(&self) -> RadioStats;
     /// The loss the far end last reported (0..=1).
     fn peer_loss(&self) -> Option<f64>;
+    /// The next link announcement it sent to the ground, for the status file.
+    fn poll_link_notice(&mut self) -> Option<Notice>;
 }
 
 /// Both engines have these as inherent methods of the same names.
 macro_rules! radio_engine {
-    ($engine:ty) => {
+    ($engine:ty, $poll_link_notice:expr) => {
         impl RadioEngine for $engine {
             fn poll_timeout(&self) -> Option<Instant> {
                 <$engine>::poll_timeout(self)
@@ -82,12 +84,19 @@ macro_rules! radio_engine {
             fn peer_loss(&self) -> Option<f64> {
                 self.quality().peer().and_then(|p| p.loss_ratio)
             }
+            fn poll_link_notice(&mut self) -> Option<Notice> {
+                $poll_link_notice(self)
+            }
         }
     };
 }
 
-radio_engine!(crate::bridge::Bridge);
-radio_engine!(crate::router::Router);
+// The bridge announces nothing to a ground station; the router tells it of the link's health.
+radio_engine!(crate::bridge::Bridge, |_: &mut crate::bridge::Bridge| None);
+radio_engine!(
+    crate::router::Router,
+    crate::router::Router::poll_link_notice
+);
 
 /// A binary's own half of the main loop: its other ports and its part of the status.
 pub trait Side<E> {
@@ -252,6 +261,9 @@ impl Station {
             }
             let now = self.clock.now();
             engine.handle_timeout(now);
+            while let Some(notice) = engine.poll_link_notice() {
+                report.event("link_notice", &LinkNotice::from(&notice));
+            }
             side.transmit(&mut engine, now);
             // Only into an open port: a frame leaves the engine numbered and signed, and one
             // dropped at a closed port would read as radio loss at the far end.
@@ -303,6 +315,30 @@ impl Station {
                 radio: RadioGauges::new(&port),
                 program: gauges,
             },
+        }
+    }
+}
+
+/// A link announcement as its status-file event (`link_notice`).
+#[derive(Serialize)]
+struct LinkNotice {
+    /// `uplink` or `downlink`.
+    direction: &'static str,
+    /// Its new health: `ok`, `degraded`, `lost` or `silent`.
+    health: &'static str,
+    /// Its loss estimate, percent, when known.
+    loss_pct: Option<f64>,
+    /// The `STATUSTEXT` the ground station was sent.
+    text: String,
+}
+
+impl From<&Notice> for LinkNotice {
+    fn from(n: &Notice) -> Self {
+        LinkNotice {
+            direction: n.direction.as_str(),
+            health: n.health.as_str(),
+            loss_pct: n.loss.map(|l| 100.0 * l),
+            text: n.text(),
         }
     }
 }

@@ -177,6 +177,17 @@ impl StatusReport {
         }
     }
 
+    /// An event line in the JSON file (and a log line): `event` names it, `fields` say the rest.
+    pub fn event(&mut self, event: &str, fields: &impl Serialize) {
+        match hostio::status::fields(fields) {
+            Ok(f) => tracing::info!("event {event} {f}"),
+            Err(e) => tracing::error!(error = %e, "event not rendered"),
+        }
+        if let Some(w) = &mut self.json {
+            w.event(event, fields);
+        }
+    }
+
     /// The stop line (once): how the program ends and, if it got running, its final status
     /// (also logged as a last status line).
     pub fn stop<S: Serialize>(&mut self, status: Option<&S>, result: &anyhow::Result<()>) {

@@ -59,6 +59,14 @@ pub enum Direction {
 }
 
 impl Direction {
+    /// Lower-case name, as in status files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Uplink => "uplink",
+            Self::Downlink => "downlink",
+        }
+    }
+
     fn label(self) -> &'static str {
         match self {
             Self::Uplink => "Uplink GCS>UAV",
@@ -80,6 +88,18 @@ pub enum Health {
     /// The drone's reports stopped while its other frames still arrive: the uplink is not
     /// known (a bridge that stopped reporting must not look like a healthy link).
     Silent,
+}
+
+impl Health {
+    /// Lower-case name, as in status files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Ok => "ok",
+            Self::Degraded => "degraded",
+            Self::Lost => "lost",
+            Self::Silent => "silent",
+        }
+    }
 }
 
 /// One announcement for the ground.

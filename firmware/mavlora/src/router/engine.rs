@@ -13,7 +13,7 @@ use crate::compact::Expander;
 use crate::dialect::{MavMessage, RADIO_STATUS_DATA};
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
-use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig};
+use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig, Notice};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
@@ -153,8 +153,14 @@ pub struct Router {
     ground_signer: Option<LinkSigner>,
     /// When each (source, reason) rejection was last reported.
     reported: HashMap<(IpAddr, GroundRejection), Instant>,
+    /// Link announcements sent to the ground, for [`Router::poll_link_notice`].
+    sent_notices: VecDeque<Notice>,
     stats: RouterStats,
 }
+
+/// Announcements kept for [`Router::poll_link_notice`]; an engine nobody polls (in-process
+/// runs) keeps the latest ones only.
+const SENT_NOTICES_KEPT: usize = 32;
 
 /// The source [`Router::handle_gcs_bytes`] stands for: an in-process ground station.
 const IN_PROCESS: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
@@ -207,6 +213,7 @@ impl Router {
             radio_leg,
             ground_version: MavlinkVersion::V2,
             reported: HashMap::new(),
+            sent_notices: VecDeque::new(),
             ground_signer: config.ground_signing.as_ref().map(SigningConfig::signer),
             stats: RouterStats::default(),
             config,
@@ -592,6 +599,10 @@ impl Router {
         while let Some(notice) = self.monitor.poll_notice() {
             self.stats.link_notices += 1;
             out.push(MavMessage::STATUSTEXT(notice.statustext()));
+            if self.sent_notices.len() == SENT_NOTICES_KEPT {
+                self.sent_notices.pop_front();
+            }
+            self.sent_notices.push_back(notice);
         }
         if let Some(status) = self.monitor.poll_radio_status(&self.quality) {
             self.stats.radio_status_sent += 1;
@@ -633,6 +644,12 @@ impl Router {
                 return Some(frame);
             }
         }
+    }
+
+    /// The next link announcement sent to the ground (`STATUSTEXT`), oldest first: for the
+    /// program's status file, where a test or an operator reads the link's history as data.
+    pub fn poll_link_notice(&mut self) -> Option<Notice> {
+        self.sent_notices.pop_front()
     }
 
     /// When the engine next needs attention; a time already past means at once.

@@ -159,13 +159,7 @@ fn run(
         ));
         ctx.record(m.bytes_per_s, bytes_per_s);
         ctx.record(m.position_hz, position_hz);
-        let router_log = report
-            .exits
-            .iter()
-            .find(|e| e.name == "mavlora-router")
-            .map(|e| e.log.clone())
-            .context("the session ran no router")?;
-        let alarms = loss_alarms(ctx, &[router_log])?;
+        let alarms = loss_alarms(ctx, report);
         ctx.record(m.loss_alarms, alarms as f64);
         ctx.record(m.radio_dropped, report.downlink.bytes_dropped as f64);
         m.commands.record(ctx, report)?;

@@ -24,9 +24,7 @@ use crate::driver::fixture::Fixture;
 use crate::mavlora::fixture::fc::FcSummary;
 use crate::mavlora::fixture::gcs::GcsEvent;
 use crate::mavlora::fixture::intruder::{IntruderEvent, IntruderSummary};
-use crate::mavlora::session::{
-    GcsPlan, MavloraSession, SessionDefaults, SessionReport, status_field,
-};
+use crate::mavlora::session::{GcsPlan, MavloraSession, SessionDefaults, SessionReport};
 use crate::measurement::{Declarations, Handle};
 use crate::runner::PhaseContext;
 
@@ -248,12 +246,11 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
         let name_sent: u64 = summaries.iter().map(|s| s.frames_sent).sum();
         to_intruders += summaries.iter().map(|s| s.datagrams_received).sum::<u64>();
         sent += name_sent;
-        let line = report
+        let rejected = report
             .router_status
-            .as_deref()
-            .context("the router printed no status line")?;
-        let rejected = status_field(line, "ground_rejected")
-            .with_context(|| format!("the router's status line has no ground_rejected: {line}"))?;
+            .as_ref()
+            .context("the router wrote no status")?
+            .counter("ground_rejected")?;
         ctx.log(format!(
             "{name}: router refused {rejected} ground inputs for {name_sent} intruder frames"
         ));

@@ -36,7 +36,7 @@ pub mod table_ii;
 
 use anyhow::{Context, Result, bail};
 
-use crate::mavlora::session::{MavloraSession, SessionOptions, SessionReport, status_field};
+use crate::mavlora::session::{MavloraSession, SessionOptions, SessionReport};
 use crate::measurement::{Declarations, Dimension, Handle, PTY, Spec};
 use crate::runner::PhaseContext;
 
@@ -151,7 +151,7 @@ impl Unsigned {
                     .dim(Dimension::Scenario, scenario)
                     .describe(
                         "frames the bridge and the router sent on the radio unsigned \
-                         (radio_tx_unsigned of their last status lines), every session of the \
+                         (radio_tx_unsigned of their status files), every session of the \
                          scenario",
                     )
                     .equal_to(0.0),
@@ -164,11 +164,8 @@ impl Unsigned {
     pub fn record(&self, ctx: &mut PhaseContext, reports: &[&SessionReport]) -> Result<()> {
         let mut total = 0.0;
         for r in reports {
-            for (who, line) in [("bridge", &r.bridge_status), ("router", &r.router_status)] {
-                let Some(line) = line else { continue };
-                total += status_field(line, "radio_tx_unsigned").with_context(|| {
-                    format!("the {who}'s status line has no radio_tx_unsigned: {line}")
-                })?;
+            for status in [&r.bridge_status, &r.router_status].into_iter().flatten() {
+                total += status.counter("radio_tx_unsigned")?;
             }
         }
         ctx.record(self.0, total);
@@ -176,21 +173,19 @@ impl Unsigned {
     }
 }
 
-/// The router's "degraded: N% lost" link announcements in `logs` (its log files over the
-/// session), each logged into the phase; returns how many.
-pub fn loss_alarms(ctx: &mut PhaseContext, logs: &[std::path::PathBuf]) -> Result<u32> {
+/// The routers' "degraded" link announcements of a session (from their status files), each
+/// logged into the phase; returns how many.
+pub fn loss_alarms(ctx: &mut PhaseContext, report: &SessionReport) -> u32 {
     let mut alarms = 0;
-    for path in logs {
-        let log =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        for a in log.lines().filter(|l| {
-            l.contains("link announcement") && l.contains("% lost") && l.contains("degraded")
-        }) {
-            ctx.log(format!("router: {a}"));
-            alarms += 1;
-        }
+    for n in report
+        .link_notices
+        .iter()
+        .filter(|n| n.health == "degraded")
+    {
+        ctx.log(format!("router: link announcement {:?}", n.text));
+        alarms += 1;
     }
-    Ok(alarms)
+    alarms
 }
 
 /// The `--link-quality-period` both ends get on the LoRa SF7 channel (683 B/s, signed), as

@@ -17,10 +17,9 @@
 //! failsafe. A restart is not radio loss (no loss alarm on a loss-free radio); frames sent
 //! into an unplugged radio are, and the alarms the pilot gets then are recorded.
 
-use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use super::{
     CommandsAfter, Scenario, Script, TMPR_S, Unsigned, ensure_clean, keep_evidence, loss_alarms,
@@ -182,20 +181,10 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     let mut session = MavloraSession::start(o)?;
     std::thread::sleep(BEFORE.saturating_sub(Mono::now().since(session.telemetry_at)));
     let gone = Mono::now();
-    let router_log = |s: &MavloraSession| -> Result<PathBuf> {
-        Ok(s.log_of(Program::Router)
-            .context("the session runs no router")?
-            .to_path_buf())
-    };
-    // The router's announcements over the session: a crashed router's and the new one's.
-    let mut router_logs = vec![router_log(&session)?];
     let back = match fault {
         Fault::Crash(program) => session.crash_and_restart(program, DOWN)?,
         Fault::Replug(end) => session.replug_radio(end, DOWN)?,
     };
-    if matches!(fault, Fault::Crash(Program::Router)) {
-        router_logs.push(router_log(&session)?);
-    }
     ctx.log(format!(
         "{part} gone {:.1} s after telemetry began, back {:.2} s later",
         gone.since(session.telemetry_at).as_secs_f64(),
@@ -224,7 +213,8 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     ctx.record(m.recovery, seen.since(back).as_secs_f64());
     ctx.record(m.outage, seen.since(since).as_secs_f64());
     m.commands.record(ctx, &report)?;
-    let alarms = loss_alarms(ctx, &router_logs)?;
+    // The router's announcements over the session: a crashed router's and the new one's.
+    let alarms = loss_alarms(ctx, &report);
     ctx.record(m.false_alarms, f64::from(alarms));
     m.unsigned.record(ctx, &[&report])?;
     ensure_clean(ctx, &report)

@@ -21,9 +21,7 @@ use anyhow::{Context, Result};
 
 use super::mission::compare;
 use super::{Scenario, Script, Unsigned, ensure_clean, keep_evidence, spec};
-use crate::mavlora::session::{
-    GcsPlan, MavloraSession, SessionDefaults, SessionReport, status_field,
-};
+use crate::mavlora::session::{GcsPlan, MavloraSession, SessionDefaults, SessionReport};
 use crate::measurement::{Declarations, Handle};
 use crate::runner::PhaseContext;
 use harness_radio::Silence;
@@ -209,16 +207,13 @@ fn record_traffic(ctx: &mut PhaseContext, m: &Measured, report: &SessionReport) 
         ("bridge", &report.bridge_status),
         ("router", &report.router_status),
     ] {
-        let line = line
+        let status = line
             .as_ref()
-            .with_context(|| format!("the {who} wrote no status line"))?;
-        let field = |k: &str| {
-            status_field(line, k).with_context(|| format!("the {who}'s status line has no {k}"))
-        };
-        let balance = field("radio_offered_bytes")?
-            - field("radio_written_bytes")?
-            - field("radio_dropped_bytes")?
-            - field("radio_queued_bytes")?;
+            .with_context(|| format!("the {who} wrote no status"))?;
+        let balance = status.counter("radio_offered_bytes")?
+            - status.counter("radio_written_bytes")?
+            - status.counter("radio_dropped_bytes")?
+            - status.gauge("radio_queued_bytes")?;
         ctx.log(format!(
             "{who}: radio bytes offered - written - dropped - queued = {balance}"
         ));

@@ -7,7 +7,7 @@ use std::process::Command;
 use std::sync::Arc;
 use std::time::Duration;
 
-use super::report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status};
+use super::report::{ExitRecord, GCS_PHASE_FAILED, LinkNotice, ProgramStatus, SessionReport};
 use super::{Result, SessionError, SessionOptions, Variant};
 use crate::clock::Mono;
 use crate::driver::fixture::{Fixture, FixtureError};
@@ -374,9 +374,31 @@ impl MavloraSession {
             .into_iter()
             .filter(|l| !matches!(l.event, FcEvent::Summary(_)))
             .collect();
-        let bridge_status = self.bridge.as_ref().and_then(|p| last_status(p.log_path()));
-        let router_status = self.router.as_ref().and_then(|p| last_status(p.log_path()));
+        let status_files: Vec<PathBuf> = [
+            self.bridge_spawn.as_ref().map(|b| b.status_files(&dir)),
+            self.router_spawn.as_ref().map(|r| r.status_files(&dir)),
+        ]
+        .into_iter()
+        .flatten()
+        .flatten()
+        .collect();
+        // The running (last started) program's file: a restarted one writes a new file.
+        let bridge_status = match &self.bridge_spawn {
+            Some(b) if self.bridge.is_some() => ProgramStatus::read(&b.status_path(&dir))?,
+            _ => None,
+        };
+        let router_status = match &self.router_spawn {
+            Some(r) if self.router.is_some() => ProgramStatus::read(&r.status_path(&dir))?,
+            _ => None,
+        };
+        let mut link_notices = Vec::new();
+        if let Some(r) = &self.router_spawn {
+            for file in r.status_files(&dir) {
+                link_notices.extend(LinkNotice::read_all(&file)?);
+            }
+        }
         let mut files: Vec<PathBuf> = exits.iter().map(|e| e.log.clone()).collect();
+        files.extend(status_files.into_iter().filter(|f| f.exists()));
         files.extend(self.crashed_logs.iter().cloned());
         files.push(self.fc_summary.clone());
         let starts = self.router_spawn.as_ref().map_or(0, |r| r.starts);
@@ -400,6 +422,7 @@ impl MavloraSession {
             radio_epoch: self.radio.epoch(),
             bridge_status,
             router_status,
+            link_notices,
             exits,
             files,
         })
@@ -493,6 +516,18 @@ struct RouterSpawn {
 }
 
 impl RouterSpawn {
+    /// The running router's status file: `router.status.jsonl`, then `router-<n>.status.jsonl`.
+    fn status_path(&self, dir: &Path) -> PathBuf {
+        nth(dir, "router", "status.jsonl", self.starts)
+    }
+
+    /// Every router's status file.
+    fn status_files(&self, dir: &Path) -> Vec<PathBuf> {
+        (1..=self.starts)
+            .map(|n| nth(dir, "router", "status.jsonl", n))
+            .collect()
+    }
+
     /// Starts a router on `radio_port`; the first logs to `router.log` and `router.tlog`,
     /// later ones to `router-<n>.log`/`.tlog`. Every one shares the signing-state file.
     fn start(&mut self, options: &SessionOptions, radio_port: &str) -> Result<Process> {
@@ -511,6 +546,8 @@ impl RouterSpawn {
             ])
             .arg("--tlog")
             .arg(nth(dir, "router", "tlog", self.starts))
+            .arg("--status-json")
+            .arg(self.status_path(dir))
             .arg("--key")
             .arg(&self.key)
             .arg("--signing-state")
@@ -536,10 +573,23 @@ struct BridgeSpawn {
 }
 
 impl BridgeSpawn {
+    /// The running bridge's status file: `bridge.status.jsonl`, then `bridge-<n>.status.jsonl`.
+    fn status_path(&self, dir: &Path) -> PathBuf {
+        nth(dir, "bridge", "status.jsonl", self.starts)
+    }
+
+    /// Every bridge's status file.
+    fn status_files(&self, dir: &Path) -> Vec<PathBuf> {
+        (1..=self.starts)
+            .map(|n| nth(dir, "bridge", "status.jsonl", n))
+            .collect()
+    }
+
     /// Starts a bridge between the FC fixture's port and `radio_port`; the first logs to
     /// `bridge.log`, later ones to `bridge-<n>.log`. Every one shares the signing-state file.
     fn start(&mut self, options: &SessionOptions, radio_port: &str) -> Result<Process> {
         let dir = &options.out_dir;
+        self.starts += 1;
         let mut command = Command::new(&options.bridge_program);
         command
             .args(["--fc", &self.fc_port, "--radio", radio_port])
@@ -551,6 +601,8 @@ impl BridgeSpawn {
             .arg(&self.key)
             .arg("--signing-state")
             .arg(dir.join("bridge.signing-state"))
+            .arg("--status-json")
+            .arg(self.status_path(dir))
             .env("NO_COLOR", "1");
         if options.compact {
             command.arg("--compact");
@@ -558,7 +610,6 @@ impl BridgeSpawn {
         if let Some(period) = options.link_quality_period {
             command.args(["--link-quality-period", &period.to_string()]);
         }
-        self.starts += 1;
         let log = nth(dir, "bridge", "log", self.starts);
         Ok(Process::spawn("mavlora-bridge", command, &log)?)
     }

@@ -18,8 +18,8 @@
 //! taken from the GCS cover the same window.
 //! [`MavloraSession::finish`] stops everything with SIGTERM, checks each
 //! program exited with status 0 and collects the fixtures' summaries, the
-//! radio's per-direction [`LinkStats`] and the bridge's and router's last
-//! status lines. Every program's stderr is kept as a log in the output folder.
+//! radio's per-direction [`LinkStats`] and what the bridge and router last reported in
+//! their status files ([`ProgramStatus`]). Every program's stderr is kept as a log in the output folder.
 
 mod chain;
 mod options;
@@ -36,7 +36,7 @@ pub use options::{
     FcProfile, GcsPlan, SessionDefaults, SessionOptions, Variant, sik_with_independent_loss,
     sik_with_loss,
 };
-pub use report::{ExitRecord, GCS_PHASE_FAILED, SessionReport, last_status, status_field};
+pub use report::{ExitRecord, GCS_PHASE_FAILED, LinkNotice, ProgramStatus, SessionReport};
 
 /// Why a session could not be brought up or finished.
 #[derive(Debug, thiserror::Error)]

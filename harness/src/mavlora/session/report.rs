@@ -1,8 +1,10 @@
-//! What a finished session leaves behind, and reading the MavLora programs'
-//! status lines.
+//! What a finished session leaves behind, and reading the MavLora programs' status files.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitStatus;
+
+use anyhow::Context;
+use hostio::status::{Kind as StatusKind, Line as StatusLine};
 
 use super::chain::GcsLine;
 use crate::driver::fixture::Line;
@@ -53,9 +55,12 @@ pub struct SessionReport {
     pub uplink: LinkStats,
     /// The radio model's time zero on the rig's clock (its scheduled silences count from it).
     pub radio_epoch: crate::clock::Mono,
-    /// Last status line of the bridge and the router, when they ran.
-    pub bridge_status: Option<String>,
-    pub router_status: Option<String>,
+    /// What the bridge and the router last reported, when they ran.
+    pub bridge_status: Option<ProgramStatus>,
+    pub router_status: Option<ProgramStatus>,
+    /// Every router's link announcements to the ground, in order (a crashed router's, then
+    /// its successor's).
+    pub link_notices: Vec<LinkNotice>,
     /// Every program, in the order stopped.
     pub exits: Vec<ExitRecord>,
     /// Logs and files kept as evidence.
@@ -97,69 +102,204 @@ impl SessionReport {
     }
 }
 
-/// The last `status` line a MavLora program logged, without its timestamp
-/// and colours.
-pub fn last_status(log: &Path) -> Option<String> {
-    let text = std::fs::read_to_string(log).ok()?;
-    text.lines()
-        .map(strip_ansi)
-        .rev()
-        .find(|l| l.contains(" status ") || l.ends_with(" status"))
-        .map(|l| match l.find("INFO") {
-            Some(i) => l[i..].to_string(),
-            None => l,
-        })
+/// What a MavLora program last reported in its status file (`--status-json`, schema
+/// `c2-status/1`, `firmware/hostio/STATUS-JSON.md`): its stop line, or the latest periodic
+/// line of one that was killed.
+#[derive(Debug, Clone)]
+pub struct ProgramStatus {
+    /// The file it was read from.
+    pub path: PathBuf,
+    line: StatusLine,
 }
 
-/// Removes terminal colour sequences (`ESC [ ... m`).
-fn strip_ansi(line: &str) -> String {
-    let mut out = String::with_capacity(line.len());
-    let mut chars = line.chars();
-    while let Some(c) = chars.next() {
-        if c == '\u{1b}' {
-            for c in chars.by_ref() {
-                if c.is_ascii_alphabetic() {
-                    break;
-                }
+impl ProgramStatus {
+    /// Reads the last line with counters from `path`; `None` if the program wrote none (it
+    /// never got running, or the file is not there). A line of another schema, or one that is
+    /// not a status line, is an error naming the file and line: only a torn last line (a
+    /// program killed mid-write) is passed over.
+    pub fn read(path: &Path) -> anyhow::Result<Option<Self>> {
+        let text = match std::fs::read_to_string(path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
+        };
+        let lines: Vec<&str> = text.lines().collect();
+        let torn = !text.ends_with('\n');
+        let mut last = None;
+        for (i, raw) in lines.iter().enumerate() {
+            match StatusLine::parse(raw) {
+                Ok(line) if line.counters.is_some() => last = Some(line),
+                Ok(_) => {}
+                Err(_) if torn && i + 1 == lines.len() => {}
+                Err(e) => anyhow::bail!("{}:{}: {e}", path.display(), i + 1),
             }
-        } else {
-            out.push(c);
         }
+        Ok(last.map(|line| ProgramStatus {
+            path: path.to_path_buf(),
+            line,
+        }))
     }
-    out
+
+    /// A counter (a total since start); an error naming the file if it has none.
+    pub fn counter(&self, name: &str) -> anyhow::Result<f64> {
+        self.line
+            .counter(name)
+            .with_context(|| format!("{}: no counter {name}", self.path.display()))
+    }
+
+    /// A gauge (a level at the time of the line); an error naming the file if it has none.
+    pub fn gauge(&self, name: &str) -> anyhow::Result<f64> {
+        self.line
+            .gauge(name)
+            .with_context(|| format!("{}: no gauge {name}", self.path.display()))
+    }
 }
 
-/// `key=value` of a status line as a number (`radio_tx_bytes=1234`).
-pub fn status_field(line: &str, key: &str) -> Option<f64> {
-    line.split_whitespace()
-        .find_map(|kv| kv.strip_prefix(key)?.strip_prefix('='))
-        .and_then(|v| v.parse().ok())
+/// A router's announcement of a change in the link's health to the ground stations: a
+/// `link_notice` event of its status file.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+pub struct LinkNotice {
+    /// `uplink` or `downlink`.
+    pub direction: String,
+    /// Its new health: `ok`, `degraded`, `lost` or `silent`.
+    pub health: String,
+    /// The `STATUSTEXT` the ground stations were sent.
+    pub text: String,
+}
+
+impl LinkNotice {
+    /// Every `link_notice` event in the status file at `path`, in order (none if the file is
+    /// not there). A line that does not parse is an error naming file and line, but for a
+    /// torn last line.
+    pub fn read_all(path: &Path) -> anyhow::Result<Vec<LinkNotice>> {
+        let text = match std::fs::read_to_string(path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+            Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
+        };
+        let lines: Vec<&str> = text.lines().collect();
+        let torn = !text.ends_with('\n');
+        let mut notices = Vec::new();
+        for (i, raw) in lines.iter().enumerate() {
+            let at = || format!("{}:{}", path.display(), i + 1);
+            let line = match StatusLine::parse(raw) {
+                Ok(line) => line,
+                Err(_) if torn && i + 1 == lines.len() => continue,
+                Err(e) => anyhow::bail!("{}: {e}", at()),
+            };
+            if line.kind != StatusKind::Event
+                || line.rest.get("event").and_then(|e| e.as_str()) != Some("link_notice")
+            {
+                continue;
+            }
+            let notice = serde_json::from_value(serde_json::Value::Object(line.rest))
+                .with_context(|| format!("{}: a link_notice event", at()))?;
+            notices.push(notice);
+        }
+        Ok(notices)
+    }
+}
+
+/// `program kind t_s: counters {...} gauges {...}`, for a phase's log.
+impl std::fmt::Display for ProgramStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let l = &self.line;
+        write!(f, "{} {:?} at {:.1} s:", l.program, l.kind, l.t_s)?;
+        for (name, values) in [("counters", &l.counters), ("gauges", &l.gauges)] {
+            if let Some(values) = values {
+                write!(f, " {name} {}", serde_json::Value::Object(values.clone()))?;
+            }
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn status_fields_are_read_from_a_bridge_line() {
-        let line = "2026-11-23T13:00:00.1Z  INFO mavlora_bridge: status fc_rx=120 radio_tx_bytes=4567 peer_loss=None";
-        assert_eq!(status_field(line, "radio_tx_bytes"), Some(4567.0));
-        assert_eq!(status_field(line, "fc_rx"), Some(120.0));
-        assert_eq!(status_field(line, "peer_loss"), None);
-        assert_eq!(status_field(line, "radio_tx"), None);
+    const START: &str = r#"{"schema":"c2-status/1","program":"mavlora-router","kind":"start","t_s":0.0,"mono_s":1.0,"version":"0.1.0"}"#;
+    const STATUS: &str = r#"{"schema":"c2-status/1","program":"mavlora-router","kind":"status","t_s":2.0,"mono_s":3.0,"counters":{"ground_rejected":1},"gauges":{"radio_queued_bytes":0}}"#;
+    const STOP: &str = r#"{"schema":"c2-status/1","program":"mavlora-router","kind":"stop","t_s":4.0,"mono_s":5.0,"exit_code":0,"error":null,"counters":{"ground_rejected":3},"gauges":{"radio_queued_bytes":12}}"#;
+
+    fn read(text: &str) -> anyhow::Result<Option<ProgramStatus>> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("router.status.jsonl");
+        std::fs::write(&path, text).unwrap();
+        ProgramStatus::read(&path)
     }
 
     #[test]
-    fn status_line_is_found_in_a_coloured_log() {
+    fn the_stop_line_is_the_last_status() {
+        let status = read(&format!("{START}\n{STATUS}\n{STOP}\n"))
+            .unwrap()
+            .unwrap();
+        assert_eq!(status.counter("ground_rejected").unwrap(), 3.0);
+        assert_eq!(status.gauge("radio_queued_bytes").unwrap(), 12.0);
+        let missing = status.counter("radio_tx_unsigned").unwrap_err().to_string();
+        assert!(
+            missing.contains("router.status.jsonl: no counter radio_tx_unsigned"),
+            "{missing}"
+        );
+    }
+
+    #[test]
+    fn a_killed_program_leaves_its_latest_status_and_maybe_a_torn_line() {
+        let torn = &STOP[..40];
+        let status = read(&format!("{START}\n{STATUS}\n{torn}"))
+            .unwrap()
+            .unwrap();
+        assert_eq!(status.counter("ground_rejected").unwrap(), 1.0);
+        assert!(read(START).unwrap().is_none(), "started, never reported");
+    }
+
+    #[test]
+    fn another_schema_or_a_bad_line_inside_the_file_names_file_and_line() {
+        let other = STATUS.replace("c2-status/1", "c2-status/2");
+        let e = read(&format!("{START}\n{other}\n{STOP}\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("router.status.jsonl:2: schema"), "{e}");
+        let e = read(&format!("{START}\nINFO status x=1\n{STOP}\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("router.status.jsonl:2: not a status line"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn link_notices_are_the_event_lines_in_order() {
+        let event = |health: &str, text: &str| {
+            format!(
+                r#"{{"schema":"c2-status/1","program":"mavlora-router","kind":"event","t_s":1.0,"mono_s":2.0,"event":"link_notice","direction":"uplink","health":"{health}","loss_pct":80.0,"text":"{text}"}}"#
+            )
+        };
+        let other = r#"{"schema":"c2-status/1","program":"mavlora-router","kind":"event","t_s":1.0,"mono_s":2.0,"event":"something_else"}"#;
         let dir = tempfile::tempdir().unwrap();
-        let log = dir.path().join("bridge.log");
-        std::fs::write(
-            &log,
-            "\u{1b}[2m2026\u{1b}[0m \u{1b}[32m INFO\u{1b}[0m mavlora_bridge: status \u{1b}[3mfc_rx\u{1b}[0m=5\nlater line\n",
-        )
-        .unwrap();
-        let line = last_status(&log).unwrap();
-        assert_eq!(line, "INFO mavlora_bridge: status fc_rx=5");
-        assert_eq!(status_field(&line, "fc_rx"), Some(5.0));
+        let path = dir.path().join("router.status.jsonl");
+        let text = format!(
+            "{START}\n{}\n{STATUS}\n{other}\n{}\n{STOP}\n",
+            event("degraded", "Uplink GCS>UAV degraded: 80% lost"),
+            event("ok", "Uplink GCS>UAV restored: 0% lost")
+        );
+        std::fs::write(&path, text).unwrap();
+        let notices = LinkNotice::read_all(&path).unwrap();
+        let healths: Vec<&str> = notices.iter().map(|n| n.health.as_str()).collect();
+        assert_eq!(healths, ["degraded", "ok"]);
+        assert_eq!(notices[0].text, "Uplink GCS>UAV degraded: 80% lost");
+        let broken = event("degraded", "x").replace(r#""direction":"uplink","#, "");
+        std::fs::write(&path, format!("{START}\n{broken}\n{STOP}\n")).unwrap();
+        let e = format!("{:#}", LinkNotice::read_all(&path).unwrap_err());
+        assert!(
+            e.contains("router.status.jsonl:2: a link_notice event"),
+            "{e}"
+        );
+        assert!(
+            LinkNotice::read_all(&dir.path().join("none"))
+                .unwrap()
+                .is_empty()
+        );
     }
 }
