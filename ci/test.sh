@@ -104,7 +104,9 @@ cargo bench --locked -q --workspace "${features[@]}" --bench mux
 step "mavlora benchmark"
 cargo bench --locked -q --workspace "${features[@]}" --bench radio
 # 3 replays (63 k frames) and 3 s idle here, for CI's 10 minutes; the defaults (60 replays,
-# 10 s) for the record.
+# 10 s) for the record. The MavLora benchmarks are harness-sim's (they replay its simulated
+# flights); router_cost runs the mavlora-router and mavlora-bridge of the first build above,
+# from target/release/.
 step "mavlora-router cost per frame, memory and idle CPU, against a sendto-per-frame baseline"
 MAVLORA_BENCH_ROUNDS=3 MAVLORA_BENCH_IDLE_S=3 \
     cargo bench --locked -q --workspace "${features[@]}" --bench router_cost

@@ -23,7 +23,7 @@
 //! skips. MAVProxy keeps its state and logs in a temporary directory (its `HOME` too).
 
 mod common;
-use common::{Guard, root};
+use common::{Guard, pty_pair, root};
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -59,18 +59,6 @@ fn free_udp_port() -> u16 {
         .local_addr()
         .unwrap()
         .port()
-}
-
-/// A pty pair whose descriptors the router, bridge and MAVProxy do not inherit.
-fn pty_pair() -> (TTYPort, TTYPort) {
-    let (master, slave) = TTYPort::pair().expect("pty pair");
-    for port in [&master, &slave] {
-        use std::os::fd::{AsRawFd, BorrowedFd};
-        // SAFETY: the descriptor belongs to `port`, alive for this call.
-        let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
-        rustix::io::fcntl_setfd(fd, rustix::io::FdFlags::CLOEXEC).unwrap();
-    }
-    (master, slave)
 }
 
 /// Copies bytes one way: the radio.

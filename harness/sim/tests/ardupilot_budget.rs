@@ -1,4 +1,4 @@
-//! Issue 9, item 4: an ArduPilot-like autopilot (MAVLink 1, ~30 message types at 4 Hz,
+//! An ArduPilot-like autopilot (MAVLink 1, ~30 message types at 4 Hz,
 //! ardupilotmega-only ids, a parameter stream, stream requests ignored) through the bridge
 //! and the LoRa SF7 radio. The profile's messages must keep their rate and a short lag
 //! whatever else the autopilot sends; commands must never be dropped; a parameter stream is

@@ -1,6 +1,9 @@
 //! MavLora's MAVLink dialect: everything in `common.xml` plus
-//! [`LINK_QUALITY`](mavlora::LINK_QUALITY_DATA) (id 15) and
-//! [`MAVLORA_TELEMETRY`](mavlora::MAVLORA_TELEMETRY_DATA) (id 16).
+//! [`LINK_QUALITY`](mavlora::LINK_QUALITY_DATA) (id 15),
+//! [`MAVLORA_TELEMETRY`](mavlora::MAVLORA_TELEMETRY_DATA) (id 16),
+//! [`MAVLORA_POSITION_BATCH`](mavlora::MAVLORA_POSITION_BATCH_DATA) (id 17),
+//! [`MAVLORA_STATUS`](mavlora::MAVLORA_STATUS_DATA) (id 18) and
+//! [`MAVLORA_MISSION_ITEMS`](mavlora::MAVLORA_MISSION_ITEMS_DATA) (id 19).
 //!
 //! Generated at build time by `mavlink-bindgen` from `message_definitions/mavlora.xml` (in the
 //! `mavlora` crate directory), so the Rust types, the CRC_EXTRA values and the XML that

@@ -1,8 +1,8 @@
 //! Which command an ack answers, on the radio leg between bridge and router.
 //!
 //! `COMMAND_ACK` names only the command id, so after a command was sent more than once the
-//! router could not tell a late copy's ack from the next command's (same id) and had to
-//! hold the next one back until no such ack could arrive. The bridge knows which generation
+//! router cannot tell a late copy's ack from the next command's (same id) by the ack alone:
+//! it would have to hold the next one back until no such ack could arrive. The bridge knows which generation
 //! it forwarded (the radio confirmation, see [`radio_confirmation`](super::radio_confirmation))
 //! and writes it into the ack's `result_param2` (a MAVLink 2 extension field) on the way to
 //! the radio; the router reads it, matches the ack to exactly that command, and gives the

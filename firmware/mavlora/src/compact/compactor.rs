@@ -46,8 +46,8 @@ impl Default for CompactConfig {
         Self {
             // Six samples every 2 s rather than three every second: each frame pays 25 bytes
             // of framing and signature on a signed radio, so one frame a second alone is
-            // 53 B/s, over issue 9's 50 B/s for all compact telemetry; one every 2 s is 34 B/s.
-            // Lag grows to ~2 s (issue 9 bounds it at 1.5 batch periods).
+            // 53 B/s, over the 50 B/s compact telemetry may use in all; one every 2 s is
+            // 34 B/s. Lag grows to ~2 s, within the bound of 1.5 batch periods.
             sample_hz: 3.0,
             batch_samples: MAX_BATCH_SAMPLES,
             batch_period: Duration::from_secs(2),

@@ -16,8 +16,9 @@ pub const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
 
 /// A heartbeat of our own goes only this long after the last compact frame: one fills the
 /// second between two batches, and none follows a frame that no other follows, so a ground
-/// station sees heartbeats stop a second after the link does, as when a batch went every
-/// second (a longer hold hid a bridge's restart from the rig's ground station).
+/// station sees heartbeats stop a second after the link does, as it would with a batch every
+/// second. A longer hold would hide a short outage, such as a bridge's restart, from the
+/// ground station.
 pub const HEARTBEAT_HOLD: Duration = Duration::from_millis(1200);
 
 /// Sans-IO expander: keeps the latest status so position batches can be expanded into full

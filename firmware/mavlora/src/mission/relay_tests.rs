@@ -140,7 +140,7 @@ fn lost_items_are_requested_selectively_and_a_lost_tail_after_one_timeout() {
     assert_eq!(r.stats().radio_requests, 3);
 }
 
-/// Issue 9, 3.1, on the radio leg: items of an older plan must never be mixed in.
+/// On the radio leg too: items of an older plan must never be mixed in.
 #[test]
 fn items_of_another_plan_are_refused_and_all_asked_again() {
     let old = plan(&[1, 2]);
@@ -175,7 +175,7 @@ fn items_of_another_plan_are_refused_and_all_asked_again() {
     assert!(super::super::plan::same_plan(&got, &new));
 }
 
-/// Issue 9, 3.4: an autopilot reboot mid-upload ended in an error instead of a restart.
+/// Regression: an autopilot reboot mid-upload ended in an error instead of a restart.
 #[test]
 fn autopilot_reboot_mid_upload_restarts_the_wire_leg() {
     let items = plan(&[1, 2, 3]);
@@ -316,7 +316,7 @@ fn items_whose_count_was_lost_are_kept_for_it_and_not_sent_again() {
 
 /// The count got through but every item of the stream was lost (a fade): the router's poll
 /// says the stream has left, and every missing item is asked for at once, one request per
-/// run, not a batch of 8 per round trip (100 items took 13 rounds).
+/// run, not a batch of 8 per round trip (100 items would take 13 rounds).
 #[test]
 fn after_a_poll_every_missing_item_is_asked_for_at_once_one_request_per_run() {
     let items = plan(&(0..100).collect::<Vec<_>>());

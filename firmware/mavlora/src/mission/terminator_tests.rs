@@ -130,7 +130,7 @@ fn acks(msgs: &[MavMessage]) -> Vec<MavMissionResult> {
         .collect()
 }
 
-/// Issue 9, 3.1: a second MISSION_COUNT with the same count kept item 0 of the old plan.
+/// Regression: a second MISSION_COUNT with the same count kept item 0 of the old plan.
 #[test]
 fn same_count_again_mid_upload_restarts_from_item_zero() {
     let mut m = MissionTerminator::new(TerminatorConfig::default());
@@ -145,7 +145,7 @@ fn same_count_again_mid_upload_restarts_from_item_zero() {
     assert_eq!(m.stats().restarts, 1);
 }
 
-/// Issue 9, 3.3: the ground's 0.5 s timeouts must never meet the radio, and it must never be
+/// The ground's 0.5 s timeouts must never meet the radio, and it must never be
 /// told ACCEPTED before the vehicle said so.
 #[test]
 fn ground_is_kept_waiting_with_requests_for_its_last_item_never_a_made_up_accept() {
@@ -217,7 +217,7 @@ fn vehicle_error_reaches_the_ground_as_an_error() {
     );
 }
 
-/// Issue 9, 3.4: the relay kept going after the ground cancelled.
+/// Regression: the relay kept going after the ground cancelled.
 #[test]
 fn ground_cancel_stops_the_transfer_and_tells_the_bridge() {
     let mut m = MissionTerminator::new(TerminatorConfig::default());
@@ -472,10 +472,10 @@ fn a_range_request_is_answered_ahead_of_the_stream_without_what_waits_or_crossed
     assert_eq!(items_of(&radio_out(&mut m, ms(800))), vec![(1, 2)]);
 }
 
-/// Issue 9's SiK case: a fixed 2 s wait for the first poll was most of a 100-item upload.
-/// The poll timeout is two stream frames at the paced rate plus the margin until a round
-/// trip is measured, then the measured RTO; a poll lost in a fade is followed by the next
-/// one a timeout later, several times, before the timeout doubles up to `poll_max`.
+/// On SiK a fixed 2 s wait for the first poll would be most of a 100-item upload. The poll
+/// timeout is two stream frames at the paced rate plus the margin until a round trip is
+/// measured, then the measured RTO; a poll lost in a fade is followed by the next one a
+/// timeout later, several times, before the timeout doubles up to `poll_max`.
 #[test]
 fn poll_timeout_follows_the_round_trip_and_polls_keep_coming_through_a_fade() {
     let uploaded = || {

@@ -2,7 +2,8 @@
 //! other side reports hearing. The paper's reason: a drone's own RF noise can blind its
 //! receiver while the ground still hears the drone, so the ground must be told.
 //!
-//! Reports are event-driven (issue 12): one goes out early when our loss estimate moved by
+//! Reports are event-driven, so a quiet link costs little and a change is told at once: one
+//! goes out early when our loss estimate moved by
 //! [`LinkQualityConfig::change`] since the last one, or when the peer went quiet; otherwise
 //! one per [`LinkQualityConfig::period`] (the steady cost). The side that sends the reports
 //! also counts its own radio frames ([`LinkQuality::sent_frame`]), so a report that says "I
@@ -30,8 +31,8 @@ use crate::wire::{Frame, ReaderStats, ids};
 pub const REPORT_BYTES: u32 = 25;
 /// The same, signed (13-byte trailer).
 pub const REPORT_BYTES_SIGNED: u32 = 38;
-/// Share of a side's radio budget its steady reports may use: 3 B/s of LoRa SF7's 683 B/s
-/// (issue 12's limit, ≈ 0.44 %), rounded down.
+/// Share of a side's radio budget its steady reports may use: the steady cost allowed for
+/// link monitoring is 3 B/s of LoRa SF7's 683 B/s (≈ 0.44 %), rounded down.
 pub const MONITOR_SHARE: f64 = 0.004;
 
 /// Settings of a [`LinkQuality`] engine.
@@ -479,8 +480,8 @@ impl LinkQuality {
     /// When the engine next wants [`handle_timeout`](Self::handle_timeout): the keep-alive,
     /// or the first moment an early condition can turn true (new counters came in, the
     /// peer goes quiet, a counted frame leaves the loss window, or one is true already),
-    /// not before the shortest interval allows a report. An idle link wakes nobody: before,
-    /// the conditions were looked at every 200 ms whatever happened.
+    /// not before the shortest interval allows a report. An idle link wakes nobody: nothing
+    /// here runs on a period of its own, so an idle program costs no CPU for it.
     pub fn poll_timeout(&self) -> Option<Instant> {
         let Some(checked) = self.checked_at else {
             return Some(self.started);

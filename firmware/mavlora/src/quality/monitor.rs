@@ -1,5 +1,5 @@
-//! What the pilot is told, in messages every ground station knows (issue 12, SORA OSO#6:
-//! the remote pilot continuously monitors the C2 link): `RADIO_STATUS` once a second, built
+//! What the pilot is told, in messages every ground station knows (SORA OSO#6: the remote
+//! pilot continuously monitors the C2 link): `RADIO_STATUS` once a second, built
 //! from both ends' `LINK_QUALITY` and the local radio, and a `STATUSTEXT` when a direction's
 //! health changes (degraded, lost, restored), once per change.
 //!

@@ -1,6 +1,6 @@
 //! A MAVLink 1 autopilot (ArduPilot on serial) behind the bridge, the router on the ground:
 //! its frames cross the radio as MAVLink 2, signed, renumbered, and the ground's come back
-//! to it as MAVLink 1 (issue 9, item 4).
+//! to it as MAVLink 1.
 
 use mavlink::MavlinkVersion;
 
@@ -134,7 +134,7 @@ impl Pair {
     }
 }
 
-/// Issue 9: with `--key`, a MAVLink 1 autopilot's telemetry was dropped entirely (MAVLink 1
+/// Regression: with `--key`, a MAVLink 1 autopilot's telemetry was dropped entirely (MAVLink 1
 /// cannot be signed) while the bridge's status line counted it as sent on the radio.
 #[test]
 fn mavlink1_autopilot_telemetry_crosses_a_signed_radio() {
@@ -178,9 +178,9 @@ fn mavlink1_autopilot_telemetry_crosses_a_signed_radio() {
     assert_eq!(b.signing.signed, b.scheduler.sent_frames);
 }
 
-/// Issue 9: the router's LINK_QUALITY read ~97 % loss on a loss-free link with a MAVLink 1
+/// Regression: the router's LINK_QUALITY read ~97 % loss on a loss-free link with a MAVLink 1
 /// autopilot: frames of ids outside our dialect kept the autopilot's sequence numbers among
-/// renumbered ones. Unsigned and signed links alike now read no loss.
+/// renumbered ones. Unsigned and signed links alike must read no loss.
 #[test]
 fn mavlink1_autopilot_on_a_loss_free_radio_reads_no_loss() {
     for signed in [false, true] {

@@ -67,7 +67,7 @@ mod tests {
         assert_eq!(reader.stats().lost, 0);
     }
 
-    /// Issue 9: ArduPilot's own messages (ids outside our dialect) kept the autopilot's
+    /// Regression: ArduPilot's own messages (ids outside our dialect) kept the autopilot's
     /// sequence numbers among renumbered frames of the same sender; the router's
     /// `LINK_QUALITY` read ~97 % loss on a loss-free link.
     #[test]

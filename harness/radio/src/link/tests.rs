@@ -129,7 +129,7 @@ fn send_every(
 #[test]
 fn a_sparse_uplink_does_not_stretch_a_burst_over_seconds() {
     let cfg = LinkConfig {
-        // 10 % of the time bad, 30 ms fades (per ms); before: 30-packet bursts.
+        // 10 % of the time bad, 30 ms fades (the chain steps per ms, not per packet).
         burst: Some(GilbertElliott {
             p_good_to_bad: 0.1 / 0.9 / 30.0,
             p_bad_to_good: 1.0 / 30.0,

@@ -17,16 +17,16 @@ use std::collections::VecDeque;
 
 use mavlink::MavlinkVersion;
 use mavlora::dialect::{
-    ATTITUDE_DATA, COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType,
-    HEARTBEAT_DATA, MISSION_CURRENT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage,
-    MavModeFlag, MavParamType, MavResult, MavState, MavSysStatusSensorExtended, MavType,
-    PARAM_VALUE_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
+    ATTITUDE_DATA, COMMAND_ACK_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
+    MISSION_CURRENT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag,
+    MavParamType, MavResult, MavState, MavSysStatusSensorExtended, MavType, PARAM_VALUE_DATA,
+    SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 use mavlora::{Duration, Instant};
 
 use super::Autopilot;
-use super::px4::{Flight, Kinematics};
+use super::kinematics::{Flight, Kinematics};
 use crate::rng::SplitMix64;
 
 /// `MAV_DATA_STREAM` groups ArduPilot streams by (ids as in common.xml).
@@ -240,21 +240,7 @@ impl ArduPilotFc {
 
     /// Position and velocity at `now`.
     pub fn kinematics(&self, now: Instant) -> Kinematics {
-        let secs = now.saturating_duration_since(self.booted).as_secs_f64();
-        match self.flight {
-            Flight::Circle => {
-                let w = 10.0 / 200.0;
-                Kinematics {
-                    north: 200.0 * (w * secs).cos(),
-                    east: 200.0 * (w * secs).sin(),
-                    up: 50.0,
-                    vn: -10.0 * (w * secs).sin(),
-                    ve: 10.0 * (w * secs).cos(),
-                    vu: 0.0,
-                }
-            }
-            Flight::Route(r) => r.at(secs),
-        }
+        self.flight.since_boot(self.booted, now)
     }
 
     fn handle(&mut self, from: (u8, u8), msg: MavMessage, now: Instant) {
@@ -351,15 +337,9 @@ impl ArduPilotFc {
         let t = now.saturating_duration_since(self.booted);
         let ms = t.as_millis() as u32;
         let k = self.kinematics(now);
-        let lat = 553_700_000 + (k.north / 0.011_132) as i32;
-        let lon = 103_900_000 + (k.east / (0.011_132 * 0.5664)) as i32;
-        let course = if k.vn.hypot(k.ve) < 0.1 {
-            90.0
-        } else {
-            k.ve.atan2(k.vn).to_degrees()
-        };
-        let hdg = ((course + 360.0) % 360.0 * 100.0) as u16;
-        let rel_mm = (k.up * 1000.0) as i32;
+        let (lat, lon) = k.lat_lon();
+        let hdg = k.heading_cdeg(90.0);
+        let rel_mm = k.rel_alt_mm();
         let msg = match spec.id {
             1 => MavMessage::SYS_STATUS(SYS_STATUS_DATA {
                 voltage_battery: 12_600 - (t.as_secs_f64() * 1.5) as u16,
@@ -394,17 +374,7 @@ impl ArduPilotFc {
                 pitchspeed: -0.007,
                 yawspeed: 0.002,
             }),
-            33 => MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-                time_boot_ms: ms,
-                lat,
-                lon,
-                alt: 10_000 + rel_mm,
-                relative_alt: rel_mm,
-                vx: (k.vn * 100.0) as i16,
-                vy: (k.ve * 100.0) as i16,
-                vz: (-k.vu * 100.0) as i16,
-                hdg,
-            }),
+            33 => MavMessage::GLOBAL_POSITION_INT(k.global_position_int(ms, hdg)),
             42 => MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA {
                 seq: 1,
                 ..Default::default()

@@ -4,16 +4,16 @@
 //! specifics use `World<ArduPilotFc>` as they use `World<Px4Fc>` (the default) for PX4's.
 
 mod ardupilot;
+mod kinematics;
 mod mission;
 mod px4;
 
 pub use ardupilot::{
     ARDUPILOT_STREAMS, ApStream, ArduPilotConfig, ArduPilotFc, ArduPilotStats, Group,
 };
+pub use kinematics::{Flight, Kinematics, Route};
 pub use mission::{MissionStore, MissionStoreStats};
-pub use px4::{
-    Executed, Flight, Kinematics, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, Route, StreamSpec,
-};
+pub use px4::{Executed, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, StreamSpec};
 
 use mavlora::Instant;
 use mavlora::dialect::{MISSION_ITEM_INT_DATA, MavMissionType};

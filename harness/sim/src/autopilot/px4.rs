@@ -7,14 +7,14 @@ use std::collections::VecDeque;
 
 use mavlink::MavlinkVersion;
 
+use super::kinematics::{Flight, Kinematics};
 use super::mission::MissionStore;
 use crate::rng::SplitMix64;
 use mavlora::Instant;
 use mavlora::dialect::{
-    ATTITUDE_DATA, COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType,
-    HEARTBEAT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionType,
-    MavModeFlag, MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA,
-    VFR_HUD_DATA,
+    ATTITUDE_DATA, COMMAND_ACK_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
+    MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionType, MavModeFlag,
+    MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 
@@ -94,118 +94,6 @@ pub const PX4_CONFIG: &[StreamSpec] = &[
     s(242, 0.5, 52),  // HOME_POSITION
     s(0, 1.0, 9),     // HEARTBEAT
 ];
-
-/// Where the simulated flight controller flies.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Flight {
-    /// A 200 m circle at 10 m/s, 50 m up, for ever.
-    Circle,
-    /// A route, then landed at home.
-    Route(Route),
-}
-
-/// An out-and-back route from home: climb, fly `length_m` (half out along `bearing_deg`, half
-/// back) at `speed_m_s`, descend.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Route {
-    /// Horizontal distance flown, m.
-    pub length_m: f64,
-    /// Cruise speed, m/s.
-    pub speed_m_s: f64,
-    /// Cruise height above home, m.
-    pub altitude_m: f64,
-    /// Climb rate, m/s.
-    pub climb_m_s: f64,
-    /// Descent rate, m/s.
-    pub descent_m_s: f64,
-    /// Direction of the outbound leg, degrees from north.
-    pub bearing_deg: f64,
-}
-
-/// Position and velocity in metres and m/s, north-east-up from home.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Kinematics {
-    /// North of home, m.
-    pub north: f64,
-    /// East of home, m.
-    pub east: f64,
-    /// Above home, m.
-    pub up: f64,
-    /// Velocity north, m/s.
-    pub vn: f64,
-    /// Velocity east, m/s.
-    pub ve: f64,
-    /// Velocity up, m/s.
-    pub vu: f64,
-}
-
-impl Route {
-    /// The paper's route (section VI-A): 4 km at 10 m/s at 100 m. Climb at 3 m/s and descent
-    /// at 1.25 m/s (PX4's `MPC_Z_VEL_MAX_UP` default and a gentle landing) make the flight
-    /// 513.3 s, the paper's 513 s wired flight.
-    pub const PAPER: Route = Route {
-        length_m: 4000.0,
-        speed_m_s: 10.0,
-        altitude_m: 100.0,
-        climb_m_s: 3.0,
-        descent_m_s: 1.25,
-        bearing_deg: 45.0,
-    };
-
-    fn phases(&self) -> (f64, f64, f64) {
-        (
-            self.altitude_m / self.climb_m_s,
-            self.length_m / self.speed_m_s,
-            self.altitude_m / self.descent_m_s,
-        )
-    }
-
-    /// Take-off to touch-down.
-    pub fn duration(&self) -> Duration {
-        let (c, f, d) = self.phases();
-        Duration::from_secs_f64(c + f + d)
-    }
-
-    /// Where the vehicle is `t` seconds after take-off (on the ground at home after landing).
-    pub fn at(&self, t: f64) -> Kinematics {
-        let (climb, cruise, descent) = self.phases();
-        let (sin, cos) = self.bearing_deg.to_radians().sin_cos();
-        let half = self.length_m / 2.0;
-        let t = t.max(0.0);
-        if t < climb {
-            return Kinematics {
-                up: self.climb_m_s * t,
-                vu: self.climb_m_s,
-                ..Kinematics::default()
-            };
-        }
-        if t < climb + cruise {
-            let flown = (t - climb) * self.speed_m_s;
-            let (out, dir) = if flown < half {
-                (flown, 1.0)
-            } else {
-                (self.length_m - flown, -1.0)
-            };
-            return Kinematics {
-                north: out * cos,
-                east: out * sin,
-                up: self.altitude_m,
-                vn: dir * self.speed_m_s * cos,
-                ve: dir * self.speed_m_s * sin,
-                vu: 0.0,
-            };
-        }
-        let down = t - climb - cruise;
-        if down < descent {
-            return Kinematics {
-                up: self.altitude_m - self.descent_m_s * down,
-                vu: -self.descent_m_s,
-                ..Kinematics::default()
-            };
-        }
-        Kinematics::default()
-    }
-}
 
 #[derive(Debug)]
 struct Stream {
@@ -304,21 +192,7 @@ impl Px4Fc {
 
     /// Position and velocity at `now`.
     pub fn kinematics(&self, now: Instant) -> Kinematics {
-        let secs = now.saturating_duration_since(self.booted).as_secs_f64();
-        match self.flight {
-            Flight::Circle => {
-                let w = 10.0 / 200.0;
-                Kinematics {
-                    north: 200.0 * (w * secs).cos(),
-                    east: 200.0 * (w * secs).sin(),
-                    up: 50.0,
-                    vn: -10.0 * (w * secs).sin(),
-                    ve: 10.0 * (w * secs).cos(),
-                    vu: 0.0,
-                }
-            }
-            Flight::Route(r) => r.at(secs),
-        }
+        self.flight.since_boot(self.booted, now)
     }
 
     /// Counters so far.
@@ -480,22 +354,15 @@ impl Px4Fc {
         let ms = t.as_millis() as u32;
         let secs = t.as_secs_f64();
         let k = self.kinematics(now);
-        let (north, east, vn, ve) = (k.north, k.east, k.vn, k.ve);
-        // home near Odense (the paper's test area), 1e-7 degrees per unit
-        let lat = 553_700_000 + (north / 0.011_132) as i32;
-        let lon = 103_900_000 + (east / (0.011_132 * 0.5664)) as i32;
+        let (vn, ve) = (k.vn, k.ve);
+        let (lat, lon) = k.lat_lon();
         // Hovering (climb, descent) keeps the route's heading: PX4 reports yaw, never "none",
         // and a zero heading would be truncated off the v2 payload.
-        let course = if vn.hypot(ve) < 0.1 {
-            match self.flight {
-                Flight::Route(r) => r.bearing_deg,
-                Flight::Circle => 90.0,
-            }
-        } else {
-            ve.atan2(vn).to_degrees()
-        };
-        let hdg = ((course + 360.0) % 360.0 * 100.0) as u16;
-        let rel_mm = (k.up * 1000.0) as i32;
+        let hdg = k.heading_cdeg(match self.flight {
+            Flight::Route(r) => r.bearing_deg,
+            Flight::Circle => 90.0,
+        });
+        let rel_mm = k.rel_alt_mm();
         let msg = match spec.id {
             0 => MavMessage::HEARTBEAT(HEARTBEAT_DATA {
                 custom_mode: 0x0404_0000, // AUTO.MISSION
@@ -541,17 +408,7 @@ impl Px4Fc {
                 pitchspeed: -0.008,
                 yawspeed: 0.003,
             }),
-            33 => MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-                time_boot_ms: ms,
-                lat,
-                lon,
-                alt: 10_000 + rel_mm,
-                relative_alt: rel_mm,
-                vx: (vn * 100.0) as i16,
-                vy: (ve * 100.0) as i16,
-                vz: (-k.vu * 100.0) as i16,
-                hdg,
-            }),
+            33 => MavMessage::GLOBAL_POSITION_INT(k.global_position_int(ms, hdg)),
             74 => MavMessage::VFR_HUD(VFR_HUD_DATA {
                 airspeed: vn.hypot(ve) as f32,
                 groundspeed: vn.hypot(ve) as f32,

@@ -259,7 +259,7 @@ fn air_and_ground_learn_what_the_other_hears() {
 
 #[test]
 fn budget_sets_the_steady_cost() {
-    // 3 B/s of LoRa SF7's 683 B/s at most (issue 12), signed or not.
+    // 3 B/s of LoRa SF7's 683 B/s at most (the monitoring budget), signed or not.
     for signed in [false, true] {
         let c = LinkQualityConfig::for_budget(683, signed);
         let bytes = if signed {

@@ -1,4 +1,4 @@
-//! `cargo bench -p mavlora --bench radio`: prints
+//! `cargo bench -p harness-sim --bench radio`: prints
 //! 1. frames per second through the bridge's path (reader → filter → scheduler → radio) on
 //!    one core, against a baseline measured in the same run (the frame reader alone: the
 //!    least any MAVLink forwarder must do);
@@ -10,6 +10,7 @@ use std::time::Instant as WallInstant;
 
 use mavlora::Duration;
 
+use harness_sim::profiles::{PX4_COMPACT_TOML, PX4_NORMAL_TOML, stream_only};
 use harness_sim::{Direction, PX4_NORMAL, Px4Fc, World};
 
 mod common;
@@ -22,12 +23,6 @@ use mavlora::quality::LinkQualityConfig;
 use mavlora::router::RouterConfig;
 use mavlora::schedule::SchedulerConfig;
 use mavlora::wire::FrameReader;
-
-const PROFILES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles/");
-
-fn read(name: &str) -> String {
-    std::fs::read_to_string(format!("{PROFILES}{name}")).unwrap()
-}
 
 fn wide() -> SchedulerConfig {
     SchedulerConfig {
@@ -104,13 +99,8 @@ fn main() {
             black_box(f);
         }
     });
-    let normal = read("px4-normal.toml");
-    let filtered = throughput(&capture, rounds, bridge_path(&normal, false));
-    let compact = throughput(
-        &capture,
-        rounds,
-        bridge_path(&read("px4-compact.toml"), true),
-    );
+    let filtered = throughput(&capture, rounds, bridge_path(PX4_NORMAL_TOML, false));
+    let compact = throughput(&capture, rounds, bridge_path(PX4_COMPACT_TOML, true));
     println!("frames/s on one core (higher is better):");
     println!("  baseline, frame reader only     {baseline:>12.0}");
     println!(
@@ -122,11 +112,6 @@ fn main() {
         compact / baseline
     );
 
-    let stream_only: String = normal
-        .lines()
-        .filter(|l| !l.trim_start().starts_with("radio"))
-        .collect::<Vec<_>>()
-        .join("\n");
     println!("air->ground B/s, simulated PX4 Normal, 120 s after a 10 s start:");
     println!(
         "  no filtering                     {:>8.1}",
@@ -134,14 +119,14 @@ fn main() {
     );
     println!(
         "  stream limiting                  {:>8.1}",
-        radio_rate(&stream_only, false)
+        radio_rate(&stream_only(PX4_NORMAL_TOML), false)
     );
     println!(
         "  limiting + filtering             {:>8.1}",
-        radio_rate(&normal, false)
+        radio_rate(PX4_NORMAL_TOML, false)
     );
     println!(
         "  compact telemetry                {:>8.1}",
-        radio_rate(&read("px4-compact.toml"), true)
+        radio_rate(PX4_COMPACT_TOML, true)
     );
 }

@@ -1,4 +1,10 @@
-//! `cargo bench -p mavlora --bench router_cost`: what the ground router costs the machine.
+//! `cargo bench -p harness-sim --features mavlora/cli --bench router_cost`: what the ground
+//! router costs the machine.
+//!
+//! It runs the real programs of the same build: `mavlora-router` and `mavlora-bridge` next
+//! to the benchmark's target folder (`target/release/` for `cargo bench`), so build them
+//! first with the same profile: `cargo build --release -p mavlora --bins`
+//! (`MAVLORA_BENCH_ROUTER` names another router to measure, e.g. another build to compare).
 //!
 //! 1. **CPU per frame and peak memory.** A simulated PX4 flight (60 s of PX4 on its USB
 //!    "Config" stream profile, the densest, at full rate) is replayed
@@ -13,7 +19,7 @@
 //!
 //!    CPU is each process's time on a core (every thread, from `/proc/PID/task/*/schedstat`)
 //!    from the first replayed byte until the last frame is out; peak RSS is `VmHWM`.
-//!    Issue 10's targets: CPU per frame <= 0.5 x the baseline's, peak RSS <= 8 MB.
+//!    Targets: CPU per frame <= 0.5 x the baseline's, peak RSS <= 8 MB.
 //! 2. **Idle.** The router and the bridge with ports open and nothing coming in, for
 //!    `MAVLORA_BENCH_IDLE_S` seconds (default 10): CPU per second and wakeups per second, by
 //!    thread. What remains is the engines' own timers (heartbeats, link-quality reports,
@@ -39,18 +45,29 @@ use mavlora::wire::{FrameReader, OwnedFrame, Sender};
 
 mod common;
 use common::px4_capture;
-// The end-to-end tests' pty pairs and child guard.
-#[path = "../tests/common/mod.rs"]
-mod test_common;
 use harness_sim::PX4_CONFIG;
-use test_common::{Guard, pty_pair};
+use testkit::{Guard, pty_pair};
 
 /// The router measured: this build's, or `MAVLORA_BENCH_ROUTER` (another build, to compare).
-fn router_program() -> String {
-    std::env::var("MAVLORA_BENCH_ROUTER")
-        .unwrap_or_else(|_| env!("CARGO_BIN_EXE_mavlora-router").to_string())
+fn router_program() -> PathBuf {
+    std::env::var_os("MAVLORA_BENCH_ROUTER")
+        .map_or_else(|| program("mavlora-router"), PathBuf::from)
 }
-const BRIDGE: &str = env!("CARGO_BIN_EXE_mavlora-bridge");
+
+/// A program of this build: in the target folder above `deps/`, where cargo puts this
+/// benchmark. Another package's programs are not built for a benchmark, so this one cannot
+/// ask cargo for them (`CARGO_BIN_EXE_*` is only for a package's own).
+fn program(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let path = exe.parent().and_then(Path::parent).unwrap().join(name);
+    assert!(
+        path.exists(),
+        "{} not found: build it first with `cargo build --release -p mavlora --bins`",
+        path.display()
+    );
+    path
+}
+
 /// The system id of the replayed autopilot: its component 1's frames are what the ground
 /// counts (the router speaks for the vehicle's radio as component 68 besides).
 const VEHICLE: u8 = 1;
@@ -66,6 +83,8 @@ fn main() {
         );
         return;
     }
+    // Found before anything runs: a missing program fails here, not after the baseline.
+    let (router_exe, bridge_exe) = (router_program(), program("mavlora-bridge"));
     let rounds: usize = env_or("MAVLORA_BENCH_ROUNDS", 60);
     let idle_s: u64 = env_or("MAVLORA_BENCH_IDLE_S", 10);
     let dir = tempdir();
@@ -94,7 +113,7 @@ fn main() {
     });
     let log = dir.join("router.log");
     let unsigned = replay("mavlora-router --unsigned", plain(), |pty, sink| {
-        router(pty, sink, &["--unsigned"], &log)
+        router(&router_exe, pty, sink, &["--unsigned"], &log)
     });
     let unsigned_log = file_len(&log);
     let (key_arg, state) = (key_path.to_str().unwrap(), dir.join("state"));
@@ -103,6 +122,7 @@ fn main() {
     let signed = replay("mavlora-router --key", signed_feed, |pty, sink| {
         let state = state.to_str().unwrap();
         router(
+            &router_exe,
             pty,
             sink,
             &["--key", key_arg, "--signing-state", state],
@@ -117,9 +137,9 @@ fn main() {
         "mavlora-router --key (verifies)",
         file_len(&signed_log),
     );
-    println!("  (issue 10 targets: <= 0.50 x baseline CPU per frame, peak RSS <= 8192 kB)");
+    println!("  (targets: <= 0.50 x baseline CPU per frame, peak RSS <= 8192 kB)");
 
-    idle(idle_s, &dir);
+    idle(&router_exe, &bridge_exe, idle_s, &dir);
     let _ = fs::remove_dir_all(&dir);
 }
 
@@ -191,8 +211,8 @@ fn set_mode_600(path: &Path) {
     fs::set_permissions(path, fs::Permissions::from_mode(0o600)).unwrap();
 }
 
-fn router(pty: &str, sink: SocketAddr, extra: &[&str], log: &Path) -> Child {
-    Command::new(router_program())
+fn router(program: &Path, pty: &str, sink: SocketAddr, extra: &[&str], log: &Path) -> Child {
+    Command::new(program)
         .args(["--radio", pty, "--udp", &sink.to_string()])
         .args(["--udp-bind", "127.0.0.1:0"])
         .args(extra)
@@ -447,19 +467,23 @@ fn relay(pty: &str, to: SocketAddr) {
 }
 
 /// Router and bridge with open ports and no traffic: CPU and wakeups per second by thread.
-fn idle(seconds: u64, dir: &Path) {
+fn idle(router_exe: &Path, bridge_exe: &Path, seconds: u64, dir: &Path) {
     let (_radio_master, radio_slave) = pty_pair();
     let (_fc_master, fc_slave) = pty_pair();
     let (_bridge_radio_master, bridge_radio_slave) = pty_pair();
     let sink = Sink::start();
-    let profile = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles/px4-normal.toml");
+    let profile = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../firmware/mavlora/profiles/px4-normal.toml"
+    );
     let router = router(
+        router_exe,
         radio_slave.name().as_deref().unwrap(),
         sink.addr,
         &["--unsigned"],
         &dir.join("idle-router.log"),
     );
-    let bridge = Command::new(BRIDGE)
+    let bridge = Command::new(bridge_exe)
         .args(["--fc", fc_slave.name().as_deref().unwrap()])
         .args(["--radio", bridge_radio_slave.name().as_deref().unwrap()])
         .args(["--profile", profile, "--unsigned"])
