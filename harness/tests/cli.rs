@@ -190,15 +190,79 @@ fn processes_with(marker: &str) -> Vec<(u32, String)> {
 /// `rig run rigs/emulated.toml --out dir --filter phase --exact`, with an environment marker
 /// its children inherit (for [`processes_with`]); the command and the marker.
 fn marked_run(dir: &Path, phase: &str) -> (Command, String) {
+    let (mut command, marker) = marked_run_of(dir, phase);
+    command.arg("--exact");
+    (command, marker)
+}
+
+/// [`marked_run`] of every phase whose name contains `filter`.
+fn marked_run_of(dir: &Path, filter: &str) -> (Command, String) {
     let marker = format!("RIG_TEST_RUN={}", dir.display());
     let (key, value) = marker.split_once('=').unwrap();
     let mut command = Command::new(RIG);
     command
         .args(["run", "rigs/emulated.toml", "--out", dir.to_str().unwrap()])
-        .args(["--filter", phase, "--exact"])
+        .args(["--filter", filter])
         .env(key, value)
         .current_dir(repo());
     (command, marker)
+}
+
+/// What an interrupted run left: its output, its `results.json`, the programs it had started.
+struct Interrupted {
+    out: std::process::Output,
+    record: serde_json::Value,
+    started: Vec<(u32, String)>,
+}
+
+/// Starts `command` (marked with `marker`), waits until it runs at least `programs` programs
+/// and `settle` more, sends `signal`, and collects what the run left; asserts that no program
+/// it started outlives it.
+fn interrupt(
+    mut command: Command,
+    marker: &str,
+    dir: &Path,
+    programs: usize,
+    settle: std::time::Duration,
+    signal: rustix::process::Signal,
+) -> Interrupted {
+    let child = command
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while processes_with(marker).len() < programs && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    std::thread::sleep(settle);
+    let started: Vec<_> = processes_with(marker)
+        .into_iter()
+        .filter(|(pid, _)| *pid != child.id())
+        .collect();
+    assert!(
+        started.len() >= programs,
+        "the run started {started:?}, fewer than {programs} programs"
+    );
+    rustix::process::kill_process(
+        rustix::process::Pid::from_raw(child.id() as i32).unwrap(),
+        signal,
+    )
+    .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let record =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let left = processes_with(marker);
+    assert!(
+        left.is_empty(),
+        "still running after the rig exited (it started {started:?}): {left:?}"
+    );
+    Interrupted {
+        out,
+        record,
+        started,
+    }
 }
 
 /// Regression: SIGTERM mid-phase exited 143 with the previous run's PASS still in
@@ -219,35 +283,19 @@ fn sigterm_mid_phase_records_interrupted_and_leaves_no_process_behind() {
         r#"{"outcome": "pass", "stale": true}"#,
     )
     .unwrap();
-    let (mut command, marker) = marked_run(dir.path(), "multirx::parallel::c_loiter");
-    let child = command
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait until the phase has started its programs, then stop the rig.
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
-    while processes_with(&marker).len() < 3 && std::time::Instant::now() < deadline {
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    let running: Vec<_> = processes_with(&marker)
-        .into_iter()
-        .filter(|(pid, _)| *pid != child.id())
-        .collect();
-    assert!(!running.is_empty(), "the phase started no program");
-    rustix::process::kill_process(
-        rustix::process::Pid::from_raw(child.id() as i32).unwrap(),
+    let (command, marker) = marked_run(dir.path(), "multirx::parallel::c_loiter");
+    // Once the phase has started its programs, stop the rig.
+    let run = interrupt(
+        command,
+        &marker,
+        dir.path(),
+        3,
+        std::time::Duration::from_millis(1500),
         rustix::process::Signal::TERM,
-    )
-    .unwrap();
-    let out = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(143), "{stderr}");
-
-    let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("results.json")).unwrap())
-            .unwrap();
+    );
+    let stderr = String::from_utf8_lossy(&run.out.stderr);
+    assert_eq!(run.out.status.code(), Some(143), "{stderr}");
+    let record = &run.record;
     assert_eq!(record["outcome"], "interrupted", "{record:#}");
     let phases = record["phases"].as_array().unwrap();
     let last = phases.last().expect("the phase in progress is recorded");
@@ -255,13 +303,6 @@ fn sigterm_mid_phase_records_interrupted_and_leaves_no_process_behind() {
     assert_eq!(last["outcome"], "interrupted");
     let summary = std::fs::read_to_string(dir.path().join("summary.txt")).unwrap();
     assert!(summary.contains("INTERRUPTED"), "{summary}");
-
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    let left = processes_with(&marker);
-    assert!(
-        left.is_empty(),
-        "still running after the rig exited (it started {running:?}): {left:?}"
-    );
 }
 
 /// SIGINT while the real-time MavLora phases run side by side (their programs killed under
@@ -279,54 +320,29 @@ fn sigint_during_realtime_phases_records_each_phase_once_as_interrupted() {
         );
     }
     let dir = tempfile::tempdir().unwrap();
-    let marker = format!("RIG_TEST_RUN={}", dir.path().display());
-    let (key, value) = marker.split_once('=').unwrap();
-    let child = Command::new(RIG)
-        .args(["run", "rigs/emulated.toml", "--out"])
-        .arg(dir.path())
-        .args(["--filter", "mavlora::realtime::"])
-        .env(key, value)
-        .current_dir(repo())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let (command, marker) = marked_run_of(dir.path(), "mavlora::realtime::");
     // Several sessions up (each a bridge, a router and two fixtures), then a few seconds in.
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
-    while processes_with(&marker).len() < 8 && std::time::Instant::now() < deadline {
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
-    std::thread::sleep(std::time::Duration::from_secs(3));
-    let running: Vec<_> = processes_with(&marker)
-        .into_iter()
-        .filter(|(pid, _)| *pid != child.id())
-        .collect();
-    assert!(
-        running.len() >= 8,
-        "the sessions did not start: {running:?}"
-    );
-    rustix::process::kill_process(
-        rustix::process::Pid::from_raw(child.id() as i32).unwrap(),
+    let run = interrupt(
+        command,
+        &marker,
+        dir.path(),
+        8,
+        std::time::Duration::from_secs(3),
         rustix::process::Signal::INT,
-    )
-    .unwrap();
-    let out = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(130), "{stderr}");
-
-    let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("results.json")).unwrap())
-            .unwrap();
+    );
+    let stderr = String::from_utf8_lossy(&run.out.stderr);
+    assert_eq!(run.out.status.code(), Some(130), "{stderr}");
+    let record = &run.record;
     assert_eq!(record["outcome"], "interrupted", "{record:#}");
     let phases = record["phases"].as_array().unwrap();
-    let mut names: Vec<&str> = phases.iter().map(|p| p["name"].as_str().unwrap()).collect();
     let interrupted = phases
         .iter()
         .filter(|p| p["outcome"] == "interrupted")
         .count();
     assert!(
         interrupted >= 2,
-        "side-by-side phases were running: {record:#}"
+        "side-by-side phases were running ({:?}): {record:#}",
+        run.started
     );
     for phase in phases {
         assert!(
@@ -334,17 +350,11 @@ fn sigint_during_realtime_phases_records_each_phase_once_as_interrupted() {
             "a phase ended by the interrupt is recorded as its error: {phase:#}"
         );
     }
+    let mut names: Vec<&str> = phases.iter().map(|p| p["name"].as_str().unwrap()).collect();
     let count = names.len();
     names.sort_unstable();
     names.dedup();
     assert_eq!(names.len(), count, "a phase recorded twice: {record:#}");
-
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    let left = processes_with(&marker);
-    assert!(
-        left.is_empty(),
-        "still running after the rig exited (it started {running:?}): {left:?}"
-    );
 }
 
 /// `rigs/emulated.toml` copied into `dir` with its paths made absolute and

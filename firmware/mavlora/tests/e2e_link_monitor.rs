@@ -7,10 +7,9 @@
 //! "restored" within 5 s of the link coming back. Needs `python3` with pymavlink 2.4.
 
 mod common;
-use common::{Guard, root};
+use common::{FcFixture, Guard, free_udp_port, radio_key, root};
 
 use std::io::{BufRead, BufReader, Read, Write};
-use std::net::UdpSocket;
 
 use std::process::{Command, Stdio};
 use std::sync::Arc;
@@ -36,43 +35,17 @@ fn copy(mut from: TTYPort, mut to: TTYPort, stop: Arc<AtomicBool>, cut: Arc<Atom
     });
 }
 
-fn free_udp_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 #[test]
 fn pymavlink_ground_station_is_told_of_an_uplink_loss_and_its_end() {
     // The radio link is signed, as every shipped config has it.
     let dir = std::env::temp_dir().join(format!("mavlora-linkmon-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let key = dir.join("radio.key");
-    std::fs::write(&key, "5c".repeat(32)).unwrap();
-    std::fs::set_permissions(&key, std::os::unix::fs::PermissionsExt::from_mode(0o600)).unwrap();
-    let mut fc = Guard(
-        Some(
-            Command::new("python3")
-                .arg(root().join("fixtures/mavlora_fc.py"))
-                .arg("--summary")
-                .arg(
-                    std::env::temp_dir().join(format!("mavlora-lm-fc-{}.json", std::process::id())),
-                )
-                .stdout(Stdio::piped())
-                .spawn()
-                .expect("python3"),
-        ),
-        "fc fixture",
-    );
-    let mut line = String::new();
-    let mut fc_out = BufReader::new(fc.0.as_mut().unwrap().stdout.take().unwrap());
-    fc_out.read_line(&mut line).unwrap();
-    let ready: Value = serde_json::from_str(&line).unwrap_or_else(|e| {
-        panic!("fc fixture did not start (pymavlink installed?): {e}: {line:?}")
-    });
-    let fc_port = ready["port"].as_str().unwrap().to_owned();
+    let key = radio_key(&dir, 0x5c);
+    let FcFixture {
+        guard: fc,
+        port: fc_port,
+        ..
+    } = FcFixture::start(&dir.join("fc.json"), &[]);
 
     let (mut a_master, a_slave) = TTYPort::pair().expect("pty pair");
     let (mut b_master, b_slave) = TTYPort::pair().expect("pty pair");

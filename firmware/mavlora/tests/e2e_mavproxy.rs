@@ -23,11 +23,10 @@
 //! skips. MAVProxy keeps its state and logs in a temporary directory (its `HOME` too).
 
 mod common;
-use common::{Guard, pty_pair, root};
+use common::{FcFixture, Guard, free_udp_port, pty_pair, radio_key, root};
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read, Write};
-use std::net::UdpSocket;
 use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -52,14 +51,6 @@ const MODE_MISSION: u64 = 0x0404_0000;
 const MODE_LOITER: u64 = 0x0304_0000;
 /// How long the link is watched after MAVProxy saw the vehicle.
 const WATCH: Duration = Duration::from_secs(12);
-
-fn free_udp_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// Copies bytes one way: the radio.
 fn copy(mut from: TTYPort, mut to: TTYPort, stop: Arc<AtomicBool>) {
@@ -143,31 +134,15 @@ fn mavproxy_ground_station_commands_the_vehicle_once_and_sees_the_link() {
     );
     eprintln!("{}", version.trim());
 
-    let key = dir.join("radio.key");
-    std::fs::write(&key, "5c".repeat(32)).unwrap();
-    std::fs::set_permissions(&key, std::os::unix::fs::PermissionsExt::from_mode(0o600)).unwrap();
+    let key = radio_key(&dir, 0x5c);
     let fc_summary = dir.join("fc.json");
     let tlog = dir.join("gcs.tlog");
 
-    let mut fc = Guard(
-        Some(
-            Command::new("python3")
-                .arg(root().join("fixtures/mavlora_fc.py"))
-                .arg("--summary")
-                .arg(&fc_summary)
-                .stdout(Stdio::piped())
-                .spawn()
-                .expect("python3"),
-        ),
-        "fc fixture",
-    );
-    let mut line = String::new();
-    let mut fc_out = BufReader::new(fc.0.as_mut().unwrap().stdout.take().unwrap());
-    fc_out.read_line(&mut line).unwrap();
-    let ready: Value = serde_json::from_str(&line).unwrap_or_else(|e| {
-        panic!("fc fixture did not start (pymavlink installed?): {e}: {line:?}")
-    });
-    let fc_port = ready["port"].as_str().unwrap().to_owned();
+    let FcFixture {
+        guard: mut fc,
+        port: fc_port,
+        out: fc_out,
+    } = FcFixture::start(&fc_summary, &[]);
     // read on, so its last line (the summary) finds the pipe open and it exits 0
     thread::spawn(move || fc_out.lines().map_while(Result::ok).for_each(drop));
 

@@ -5,12 +5,11 @@
 //! Needs `python3` with pymavlink 2.4 (fixtures/requirements.txt); fails, not skips, without.
 
 mod common;
-use common::{Guard, root};
+use common::{FcFixture, Guard, free_udp_port, radio_key, root};
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::UdpSocket;
+use std::io::{Read, Write};
 
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread;
@@ -80,14 +79,6 @@ impl Drop for Radio {
     }
 }
 
-fn free_udp_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 #[test]
 fn pymavlink_telemetry_and_fifty_item_mission_through_bridge_and_router() {
     let dir = std::env::temp_dir().join(format!("mavlora-e2e-{}", std::process::id()));
@@ -95,31 +86,14 @@ fn pymavlink_telemetry_and_fifty_item_mission_through_bridge_and_router() {
     let fc_summary = dir.join("fc.json");
     let tlog = dir.join("router.tlog");
     // the radio link is signed end to end; the flight controller and ground station are not
-    let key = dir.join("radio.key");
-    std::fs::write(&key, "2a".repeat(32)).unwrap();
-    // a key others may read is refused
-    std::fs::set_permissions(&key, std::os::unix::fs::PermissionsExt::from_mode(0o600)).unwrap();
+    let key = radio_key(&dir, 0x2a);
 
-    let mut fc = Guard(
-        Some(
-            Command::new("python3")
-                .arg(root().join("fixtures/mavlora_fc.py"))
-                .arg("--summary")
-                .arg(&fc_summary)
-                .stdout(Stdio::piped())
-                .spawn()
-                .expect("python3"),
-        ),
-        "fc fixture",
-    );
-    let mut line = String::new();
     // kept until the end: the fixture reports events on it
-    let mut fc_out = BufReader::new(fc.0.as_mut().unwrap().stdout.take().unwrap());
-    fc_out.read_line(&mut line).unwrap();
-    let ready: Value = serde_json::from_str(&line).unwrap_or_else(|e| {
-        panic!("fc fixture did not start (pymavlink installed?): {e}: {line:?}")
-    });
-    let fc_port = ready["port"].as_str().unwrap().to_owned();
+    let FcFixture {
+        guard: mut fc,
+        port: fc_port,
+        out: fc_out,
+    } = FcFixture::start(&fc_summary, &[]);
 
     let radio = Radio::new();
     let udp_port = free_udp_port();

@@ -69,15 +69,7 @@ pub fn run(
 ) -> Result<RunResult> {
     let out_dir = options.out_dir.clone();
     let live = LiveRecord::new(
-        RunRecord {
-            tool: ToolIdentity::this_build(git_commit()),
-            rig: RigIdentity::of_file(rig.rig.name.clone(), &rig.path)?,
-            devices: identities(&devices),
-            started: String::new(),
-            ended: String::new(),
-            outcome: RunOutcome::Running,
-            phases: Vec::new(),
-        },
+        new_record(&rig, git_commit(), identities(&devices))?,
         &out_dir,
     );
     let Plan {
@@ -162,6 +154,23 @@ pub fn run(
     }
 }
 
+/// The record of a run of `rig` that has not started.
+fn new_record(
+    rig: &RigFile,
+    commit: Option<String>,
+    devices: Vec<DeviceIdentity>,
+) -> Result<RunRecord> {
+    Ok(RunRecord {
+        tool: ToolIdentity::this_build(commit),
+        rig: RigIdentity::of_file(rig.rig.name.clone(), &rig.path)?,
+        devices,
+        started: String::new(),
+        ended: String::new(),
+        outcome: RunOutcome::Running,
+        phases: Vec::new(),
+    })
+}
+
 /// Every device's identity, in the registry's order.
 fn identities(devices: &[Box<dyn Device>]) -> Vec<DeviceIdentity> {
     devices.iter().flat_map(|d| d.identities()).collect()
@@ -225,18 +234,7 @@ fn plan(
 /// The flat names of every measurement the phases of `devices` declare (the trace matrix
 /// checks its requirements against them). Runs nothing and writes nothing.
 pub fn declared_names(rig: &Arc<RigFile>, devices: &[Box<dyn Device>]) -> Result<Vec<String>> {
-    let live = LiveRecord::new(
-        RunRecord {
-            tool: ToolIdentity::this_build(None),
-            rig: RigIdentity::of_file(rig.rig.name.clone(), &rig.path)?,
-            devices: Vec::new(),
-            started: String::new(),
-            ended: String::new(),
-            outcome: RunOutcome::Running,
-            phases: Vec::new(),
-        },
-        Path::new(""),
-    );
+    let live = LiveRecord::new(new_record(rig, None, Vec::new())?, Path::new(""));
     let mut names = plan(rig, devices, &live, Path::new(""))?.known_names;
     names.sort();
     names.dedup();
@@ -338,6 +336,15 @@ mod tests {
         RunRecord::load(&dir.join(crate::record::RESULTS_FILE)).unwrap()
     }
 
+    /// Each saved phase's name and outcome.
+    fn outcomes(record: &RunRecord) -> Vec<(&str, PhaseOutcome)> {
+        record
+            .phases
+            .iter()
+            .map(|p| (p.name.as_str(), p.outcome))
+            .collect()
+    }
+
     #[test]
     fn the_record_says_running_from_the_start_and_after_each_phase() {
         let dir = tempfile::tempdir().unwrap();
@@ -397,13 +404,8 @@ mod tests {
         phases.interrupt(Vec::new(), "SIGTERM").unwrap();
         let record = saved(dir.path());
         assert_eq!(record.outcome, RunOutcome::Interrupted);
-        let outcomes: Vec<_> = record
-            .phases
-            .iter()
-            .map(|p| (p.name.as_str(), p.outcome))
-            .collect();
         assert_eq!(
-            outcomes,
+            outcomes(&record),
             [
                 ("done", PhaseOutcome::Pass),
                 ("in_progress", PhaseOutcome::Interrupted)
@@ -448,13 +450,8 @@ mod tests {
         ));
         let record = saved(dir.path());
         assert_eq!(record.outcome, RunOutcome::Interrupted);
-        let outcomes: Vec<_> = record
-            .phases
-            .iter()
-            .map(|p| (p.name.as_str(), p.outcome))
-            .collect();
         assert_eq!(
-            outcomes,
+            outcomes(&record),
             [
                 ("a", PhaseOutcome::Interrupted),
                 ("b", PhaseOutcome::Interrupted)

@@ -6,8 +6,9 @@
 
 pub mod status_json;
 
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{ChildStdout, Command, Stdio};
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -56,4 +57,61 @@ pub fn run(bin: &str, dir: &Path, args: &[&str]) -> (Option<i32>, String) {
         out.status.code(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
+}
+
+/// A local UDP port nobody uses now.
+pub fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Writes a radio signing key (32 bytes of `byte`, as hex) to `dir/radio.key`, mode 600: the
+/// programs refuse a key others may read.
+pub fn radio_key(dir: &Path, byte: u8) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt;
+    let key = dir.join("radio.key");
+    std::fs::write(&key, format!("{byte:02x}").repeat(32)).unwrap();
+    std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600)).unwrap();
+    key
+}
+
+/// `fixtures/mavlora_fc.py` (pymavlink) playing the flight controller, started and ready.
+pub struct FcFixture {
+    /// Kills it when dropped.
+    pub guard: Guard,
+    /// The pty it serves, for the bridge's `--fc`.
+    pub port: String,
+    /// Its stdout after the ready line: it reports events there.
+    pub out: BufReader<ChildStdout>,
+}
+
+impl FcFixture {
+    /// Starts it with its summary written to `summary` and `args`, and waits for its ready
+    /// line.
+    pub fn start(summary: &Path, args: &[&str]) -> FcFixture {
+        let mut guard = Guard(
+            Some(
+                Command::new("python3")
+                    .arg(root().join("fixtures/mavlora_fc.py"))
+                    .arg("--summary")
+                    .arg(summary)
+                    .args(args)
+                    .stdout(Stdio::piped())
+                    .spawn()
+                    .expect("python3"),
+            ),
+            "fc fixture",
+        );
+        let mut out = BufReader::new(guard.0.as_mut().unwrap().stdout.take().unwrap());
+        let mut line = String::new();
+        out.read_line(&mut line).unwrap();
+        let ready: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| {
+            panic!("fc fixture did not start (pymavlink installed?): {e}: {line:?}")
+        });
+        let port = ready["port"].as_str().unwrap().to_owned();
+        FcFixture { guard, port, out }
+    }
 }
