@@ -267,7 +267,7 @@ pub fn certify(options: &CertifyOptions) -> Result<CertifyRecord> {
     )?;
 
     // 4. The page, from the files just saved; then seal everything.
-    let page = html::render(&out)?;
+    let page = html::render(&out, crate::devices::html_figures)?;
     std::fs::write(out.join(html::REPORT_FILE), page)?;
     manifest::seal(&out, key.as_ref())?;
     Ok(record)

@@ -21,8 +21,12 @@ use crate::record::{RESULTS_FILE, RunRecord};
 /// File name of the page.
 pub const REPORT_FILE: &str = "report.html";
 
-/// Renders the page from the records saved in `dir`.
-pub fn render(dir: &Path) -> Result<String> {
+/// What draws the devices' figures into the page: `(page, folder, run)` (the device registry's
+/// [`crate::devices::html_figures`]).
+pub type Figures = fn(&mut String, &Path, &RunRecord);
+
+/// Renders the page from the records saved in `dir`, with the figures `figures` draws.
+pub fn render(dir: &Path, figures: Figures) -> Result<String> {
     let read = |name: &str| {
         std::fs::read_to_string(dir.join(name))
             .with_context(|| format!("cannot read {}", dir.join(name).display()))
@@ -117,7 +121,7 @@ pub fn render(dir: &Path) -> Result<String> {
     h.push_str("</table>");
 
     h.push_str("<h2>Plots</h2>");
-    crate::devices::html_figures(&mut h, dir, &run);
+    figures(&mut h, dir, &run);
 
     h.push_str("<h2>Measurements against limits</h2><table class=\"meas\"><tr><th>phase</th><th>measurement</th><th>value</th><th>limits</th><th>outcome</th></tr>");
     for p in &run.phases {
@@ -212,43 +216,42 @@ mod tests {
     use crate::evidence::build::Artifact;
     use crate::evidence::certify::Verdict;
     use crate::evidence::trace::{Requirements, matrix};
-    use crate::measurement::Dimension;
     use crate::record::tests::sample_record;
 
-    /// An evidence folder with the sample run, a build record, a trace matrix and an
-    /// attenuation sweep CSV, as `rig certify` saves them.
+    /// A device's figures for the tests: two bar charts of the run's measurements and a
+    /// figure whose data is not recorded.
+    fn figures(h: &mut String, _dir: &Path, run: &RunRecord) {
+        use super::super::svg::bar_chart;
+        let values: Vec<Option<f64>> = run
+            .phases
+            .iter()
+            .flat_map(|p| &p.measurements)
+            .map(|m| m.value)
+            .collect();
+        let cats: Vec<String> = (0..values.len()).map(|i| i.to_string()).collect();
+        for id in ["plot-a", "plot-b"] {
+            figure(
+                h,
+                "every value",
+                &bar_chart(
+                    id,
+                    id,
+                    "x",
+                    &cats,
+                    &[("run".into(), values.clone())],
+                    &[],
+                    false,
+                ),
+            );
+        }
+        missing(h, "plot-mix", "Message mix", "No phase records it.");
+    }
+
+    /// An evidence folder with the sample run, a build record and a trace matrix, as
+    /// `rig certify` saves them.
     fn folder() -> tempfile::TempDir {
         let dir = tempfile::tempdir().unwrap();
-        let mut run = sample_record();
-        // A Table II measurement and a sweep, so those plots have data.
-        let mut d = crate::measurement::Declarations::new();
-        let h = d.declare(
-            crate::measurement::Spec::new("bytes_per_s", "B/s")
-                .dim(Dimension::Device, "mavlora")
-                .dim(Dimension::Transport, "simulated")
-                .dim(Dimension::Variant, "limit_filter")
-                .at_most(951.0),
-        );
-        d.record(h, 426.0);
-        let mut p = crate::record::PhaseRecord::ran(
-            "mavlora::simulated::table_ii",
-            "2026-01-31T09:12:03.123Z",
-            1.0,
-            d.into_measurements(),
-            None,
-        );
-        std::fs::create_dir(dir.path().join("sweep")).unwrap();
-        let csv = dir.path().join("sweep/attenuation_sweep.csv");
-        std::fs::write(
-            &csv,
-            "preset,attenuation_db,free_space_range_m,sent,received,loss_pct,mean_period_ms,max_period_ms,nominal\n\
-             sik-64k,80,1,10,10,0.00,1,1,true\nsik-64k,90,1,10,2,80.0,1,1,false\n",
-        )
-        .unwrap();
-        p.attachments.push(
-            crate::record::Attachment::from_file(dir.path(), &csv, "sweep", "text/csv").unwrap(),
-        );
-        run.phases.push(p);
+        let run = sample_record();
         run.save(dir.path()).unwrap();
         let build = BuildRecord {
             schema: "rig-build/1".into(),
@@ -261,9 +264,9 @@ mod tests {
             started: "a".into(),
             finished: "b".into(),
             artifacts: vec![Artifact {
-                name: "multirx-samd21-default.elf".into(),
+                name: "dut-default.elf".into(),
                 kind: "firmware".into(),
-                path: "artifacts/multirx-samd21-default.elf".into(),
+                path: "artifacts/dut-default.elf".into(),
                 sha256: "ab".repeat(32),
                 size: 1,
                 config: None,
@@ -273,10 +276,10 @@ mod tests {
         let reqs = Requirements::parse(
             Path::new("r.toml"),
             "[[requirement]]\nid = \"D\"\ntext = \"Link <security>\"\nsource = \"s\"\ncovered_by = []\n\
-             [[requirement]]\nid = \"B\"\ntext = \"t\"\nsource = \"s\"\ncovered_by = [\"multirx.*.handover_ms\"]\n",
+             [[requirement]]\nid = \"B\"\ntext = \"t\"\nsource = \"s\"\ncovered_by = [\"dut.*.handover_ms\"]\n",
         )
         .unwrap();
-        let declared = vec!["multirx.parallel.handover_ms".to_owned()];
+        let declared = vec!["dut.parallel.handover_ms".to_owned()];
         let trace = matrix(&reqs, &declared, &run);
         let (verdict, why) = Verdict::judge(&run, &trace, None);
         let certify = CertifyRecord {
@@ -305,7 +308,7 @@ mod tests {
     #[test]
     fn the_page_says_the_verdict_first_and_uncovered_plainly() {
         let dir = folder();
-        let page = render(dir.path()).unwrap();
+        let page = render(dir.path(), figures).unwrap();
         let verdict = page.find("id=\"verdict\"").unwrap();
         assert!(
             verdict < page.find("<h2>").unwrap(),
@@ -318,7 +321,7 @@ mod tests {
         assert!(page.contains("UNCOVERED") && page.contains("Link &lt;security&gt;"));
         assert!(
             page.contains("not recorded"),
-            "message mix is not recorded: said so"
+            "a figure whose data is not recorded: said so"
         );
         assert!(page.contains("dirty"), "a dirty build is called out");
         assert!(
@@ -334,11 +337,11 @@ mod tests {
     #[test]
     fn headless_chromium_renders_the_verdict_and_every_plot() {
         let dir = folder();
-        let page = render(dir.path()).unwrap();
+        let page = render(dir.path(), figures).unwrap();
         let path = dir.path().join(REPORT_FILE);
         std::fs::write(&path, &page).unwrap();
         let plots = page.matches("<svg class=\"plot\"").count();
-        assert!(plots >= 2, "table II and attenuation at least: {plots}");
+        assert_eq!(plots, 2, "both figures drawn: {page}");
         let profile = dir.path().join("chromium-profile");
         let out = std::process::Command::new("chromium")
             .args(["--headless", "--no-sandbox", "--disable-gpu", "--dump-dom"])

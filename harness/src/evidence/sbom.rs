@@ -171,7 +171,7 @@ mod tests {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
         let bom = sbom(
             &root,
-            &root.join("firmware/multirx/samd21"),
+            &root.join(crate::devices::FIRMWARE.dir),
             "0123",
             "2026-01-01T00:00:00Z",
         )

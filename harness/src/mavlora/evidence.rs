@@ -255,4 +255,49 @@ mod tests {
             "the per-radio p50 is another figure: {plot}"
         );
     }
+
+    #[test]
+    fn table_ii_and_the_sweep_are_drawn_from_the_run_and_its_csv() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut d = Declarations::new();
+        let bytes = d.declare(
+            Spec::new("bytes_per_s", "B/s")
+                .dim(Dimension::Device, "mavlora")
+                .dim(Dimension::Transport, SIMULATED)
+                .dim(Dimension::Variant, "limit_filter")
+                .at_most(951.0),
+        );
+        d.record(bytes, 426.0);
+        let mut p = PhaseRecord::ran(
+            "mavlora::simulated::table_ii",
+            String::new(),
+            1.0,
+            d.into_measurements(),
+            None,
+        );
+        std::fs::create_dir(dir.path().join("sweep")).unwrap();
+        let csv = dir.path().join("sweep/attenuation_sweep.csv");
+        std::fs::write(
+            &csv,
+            "preset,attenuation_db,free_space_range_m,sent,received,loss_pct,mean_period_ms,\
+             max_period_ms,nominal\n\
+             sik-64k,80,1,10,10,0.00,1,1,true\nsik-64k,90,1,10,2,80.0,1,1,false\n",
+        )
+        .unwrap();
+        p.attachments.push(
+            crate::record::Attachment::from_file(dir.path(), &csv, "sweep", "text/csv").unwrap(),
+        );
+        let mut run = sample_record();
+        run.phases.push(p);
+        let mut h = String::new();
+        html_figures(&mut h, dir.path(), &run);
+        let drawn = |id: &str| h.contains(&format!("<svg class=\"plot\" id=\"{id}\""));
+        assert!(drawn("plot-table-ii"), "{h}");
+        assert!(h.contains("426"), "this run's bytes/s: {h}");
+        assert!(drawn("plot-attenuation"), "{h}");
+        assert!(
+            !drawn("plot-mission") && h.contains("plot-mission"),
+            "said missing: {h}"
+        );
+    }
 }

@@ -169,7 +169,7 @@ fn walk<'a>(
 }
 
 /// Joins keys with dots, quoting keys that themselves contain a dot or
-/// space (`limits."multirx.scan.handover_ms"`), as TOML would.
+/// space (`limits."dut.fast.handover_ms"`), as TOML would.
 pub(crate) fn dotted(path: &[&str]) -> String {
     path.iter()
         .map(|k| {
