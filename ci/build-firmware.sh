@@ -42,8 +42,8 @@ from pathlib import Path
 
 CHIP_FLASH = 256 * 1024
 CHIP_RAM = 32 * 1024
-# The image's budget (the certification issue's hardware-free check): far below the chip,
-# so growth is noticed long before the part runs out, and the stack keeps >= 24 KiB.
+# The image's budget (the project's, checked without hardware): far below the chip, so
+# growth is noticed long before the part runs out, and the stack keeps >= 24 KiB.
 FLASH_BUDGET = 32 * 1024
 RAM_BUDGET = 8 * 1024
 RAM_START = 0x2000_0000

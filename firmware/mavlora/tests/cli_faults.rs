@@ -1,7 +1,7 @@
-//! Faults the real binaries must heal from by themselves (issue "Faults and load: the links
-//! recover by themselves, nothing is lost"): a radio that stops reading, partial frames,
-//! TCP clients that never read. Real ptys, real binaries; every wait is bounded and states
-//! the invariant it checks.
+//! Faults the real binaries must heal from by themselves (in flight, nobody is at hand to
+//! restart them; the links recover and nothing is lost): a radio that stops reading,
+//! partial frames, TCP clients that never read. Real ptys, real binaries; every wait is
+//! bounded and states the invariant it checks.
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
@@ -293,7 +293,7 @@ fn partial_frames_never_hold_the_next_frame() {
 
     // Ground leg: 10 bytes starting FD FF (a frame announcing 255 payload bytes) in one
     // datagram, a command in the next. Invariant: a frame never spans datagrams, so the
-    // command reaches the radio at once (1 s bound for a loaded machine; before: 11 s).
+    // command reaches the radio at once (1 s bound for a loaded machine).
     gcs.send_to(&[0xFD, 0xFF, 0, 0, 0, 255, 190, 0x4C, 0, 0], to_router)
         .unwrap();
     let arm = MavCmd::MAV_CMD_COMPONENT_ARM_DISARM;

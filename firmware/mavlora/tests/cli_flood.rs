@@ -1,9 +1,8 @@
-//! Load on the router's ground UDP port (issue "Faults and load: the links recover by
-//! themselves, nothing is lost"): one local sender of 64 KB datagrams took the router from
-//! 4 MB to 1.2 GB in 6 s, and a command sent after the flood had not reached the radio 10 s
-//! later. Target from the issue: under a 5 s flood, peak RSS < 64 MB, and a COMMAND_LONG sent
-//! after the flood reaches the radio within 1 s. The flood goes to 127.0.0.1 only, bounded in
-//! count and time; the router is killed early if its RSS passes 256 MB.
+//! Load on the router's ground UDP port: one local sender of 64 KB datagrams must neither
+//! grow the router without bound nor hold up the pilot's commands. The project's target:
+//! under a 5 s flood, peak RSS < 64 MB, and a COMMAND_LONG sent after the flood reaches the
+//! radio within 1 s. The flood goes to 127.0.0.1 only, bounded in count and time; the
+//! router is killed early if its RSS passes 256 MB.
 
 use std::io::Read;
 use std::net::{TcpListener, UdpSocket};

@@ -2,8 +2,8 @@
 //! independent implementation) on 127.0.0.1 and an intruder on 127.0.0.2 that sends a GCS
 //! heartbeat and a forced ARM. Telemetry must stay with the pilot, nothing of the intruder's
 //! may reach the radio (read back from the radio pty and parsed), the pilot's own command
-//! must, and the router must count the rejections. Before ground trust, the router replied
-//! to whoever sent last and relayed anything: the intruder got the telemetry and armed the
+//! must, and the router must count the rejections. A router that replied to whoever sent
+//! last and relayed anything would give the intruder the telemetry and let it arm the
 //! vehicle.
 
 use std::io::{Read, Write};

@@ -425,9 +425,9 @@ fn a_command_sent_into_a_5_s_silence_runs_once_when_it_ends_and_is_acked() {
     // trips), then falls silent both ways for 5 s at 3.5 s, with 10 % loss besides; the
     // third command goes somewhere before or in the silence, and the ground retries it
     // every 1.5 s, 5 sends (the soak's silences). The relay has to get it through and its
-    // ack back before the ground gives up, 7.5 s after its first send. Before, its own
-    // resends used up their eight attempts in the silence: it gave the command up, and
-    // the ground's last retry went nowhere.
+    // ack back before the ground gives up, 7.5 s after its first send. Its own resends
+    // must not use up their eight attempts in the silence: a relay that gave the command
+    // up would send the ground's last retry nowhere.
     let mut failed = Vec::new();
     for gap_ms in (0..=2400).step_by(200) {
         for seed in 1..=5 {

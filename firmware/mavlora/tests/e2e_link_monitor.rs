@@ -1,9 +1,10 @@
-//! What an unmodified ground station sees of the link (issue 12): the real `mavlora-bridge`
-//! and `mavlora-router`, a pymavlink flight controller (`fixtures/mavlora_fc.py`), a radio
-//! of two pty pairs whose ground → air direction the test cuts for 12 s (a drone that
-//! cannot hear the ground while the ground still hears it), and pymavlink as the ground
-//! station (`fixtures/mavlora_linkwatch.py`): it must get `RADIO_STATUS` at >= 0.5 Hz while
-//! the link is up, one "uplink lost/degraded" `STATUSTEXT` within 5 s of the cut and one
+//! What an unmodified ground station sees of the link (SORA OSO#6: the remote pilot can
+//! continuously monitor the C2 link): the real `mavlora-bridge` and `mavlora-router`, a
+//! pymavlink flight controller (`fixtures/mavlora_fc.py`), a radio of two pty pairs whose
+//! ground → air direction the test cuts for 12 s (a drone that cannot hear the ground while
+//! the ground still hears it), and pymavlink as the ground station
+//! (`fixtures/mavlora_linkwatch.py`): it must get `RADIO_STATUS` at >= 0.5 Hz while the
+//! link is up, one "uplink lost/degraded" `STATUSTEXT` within 5 s of the cut and one
 //! "restored" within 5 s of the link coming back. Needs `python3` with pymavlink 2.4.
 
 mod common;

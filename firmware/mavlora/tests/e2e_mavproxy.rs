@@ -1,12 +1,12 @@
 //! MAVProxy (PyPI `MAVProxy`, an unmodified ground station none of us wrote) commanding the
-//! vehicle through the real `mavlora-router` and `mavlora-bridge` (issues 9 and 12): the
-//! pymavlink flight controller (`fixtures/mavlora_fc.py`), a signed radio of two pty pairs,
-//! and `mavproxy.py` on the router's UDP port, the way an operator runs it
-//! (`--master=udpout:...`). Once MAVProxy reports the vehicle, the test types a command on
-//! its stdin, as an operator would at its prompt (`long DO_SET_MODE 29 4 3`: PX4's
-//! AUTO.LOITER, what pymavlink's own PX4 mode table sends). Invariants, read from
-//! MAVProxy's own telemetry log (`fixtures/tlog_summary.py`) and the flight controller's
-//! summary:
+//! vehicle through the real `mavlora-router` and `mavlora-bridge` (a signed link, and the
+//! link monitoring any ground station shows): the pymavlink flight controller
+//! (`fixtures/mavlora_fc.py`), a signed radio of two pty pairs, and `mavproxy.py` on the
+//! router's UDP port, the way an operator runs it (`--master=udpout:...`). Once MAVProxy
+//! reports the vehicle, the test types a command on its stdin, as an operator would at its
+//! prompt (`long DO_SET_MODE 29 4 3`: PX4's AUTO.LOITER, what pymavlink's own PX4 mode
+//! table sends). Invariants, read from MAVProxy's own telemetry log
+//! (`fixtures/tlog_summary.py`) and the flight controller's summary:
 //!
 //! - MAVProxy gets the vehicle's HEARTBEAT (system 1) at ~1 Hz and its telemetry through the
 //!   bridge's profile (position at >= 2 Hz; attitude, which the profile drops, never);

@@ -321,9 +321,9 @@ impl LossModel {
     /// Whether the packet on air from `start` for `airtime` is lost;
     /// `length_ratio` is its airtime over the reference packet's. Draws exactly
     /// three numbers from `rng` per call, whatever the settings (the budget's,
-    /// the fixed packet loss's, one spare: the order the per-packet chain used,
-    /// so independent-loss runs replay as before), and the burst knobs draw
-    /// from the chain's own generator.
+    /// the fixed packet loss's, one spare that keeps a seed's draws where recorded
+    /// runs have them), and the burst knobs draw from the chain's own generator,
+    /// so a seed's independent loss is the same with or without bursts.
     pub fn lose<R: Rng + ?Sized>(
         &mut self,
         rng: &mut R,

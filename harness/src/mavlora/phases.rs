@@ -26,7 +26,8 @@ fn simulated_radios(section: &MavloraSection) -> Radios {
             .map(|n| (n.name.replace('-', "_"), n.setup.clone()))
             .collect(),
         c2: r.c2.setup.clone(),
-        // Not a rig-file role yet: issue 9's target radio (SiK 64k, 10 % loss each way).
+        // Not a rig-file role yet: the radio of the project's command-latency target (SiK
+        // 64k, 10 % loss each way).
         c2_target: Radios::paper_defaults().c2_target,
         sweep: r.sweep.iter().map(|n| n.setup.clone()).collect(),
         blind_drone: r.blind_drone.setup.clone(),

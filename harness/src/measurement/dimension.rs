@@ -70,11 +70,11 @@ impl fmt::Display for Dimension {
 
 /// [`Dimension::Transport`] of the real MavLora programs over pty pairs.
 pub const PTY: &str = "pty";
-/// [`Dimension::Transport`] of the virtual-clock reproductions. They were
-/// named before the pty runs existed, so it stays out of the flat name.
+/// [`Dimension::Transport`] of the virtual-clock reproductions of the paper, the default
+/// transport: out of the flat name (see [`flat_name`]).
 pub const SIMULATED: &str = "simulated";
-/// [`Dimension::Autopilot`] of the PX4-like flight controller, the one every measurement
-/// was taken with before the dimension existed: out of the flat name.
+/// [`Dimension::Autopilot`] of the PX4-like flight controller, the paper's autopilot and the
+/// default: out of the flat name (see [`flat_name`]).
 pub const PX4: &str = "px4";
 /// [`Dimension::Variant`] of MavLora as designed (bridge and router relaying);
 /// out of the flat name, which names only the naive comparison.
@@ -113,10 +113,11 @@ impl Dimensions {
 /// values in [`Dimension`] order, then the base name
 /// (`dut.fast.handover.max_gap_ms`).
 ///
-/// The one place names are made. Three values stay out, so that names read as
-/// they did before measurements had dimensions: the device when an artifact
-/// stands in its place (`firmware.scan.flash_bytes`), `transport` =
-/// [`SIMULATED`], `autopilot` = [`PX4`] and `variant` = [`RELAY`].
+/// The one place names are made. Defaults stay out, so the names that saved records, trace
+/// matrices and `harness/requirements.toml` use are short and do not change when a
+/// dimension gains a value: the device when an artifact stands in its place
+/// (`firmware.scan.flash_bytes`), `transport` = [`SIMULATED`], `autopilot` = [`PX4`] and
+/// `variant` = [`RELAY`].
 pub fn flat_name(dimensions: &Dimensions, base: &str) -> String {
     let mut name = String::new();
     for (dim, value) in dimensions.iter() {

@@ -5,8 +5,8 @@
 //! - every rate an accepted profile holds (its default, each message's `radio` and
 //!   `stream_hz`) is within `MIN_RATE_HZ..=MAX_RATE_HZ` (`stream_hz` may also be 0, "stop");
 //! - an accepted profile can be used: the stream requests it makes for the flight controller
-//!   and the radio filter limiting each of its messages at any time never panic (issue 9 saw
-//!   values that passed validation panic there at run time).
+//!   and the radio filter limiting each of its messages at any time never panic (validation
+//!   alone does not prove that a value it lets through is safe at run time).
 
 use mavlink::{MavHeader, MavlinkVersion, Message as _};
 use mavlora::dialect::MavMessage;

@@ -212,8 +212,8 @@ impl CommandRetransmitter {
     /// only if the budget carries the frame in less than that gap. On a fast TDM radio
     /// (SiK 64k's ~3 kB/s: 45 bytes in 15 ms) it is another packet of the same window; on
     /// a slow half-duplex one (LoRa SF7's ~250 B/s: 180 ms) it would hold the channel when
-    /// the ack should come back (simulated: median 179 → 267 ms), so the copies go half a
-    /// round and a round after the first only.
+    /// the ack should come back (in the simulated world it raises the median from 179 to
+    /// 267 ms), so the copies go half a round and a round after the first only.
     pub fn with_budget(mut self, bytes_per_s: u32) -> Self {
         self.budget = Some(bytes_per_s.max(1));
         self
@@ -266,8 +266,8 @@ impl CommandRetransmitter {
 
     /// How long after its last copy `p` is resent: the timeout `rto`, or while the link is
     /// silent the maximum timeout (a resend into silence only keeps the command alive
-    /// until the link returns; before, a 5 s silence used up all eight attempts, and the
-    /// command was never run although the ground still asked for it).
+    /// until the link returns; at the normal timeout a 5 s silence would use up all eight
+    /// attempts, and the command would never run although the ground still asks for it).
     fn resend_timeout(&self, p: &Pending, rto: Duration) -> Duration {
         if self.blind(p) {
             rto.max(self.max_rto)

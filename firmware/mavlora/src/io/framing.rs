@@ -3,9 +3,9 @@
 //! its own next) frames.
 //!
 //! On a datagram transport a frame never spans datagrams: whatever partial frame is left at
-//! a datagram's end is dropped there and counted ([`FrameReader::flush_partial`]). Before,
-//! all datagrams shared the router's one stream reader, and 10 bytes starting `FD FF` held
-//! the next command for 11 s.
+//! a datagram's end is dropped there and counted ([`FrameReader::flush_partial`]). Were all
+//! datagrams to share one stream reader, 10 bytes starting `FD FF` (a frame announcing 255
+//! payload bytes) would hold the next command until later datagrams filled that frame.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 

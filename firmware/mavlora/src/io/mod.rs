@@ -48,7 +48,8 @@ pub enum Event {
 
 /// Bytes the main loop's [`Inbox`] holds at most (1 MB: a 64 KB datagram's frames fit 16
 /// times; serial ports stop at [`READ_AHEAD`]). What fills it is a flood from the ground,
-/// which it drops; at 4 MB a flood took the router to 12.4 MB of RSS, over issue 10's 8 MB.
+/// which it drops; its size keeps the router within 8 MB of peak RSS under a flood (the
+/// project's target for either program; a 4 MB inbox lets a flood take it to ~12 MB).
 pub const INBOX_BYTES: usize = 1024 * 1024;
 /// Bytes a serial reader may have in the [`Inbox`] before it waits for the main loop (64 KB:
 /// 16 reads of a pty, 0.7 s of a 921600-baud autopilot).

@@ -1,12 +1,12 @@
 //! A serial port with a reader thread and a writer thread, closed and reopened with backoff
 //! when it disappears (USB radios re-enumerate; a pty whose other side closed reads EOF or
-//! EIO) *or* when a write fails or stalls (a radio that stopped reading: before, one write
-//! timeout dropped the writer for good while the reader kept the port open, so nothing was
-//! sent again).
+//! EIO) *or* when a write fails or stalls (a radio that stopped reading: a writer that gave
+//! up while the reader kept the port open would never send again).
 //!
-//! A port is reopened only while its name leads to the device first opened, or follows it by
-//! design (`usb-serial:SERIAL`, `/dev/serial/by-id/...`): see [`hostio::device`]. Before, a
-//! new unrelated pty that got a vanished radio pty's number received the bridge's MAVLink.
+//! A port is reopened only while its name leads to the device first opened, or follows it
+//! by design (`usb-serial:SERIAL`, `/dev/serial/by-id/...`): see [`hostio::device`].
+//! Otherwise a new unrelated pty that gets a vanished radio pty's number would receive the
+//! bridge's MAVLink.
 //!
 //! Writes go through a bounded [`Queue`] to the writer thread, so the main loop never blocks
 //! on a port. Every byte offered to [`SerialLink::write`] ends up counted once: written, or

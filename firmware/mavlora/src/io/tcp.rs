@@ -9,9 +9,8 @@
 //!
 //! Each client also has its own bounded write queue and writer thread: a client that stops
 //! reading never blocks the main loop or the other clients; what does not fit its queue is
-//! dropped and counted for that client (before, every send blocked the main loop up to
-//! 200 ms per stalled client, and the client was then disconnected). At most `max_clients`
-//! are connected; one more is refused with a log line.
+//! dropped and counted for that client. At most `max_clients` are connected; one more is
+//! refused with a log line.
 
 use std::io::{ErrorKind, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};

@@ -1,6 +1,6 @@
 //! Waiting on a port with no timeout, yet stoppable: a thread blocked in `poll` on its port
 //! also watches a pipe that another thread writes a byte into (a writer that failed, a stop).
-//! Before, readers woke every 50–100 ms to look at flags, which cost CPU on an idle link.
+//! A reader that woke every 50–100 ms to look at flags would cost CPU on an idle link.
 
 use std::os::fd::{BorrowedFd, OwnedFd};
 use std::time::Duration;

@@ -303,7 +303,7 @@ impl MissionRelay {
         if self.answer_poll(now, c.opaque_id) {
             return;
         }
-        // A count always opens its transfer, even one seen before: a restarted router
+        // A count always opens its transfer, even one already seen: a restarted router
         // numbers its transfers from the start again.
         self.recent.retain(|id| *id != c.opaque_id);
         if !self.open(now, from, c.count, c.mission_type, c.opaque_id) {

@@ -174,7 +174,7 @@ mod tests {
                 found: ' '
             })
         );
-        // the old raw form: 32 bytes that are not hex digits
+        // a raw key: 32 bytes that are not hex digits
         assert!(SigningKey::parse(&[0x2a; 32]).is_err());
         assert!(SigningKey::parse(&[0xff; 32]).is_err());
     }

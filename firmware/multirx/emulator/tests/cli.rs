@@ -247,7 +247,7 @@ fn a_receiver_that_goes_away_is_heard_again_when_it_comes_back() {
 }
 
 /// Regression: with its flight-controller port gone the emulator ran on for
-/// ever; now it reopens the port for a while, then ends with an error, which its
+/// ever. It must reopen the port for a while, then end with an error, which its
 /// status file's stop line gives with the final counters.
 #[test]
 fn ends_when_the_flight_controller_port_is_gone_for_good() {

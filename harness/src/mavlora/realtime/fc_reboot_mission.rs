@@ -1,9 +1,8 @@
 //! The flight controller reboots in the middle of a mission upload (a brown-out, a
-//! watchdog) (issue 10: `fc_reboot_mid_mission`, "mission intact or failed loudly"; issue 9:
-//! "restart the wire leg after an autopilot reboot"). The pymavlink ground station uploads
-//! 40 items over SiK with 10 % bursty loss; when item 15 reaches it, the PX4-like fixture
-//! reboots (4 s silent, then back with a new sequence and uptime, forgetting the upload it
-//! was being given).
+//! watchdog): the mission must end intact or fail loudly, never silently wrong. The
+//! pymavlink ground station uploads 40 items over SiK with 10 % bursty loss; when item 15
+//! reaches it, the PX4-like fixture reboots (4 s silent, then back with a new sequence and
+//! uptime, forgetting the upload it was being given).
 //!
 //! The invariant is the ground's: told ACCEPTED only when the autopilot holds exactly the
 //! plan it sent, told an error otherwise, and never left without an answer. Whether it

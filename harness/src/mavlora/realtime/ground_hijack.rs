@@ -1,8 +1,9 @@
-//! Someone on the ground side tries to fly the drone (issue 9: "anyone can fly it"). While
-//! the pilot's pymavlink ground station flies, hostile senders (`mavlora_intruder.py`) aim
-//! ARM (forced), flight termination, mode and parameter changes and a mission takeover at
-//! the router's ground port, with garbage and partial frames between them. Two sessions side
-//! by side, one per way the router tells the pilot from others:
+//! Someone on the ground side tries to fly the drone: an unauthenticated ground port would
+//! let anyone who reaches it fly it. While the pilot's pymavlink ground station flies,
+//! hostile senders (`mavlora_intruder.py`) aim ARM (forced), flight termination, mode and
+//! parameter changes and a mission takeover at the router's ground port, with garbage and
+//! partial frames between them. Two sessions side by side, one per way the router tells the
+//! pilot from others:
 //!
 //! - `ground_hijack` (the default policy: `--allow 127.0.0.1`, `--allow-sysid 255`): another
 //!   host (127.0.0.2, every 127.x is loopback on Linux) spoofing the ground's system id 255,

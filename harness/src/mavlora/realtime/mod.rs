@@ -139,8 +139,9 @@ pub(super) fn keep_evidence(ctx: &mut PhaseContext, label: &str, report: &Sessio
     }
 }
 
-/// `mavlora.pty.<scenario>.unsigned_frames_on_radio` (= 0, issue 9): every radio leg of
-/// every phase is signed, so neither program may put an unsigned frame on the air.
+/// `mavlora.pty.<scenario>.unsigned_frames_on_radio` (= 0): every radio leg of every phase is
+/// signed (the paper's requirement D, link security), so neither program may put an unsigned
+/// frame on the air.
 pub struct Unsigned(Handle);
 
 impl Unsigned {

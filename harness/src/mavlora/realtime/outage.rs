@@ -1,5 +1,5 @@
-//! A part of the link goes away in flight for 3 s and comes back (issue 10: nothing may
-//! stay dead after a fault):
+//! A part of the link goes away in flight for 3 s and comes back (nothing may stay dead
+//! after a fault: in flight, nobody is at hand to reseat a plug or restart the far end):
 //!
 //! - [`BRIDGE_CRASH`] / [`ROUTER_CRASH`]: a program is killed (SIGKILL: nothing flushed) and
 //!   its supervisor starts it again 3 s later (a service manager's restart delay). The new

@@ -1,8 +1,8 @@
 //! The radio goes silent both ways for 10 s in flight (a hill, a hangar, a radio that
-//! browned out) and comes back (issue 10: nothing may stay dead after a stall). The real
-//! programs over ptys must carry telemetry again as soon as the air does, and commands sent
-//! after it must be acked as on a fresh link: both within SORA's TMPR for medium robustness
-//! (C2 latency < 3 s), the bound the C2 scenarios use.
+//! browned out) and comes back (nothing may stay dead after a stall: in flight, nobody can
+//! restart a program). The real programs over ptys must carry telemetry again as soon as
+//! the air does, and commands sent after it must be acked as on a fresh link: both within
+//! SORA's TMPR for medium robustness (C2 latency < 3 s), the bound the C2 scenarios use.
 
 use anyhow::{Result, bail};
 use std::time::Duration;

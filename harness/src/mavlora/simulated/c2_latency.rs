@@ -55,8 +55,8 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
         d.declare(
             target("c2_latency_p50_ms", "ms")
                 .describe(format!(
-                    "median {what}; SORA TMPR < 3 s is the limit, issue 9's 0.5 s target the \
-                     marginal band"
+                    "median {what}; SORA TMPR < 3 s is the limit, the project's 0.5 s target \
+                     on SiK the marginal band"
                 ))
                 .at_most(TMPR_MEDIUM_MS)
                 .marginal_above(TARGET_MS),
@@ -64,9 +64,9 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
         d.declare(
             target("c2_latency_p99_ms", "ms")
                 .describe(format!(
-                    "99th percentile {what}; SORA TMPR < 3 s is the limit; issue 9's \
-                     engineering target, <= 0.5 s, is the marginal band (a value above it is \
-                     reported MARGINAL: not yet met)"
+                    "99th percentile {what}; SORA TMPR < 3 s is the limit; the project's \
+                     engineering target on SiK, <= 0.5 s, is the marginal band (a value above \
+                     it is reported MARGINAL: not yet met)"
                 ))
                 .at_most(TMPR_MEDIUM_MS)
                 .marginal_above(TARGET_MS),
@@ -75,7 +75,7 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
             target("commands_lost", "commands")
                 .describe(
                     "commands of the mix the ground sent that the autopilot never executed \
-                     (issue 9: none)",
+                     (must be none: every command the pilot sends must take effect)",
                 )
                 .equal_to(0.0),
         ),
@@ -83,7 +83,8 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
             target("commands_executed_twice", "commands")
                 .describe(
                     "commands of the mix the autopilot executed more than once, late copies \
-                     included (issue 9: none)",
+                     included (must be none: the MAVLink command protocol forbids executing \
+                     a retransmission twice)",
                 )
                 .equal_to(0.0),
         ),
@@ -94,9 +95,9 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
     })
 }
 
-/// Issue 9's command-to-ack target on SiK 64 kbps at 10 % loss each way, ms: an engineering
-/// target, not a requirement of SORA or the paper, so it marks the marginal band inside the
-/// SORA limit rather than failing the run.
+/// The project's command-to-ack target on SiK 64 kbps at 10 % loss each way, ms: an
+/// engineering target for a responsive link, not a requirement of SORA or the paper, so it
+/// marks the marginal band inside the SORA limit rather than failing the run.
 pub const TARGET_MS: f64 = 500.0;
 /// The radio dimension of the target's measurements.
 const TARGET_RADIO: &str = "sik_64k";
@@ -148,7 +149,7 @@ pub fn measure_with(
     Ok((ms, stats))
 }
 
-/// Issue 9's target: the command mix ([`CommandPlan::mix`]: same id with new parameters,
+/// The project's target: the command mix ([`CommandPlan::mix`]: same id with new parameters,
 /// target component 0 or 1, ground retries with `confirmation` > 0) over
 /// [`Radios::c2_target`]; latencies as [`measure`], and what the autopilot executed.
 pub fn measure_target(radios: &Radios) -> Result<(Vec<f64>, CommandStats, Integrity)> {

@@ -1,8 +1,8 @@
-//! MavLora's full-length reproductions of the paper (issue 4, the in-process
-//! half): the real bridge and router engines, the simulated PX4 and ground
-//! station, and the rig's radio model between them, under a virtual clock: the
-//! one world of crate `harness-sim` ([`harness_sim::World`]). An 8.5-minute flight costs seconds, and
-//! a seed gives the same numbers every time.
+//! MavLora's full-length reproductions of the paper (in process; `realtime` runs the real
+//! binaries over ptys): the real bridge and router engines, the simulated PX4 and ground
+//! station, and the rig's radio model between them, under a virtual clock: the one world of
+//! crate `harness-sim` ([`harness_sim::World`]). An 8.5-minute flight costs seconds, and a
+//! seed gives the same numbers every time.
 //!
 //! One file per scenario: [`table_ii`] (bytes and messages per second per
 //! bandwidth mechanism), [`mission`] (100-item upload over slow lossy
@@ -21,20 +21,16 @@
 //! |---|---|
 //! | `table_ii` | `mavlora.<variant>.bytes_per_s`, `.msgs_per_s` for `wired`, `limit`, `limit_filter` (≤ 951 B/s), `compact` (≤ 50 B/s) |
 //! | `mission_upload` | `mavlora.<radio>.mission_upload_s` (≤ 300 s), `.mission_bytes_on_air`, `.mission_efficiency`, `.naive.mission_upload_s`, `.naive.mission_bytes_on_air`, `.naive.duplicate_items` for `lora_sf7`, `sik_64k` |
-//! | `c2_latency` | `mavlora.c2_latency_p50_ms`, `mavlora.c2_latency_p99_ms` (≤ 3000 ms); `mavlora.sik_64k.c2_latency_p50_ms`, `.c2_latency_p99_ms` (≤ 500 ms, issue 9), `.commands_lost`, `.commands_executed_twice` (= 0) |
+//! | `c2_latency` | `mavlora.c2_latency_p50_ms`, `mavlora.c2_latency_p99_ms` (≤ 3000 ms); `mavlora.sik_64k.c2_latency_p50_ms`, `.c2_latency_p99_ms` (≤ 500 ms, the project's target on SiK), `.commands_lost`, `.commands_executed_twice` (= 0) |
 //! | `attenuation_sweep` | `mavlora.<preset>.nominal_edge_db`, `.nominal_range_m` (paper ± 3 dB), CSV evidence |
-//! | `blind_drone` | `mavlora.blind_drone.detect_p50_s`, `.detect_p95_s`, `.restore_p95_s` over 20 seeds (≤ 30 s, marginal from 5 s: issue 12's target); `mavlora.lora_sf7.monitor_uplink_bytes_per_s`, `.monitor_downlink_bytes_per_s` (≤ 3 B/s) |
+//! | `blind_drone` | `mavlora.blind_drone.detect_p50_s`, `.detect_p95_s`, `.restore_p95_s` over 20 seeds (≤ 30 s, marginal from 5 s: the project's target for telling the pilot); `mavlora.lora_sf7.monitor_uplink_bytes_per_s`, `.monitor_downlink_bytes_per_s` (≤ 3 B/s) |
 //! | `duty_cycle` | `mavlora.lora_sf7.duty_cycle_pct` (≤ 10 %), `mavlora.lora_sf7.uplink_duty_cycle_pct` |
 //! | `soak` | an hour with silences, reboots, floods, commands and uploads: `mavlora.soak_heap_growth_pct` (≤ 5 %), `.soak_commands_acked_not_executed`, `.soak_commands_executed_twice`, `.soak_mission_mismatch_on_accept`, `.soak_radio_unbalanced_bytes` (= 0), `.soak_last_position_age_s` (≤ 3 s) |
 //!
 //! Each phase's log and `results.json` carry its figures; they are not copied here, where
-//! they went stale before. As of the run of 2026-11-24 (built-in radios, seed 1): compact
-//! 46.3 B/s (unsigned, as the paper measured: signed, the real binaries put ~60 B/s on the
-//! air, see `realtime::table_ii`), LoRa duty cycle 8.1 %, C2 p99 0.51 s (SiK 64k at 10 %
-//! loss: 0.37 s), blind drone seen in 1.1 s and its end in 1.5 s (p95 of 20 seeds), and
-//! mission efficiency p10 over 20 seeds 1.40 on LoRa and 0.43 on SiK, the one figure still
-//! short of issue 9's 0.65 (two seeds of twenty: both lose the tail of the upload to a
-//! multi-second loss burst).
+//! they would go stale. `target/release/rig run rigs/emulated.toml --filter
+//! mavlora::simulated` measures them again; `firmware/mavlora/docs/measurements.md` keeps
+//! the figures measured along the way, each with its command.
 
 pub mod blind_drone;
 pub mod c2_latency;
@@ -103,7 +99,7 @@ pub struct Radios {
     pub mission: Vec<(String, RadioSetup)>,
     /// Command latency (SORA's TMPR bound).
     pub c2: RadioSetup,
-    /// Command latency against issue 9's target (SiK 64k, 10 % loss each way) and the
+    /// Command latency against the project's target (SiK 64k, 10 % loss each way) and the
     /// command mix's exactly-once counts.
     pub c2_target: RadioSetup,
     /// Attenuation sweep, one preset each (their link configs give seeds and latency; the

@@ -1,6 +1,6 @@
-//! An hour of flight on the virtual clock with the faults of the real-time phases, again and
-//! again (issue 10's soak): the real bridge and router engines between the simulated PX4 and
-//! ground station over SiK 64k with 10 % bursty loss each way, and
+//! An hour of flight on the virtual clock with the faults of the real-time phases, again
+//! and again: the real bridge and router engines between the simulated PX4 and ground
+//! station over SiK 64k with 10 % bursty loss each way, and
 //!
 //! - a 10 s radio silence both ways every 7 minutes (a hill, a radio browning out; the sim has
 //!   no ports, so this is also what a replugged radio looks like to the engines);
@@ -12,12 +12,13 @@
 //!
 //! Invariants: memory flat (the heap's high-water mark at the end of the hour at most 5 %
 //! above its high-water mark at minute 5, after every kind of fault has happened once,
-//! counted over the world's footprint; issue 10), every command the ground heard acked
-//! executed exactly once by the autopilot and none executed twice (a command the ground gave
-//! up on during a silence may have run or not: its outcome is unknown to the ground, as
-//! MAVLink's command protocol has it, and both are counted), every upload the ground heard
-//! ACCEPTED held exactly by the autopilot, the radio's byte counters balanced, and nothing
-//! stuck: telemetry still arriving at the end.
+//! counted over the world's footprint: the project's bound, so a leak shows within the
+//! hour), every command the ground heard acked executed exactly once by the autopilot and
+//! none executed twice (a command the ground gave up on during a silence may have run or
+//! not: its outcome is unknown to the ground, as MAVLink's command protocol has it, and
+//! both are counted), every upload the ground heard ACCEPTED held exactly by the autopilot,
+//! the radio's byte counters balanced, and nothing stuck: telemetry still arriving at the
+//! end.
 
 use anyhow::{Context, Result, bail};
 use harness_radio::{Direction, Silence};
@@ -42,7 +43,8 @@ pub const SCENARIO: Scenario = Scenario {
 const HOUR_S: u64 = 3600;
 /// The heap's reference point: the world's footprint once everything has run at least once.
 const SETTLE_S: u64 = 300;
-/// Issue 10: the high-water mark after the first 5 minutes grows at most this much.
+/// The high-water mark after the first 5 minutes grows at most this much: the project's bound
+/// for a program that does not leak.
 const GROWTH_LIMIT_PCT: f64 = 5.0;
 /// SORA TMPR, medium robustness: telemetry older than this at the end is a stuck link.
 const TMPR_S: f64 = 3.0;
@@ -78,7 +80,8 @@ fn plan(d: &mut Declarations, _: &Radios) -> Script {
                     "the heap's high-water mark at the end of the hour above its high-water \
                      mark at minute 5 (by then every fault has happened once), as a share of \
                      the world's footprint at minute 5 (engines, radio model, simulated \
-                     autopilot and ground station); limit: issue 10 (5 %)",
+                     autopilot and ground station); limit 5 %, the project's bound for a program \
+                     that does not leak",
                 )
                 .at_most(GROWTH_LIMIT_PCT),
         ),

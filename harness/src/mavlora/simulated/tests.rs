@@ -71,7 +71,7 @@ fn value(ms: &[Measurement], base: &str, dims: &[(Dimension, &str)]) -> f64 {
 }
 
 /// Table II: every mechanism cuts traffic, limiting + filtering stays under the paper's
-/// 951 B/s and compact telemetry under issue 9's 50 B/s (a batch every 2 s), and every
+/// 951 B/s and compact telemetry under the project's 50 B/s (a batch every 2 s), and every
 /// measurement of the phase passes.
 #[test]
 fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
@@ -89,7 +89,7 @@ fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
     assert!(b("wired") > b("limit") && b("limit") > b("limit_filter"));
     assert!(b("limit_filter") > b("compact"));
     assert_all_pass(&ms);
-    // issue 9's target for compact telemetry (here unsigned, as the paper measured)
+    // the project's target for compact telemetry (here unsigned, as the paper measured)
     assert!((0.0..=50.0).contains(&b("compact")), "{}", b("compact"));
 }
 
@@ -268,7 +268,7 @@ fn mission_radios_lose_ten_percent_on_average() {
 fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
     let radios = Radios::paper_defaults();
     let (ms, log, _) = run_one("c2_latency", &radios, Path::new(""));
-    // the SORA measurements (no radio dimension; the `sik_64k` ones are issue 9's)
+    // the SORA measurements (no radio dimension; the `sik_64k` ones are the project's target)
     let named = |n: &str| {
         ms.iter()
             .find(|m| m.name == n)
@@ -312,9 +312,9 @@ fn c2_latency_meets_sora_medium_only_with_the_routers_resends() {
     );
 }
 
-/// Issue 9: over SiK at 10 % loss each way, a command mix with ground retries, new
-/// parameters under the same id and target component 0 or 1 reaches the autopilot exactly
-/// once per command, and every execution is of a command the ground sent.
+/// Over SiK at 10 % loss each way, a command mix with ground retries, new parameters under
+/// the same id and target component 0 or 1 reaches the autopilot exactly once per command,
+/// and every execution is of a command the ground sent.
 #[test]
 fn c2_command_mix_runs_each_command_exactly_once() {
     // The target's ground (0.5 s retries: on this seed every ack comes sooner, so no retry)
@@ -371,7 +371,7 @@ fn blind_drone_is_seen_from_the_ground() {
             seed,
             ..Radios::paper_defaults()
         };
-        // Radios that report their noise floor: within issue 12's 5 s, both ways.
+        // Radios that report their noise floor: within the project's 5 s, both ways.
         let d = blind_drone::detect(&radios, true).unwrap();
         assert_eq!(d.false_alarms, 0, "seed {seed}: {d:?}");
         assert!(
@@ -392,7 +392,7 @@ fn blind_drone_is_seen_from_the_ground() {
         );
         assert!(d.restore_s.is_some(), "seed {seed}: {d:?}");
     }
-    // The steady cost fits LoRa SF7 (issue 12: 3 B/s each way).
+    // The steady cost fits LoRa SF7 (the monitoring budget: 3 B/s each way).
     let (up, down) = blind_drone::monitoring_cost(&Radios::paper_defaults()).unwrap();
     assert!(
         up <= blind_drone::COST_LIMIT_BPS && down <= blind_drone::COST_LIMIT_BPS,

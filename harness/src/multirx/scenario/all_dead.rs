@@ -1,8 +1,8 @@
-//! Every receiver dies in flight (issue 10's `all_dead`: a shared supply browns out, all
-//! pilots out of range at once): no frames at all, not even failsafe ones. MultiRX must put
-//! the flight controller in auto-loiter with neutral sticks within its silence timeout, and
-//! the flight controller must never see RC loss (the session's `rc_losses`); when power
-//! comes back, the pilot gets control again.
+//! Every receiver dies in flight (a shared supply browns out, all pilots out of range at
+//! once): no frames at all, not even failsafe ones. MultiRX must put the flight controller
+//! in auto-loiter with neutral sticks within its silence timeout, and the flight controller
+//! must never see RC loss (the session's `rc_losses`); when power comes back, the pilot
+//! gets control again.
 
 use std::time::Duration;
 

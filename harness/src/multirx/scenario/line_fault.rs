@@ -1,5 +1,5 @@
-//! Faults on the wire from the flying pilot's receiver (issue 10): a burst of noise (often a
-//! torn frame) before every frame, frames delivered three at a time (a USB-serial adapter's
+//! Faults on the wire from the flying pilot's receiver: a burst of noise (often a torn
+//! frame) before every frame, frames delivered three at a time (a USB-serial adapter's
 //! latency timer), every frame ten times over. Each frame the receiver meant still arrives,
 //! so the pilot must keep control throughout, nothing but the pilot's sticks may reach the
 //! flight controller, and it must never see RC loss (the session's `rc_losses`).

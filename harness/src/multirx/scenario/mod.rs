@@ -140,8 +140,9 @@ pub struct SessionMeasurements {
     first_frame: Option<Handle>,
 }
 
-/// Boot to first SBUS frame must stay well inside PX4's 0.5 s RC-loss
-/// timeout (COM_RC_LOSS_T); the certification issue sets 50 ms.
+/// Boot to first SBUS frame must stay well inside PX4's 0.5 s RC-loss timeout
+/// (COM_RC_LOSS_T), so that a reset in flight never shows as RC loss; 50 ms, a
+/// tenth of it, is the project's target for that margin.
 pub const FIRST_FRAME_MAX_MS: f64 = 50.0;
 
 impl SessionMeasurements {

@@ -1,9 +1,9 @@
-//! The flying pilot's receiver wire is pulled out in flight and put back 1 s later (issue
-//! 10's `port_replug`: a USB-serial adapter knocked loose). Its port hangs up under the
-//! device and its stable name leads nowhere until a new one appears under it. MultiRX must
-//! treat the dead input as that receiver's link loss (auto-loiter with neutral sticks within
-//! the silent-loss bound, the flight controller never seeing RC loss: the session's
-//! `rc_losses`), reopen the port by itself once it is back, and give the pilot control again.
+//! The flying pilot's receiver wire is pulled out in flight and put back 1 s later (a
+//! USB-serial adapter knocked loose). Its port hangs up under the device and its stable
+//! name leads nowhere until a new one appears under it. MultiRX must treat the dead input
+//! as that receiver's link loss (auto-loiter with neutral sticks within the silent-loss
+//! bound, the flight controller never seeing RC loss: the session's `rc_losses`), reopen
+//! the port by itself once it is back, and give the pilot control again.
 //!
 //! Emulated rigs only: a bench's adapters are real, and the rig cannot pull them out.
 
