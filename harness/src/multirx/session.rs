@@ -11,7 +11,7 @@ use anyhow::{Context, Result, bail};
 use serialport::TTYPort;
 
 use super::MULTIRX_EMU;
-use super::rigfile::{DeviceSetup, Mode};
+use super::rigfile::{DeviceSetup, Mode, MultirxSection};
 use crate::clock::Mono;
 use crate::driver::process::Process;
 use crate::driver::pty::{PtyLink, PtyPair};
@@ -75,7 +75,10 @@ pub struct MultirxSession {
 }
 
 impl MultirxSession {
-    /// Brings MultiRX up in `mode` as `rig` describes, logging into `log_dir`.
+    /// Brings MultiRX up in `mode` as `rig` describes, logging into `log_dir`: the wiring,
+    /// the receiver fixtures (first, so they hear the device's first power events), the
+    /// monitors of its FC and status lines, the device itself if emulated; then waits for its
+    /// output and checks its boot line against the rig file's config.
     pub fn start(
         rig: &RigFile,
         mode: Mode,
@@ -93,163 +96,43 @@ impl MultirxSession {
         let config = loaded.config.clone();
         std::fs::create_dir_all(log_dir)?;
         let emulated = matches!(section.device.setup, DeviceSetup::Emulated { .. });
-        let mut ptys = Vec::new();
-        let mut links = Vec::new();
+        let wiring = Wiring::new(section, &config, log_dir, emulated)?;
 
-        // Lines the rig reads: flight controller and status.
-        let mut rig_side = |name: &str, spec: &PortSpec| -> Result<(TTYPort, Option<String>)> {
-            match spec {
-                PortSpec::Pty => {
-                    let mut pair = PtyPair::new()?;
-                    let master = pair.take_master()?;
-                    let path = pair.path().to_string();
-                    ptys.push(pair);
-                    Ok((master, Some(path)))
-                }
-                PortSpec::Path(path) if !emulated => {
-                    let port = hostio::sbus::port(&path.to_string_lossy())
-                        .open_native()
-                        .with_context(|| format!("cannot open {name} port {}", path.display()))?;
-                    Ok((port, None))
-                }
-                PortSpec::Path(path) => bail!(
-                    "multirx.ports.{name} = \"{}\": an emulated device is wired with \"pty\" ports; device paths are for kind = \"board\"",
-                    path.display()
-                ),
-            }
-        };
-        let (fc_port, fc_device_path) = rig_side("fc", &section.ports.fc)?;
-        let (status_port, status_device_path) = rig_side("status", &section.ports.status)?;
-
-        // Lines fixtures write into the device: receivers and IFS.
-        let mut device_inputs = Vec::new();
-        let mut fixture_port = |name: &str, spec: &PortSpec| -> Result<String> {
-            match spec {
-                PortSpec::Pty => {
-                    // The device opens a stable name, as a bench's /dev/serial/by-id: a
-                    // receiver can be unplugged and plugged in again under it.
-                    let link =
-                        PtyLink::with_stable_output(name, &log_dir.join(format!("{name}-device")))?;
-                    let fixture_end = link.input_path().to_string();
-                    device_inputs.push(link.output_path());
-                    links.push(link);
-                    Ok(fixture_end)
-                }
-                PortSpec::Path(path) if !emulated => Ok(path.to_string_lossy().into_owned()),
-                PortSpec::Path(path) => bail!(
-                    "multirx.ports.{name} = \"{}\": an emulated device is wired with \"pty\" ports",
-                    path.display()
-                ),
-            }
-        };
-        let receiver_ports = section
-            .ports
-            .receivers
-            .iter()
-            .enumerate()
-            .map(|(i, spec)| fixture_port(&format!("rx{i}"), spec))
-            .collect::<Result<Vec<_>>>()?;
-        let ifs_port = match (&section.ports.ifs, config.ifs_channels.is_empty()) {
-            (Some(spec), false) => Some(fixture_port("ifs", spec)?),
-            _ => None,
-        };
-
-        // Fixtures first, so they hear the device's first power events.
-        let script = rig.fixtures.dir.join("sbus_receiver.py");
-        let fm = config.flight_mode_channel + 1;
-        let receivers = receiver_ports
-            .iter()
-            .enumerate()
-            .map(|(i, port)| -> Result<ReceiverFixture> {
-                let stick = pilot_stick(i as u8);
-                let spec = ReceiverSpec {
-                    name: format!("rx{i}"),
-                    port: port.clone(),
-                    period_ms: section.receivers.period_ms,
-                    boot_ms: section.receivers.boot_ms,
-                    boot_jitter_ms: section.receivers.period_ms,
-                    loss: options.loss,
-                    powered: false,
-                    channels: vec![
-                        (1, stick),
-                        (2, stick),
-                        (3, stick),
-                        (4, stick),
-                        (fm, config.auto_loiter_value),
-                    ],
-                };
-                Ok(ReceiverFixture::start(
-                    &rig.fixtures.python,
-                    &script,
-                    &spec,
-                    log_dir,
-                )?)
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let receivers = Arc::new(receivers);
-        let ifs = match ifs_port {
-            Some(port) => {
-                let spec = ReceiverSpec {
-                    name: "ifs".into(),
-                    port,
-                    period_ms: section.receivers.period_ms,
-                    boot_ms: 0,
-                    boot_jitter_ms: section.receivers.period_ms,
-                    loss: Loss::Silent,
-                    powered: true,
-                    channels: vec![],
-                };
-                Some(ReceiverFixture::start(
-                    &rig.fixtures.python,
-                    &script,
-                    &spec,
-                    log_dir,
-                )?)
-            }
+        let receivers = Arc::new(
+            wiring
+                .receivers
+                .iter()
+                .enumerate()
+                .map(|(i, port)| {
+                    start_receiver(
+                        rig,
+                        &receiver_spec(section, &config, options, i, port),
+                        log_dir,
+                    )
+                })
+                .collect::<Result<Vec<_>>>()?,
+        );
+        let ifs = match &wiring.ifs {
+            Some(port) => Some(start_receiver(rig, &ifs_spec(section, port), log_dir)?),
             None => None,
         };
-
         let hook_receivers = receivers.clone();
         let status = StatusMonitor::start(
-            status_port,
+            wiring.status,
             Box::new(move |rx, on| {
                 if let Some(r) = hook_receivers.get(usize::from(rx)) {
                     let _ = r.send(if on { "power on" } else { "power off" });
                 }
             }),
         )?;
-        let fc = FcMonitor::start(fc_port)?;
-
+        let fc = FcMonitor::start(wiring.fc)?;
         let device = match &section.device.setup {
-            DeviceSetup::Emulated { program } => {
-                let program = match program {
-                    Some(p) => p.clone(),
-                    None => MULTIRX_EMU
-                        .find()
-                        .map_err(|e| anyhow::anyhow!("{e}, or set program in [multirx.device]"))?,
-                };
-                let mut command = Command::new(&program);
-                command.arg("--config").arg(&loaded.path);
-                for path in &device_inputs[..receiver_ports.len()] {
-                    command.args(["--rx", path]);
-                }
-                command.args(["--fc", fc_device_path.as_deref().unwrap_or_default()]);
-                command.args([
-                    "--status",
-                    status_device_path.as_deref().unwrap_or_default(),
-                ]);
-                if ifs.is_some() {
-                    command.args(["--ifs", &device_inputs[receiver_ports.len()]]);
-                }
-                command.arg("--tx-log").arg(log_dir.join(TX_LOG));
-                // Its counters as data, kept with the phase's evidence.
-                command.arg("--status-json").arg(log_dir.join(EMU_STATUS));
-                let mut process =
-                    Process::spawn("multirx-emu", command, &log_dir.join("multirx-emu.log"))?;
-                std::thread::sleep(Duration::from_millis(50));
-                process.check_running()?;
-                Some(process)
-            }
+            DeviceSetup::Emulated { program } => Some(spawn_emulator(
+                program.as_deref(),
+                &loaded.path,
+                &wiring.device_ends,
+                log_dir,
+            )?),
             DeviceSetup::Board(_) => None,
         };
 
@@ -266,26 +149,30 @@ impl MultirxSession {
             log_dir: log_dir.to_path_buf(),
             tx_log: device.as_ref().map(|_| log_dir.join(TX_LOG)),
             device,
-            links,
-            _ptys: ptys,
+            links: wiring.links,
+            _ptys: wiring.ptys,
         };
-        // The device is up when its output reaches the flight controller.
-        session.fc.wait_for(
-            session.started,
+        session.identify(emulated, &loaded.path)?;
+        Ok(session)
+    }
+
+    /// Waits for the device's output at the flight controller, then checks it is the device
+    /// the rig file names: its boot line carries the image's build id and the config's hash.
+    fn identify(&mut self, emulated: bool, config_path: &Path) -> Result<()> {
+        self.fc.wait_for(
+            self.started,
             Duration::from_secs(5),
             "MultiRX output",
             |_| true,
         )?;
-        // ...and it is the device the rig file names: its boot line carries
-        // the image's build id and the config's hash.
         let kind = if emulated {
             ImageKind::Emulated
         } else {
             ImageKind::Samd21
         };
-        let expected = boot_check::Expected::new(kind, &session.config);
-        let seen = session.status.wait_for_boot(boot_check::BOOT_LINE_TIMEOUT);
-        let boot = boot_check::check(seen, &expected, &loaded.path)?;
+        let expected = boot_check::Expected::new(kind, &self.config);
+        let seen = self.status.wait_for_boot(boot_check::BOOT_LINE_TIMEOUT);
+        let boot = boot_check::check(seen, &expected, config_path)?;
         tracing::info!(
             build = format!("{:016x}", boot.build_id),
             config = format!("{:016x}", boot.config_hash),
@@ -293,8 +180,8 @@ impl MultirxSession {
             first_frame_ms = boot.first_frame.as_secs_f64() * 1000.0,
             "MultiRX identified"
         );
-        session.boot = Some(boot);
-        Ok(session)
+        self.boot = Some(boot);
+        Ok(())
     }
 
     /// Unplugs receiver `rx`'s wire into the device for `down` and plugs a new one in
@@ -442,6 +329,207 @@ impl MultirxSession {
         }
         logs
     }
+}
+
+/// The serial lines between the rig and the device, made (pty pairs) or opened (a bench's
+/// adapters) as the rig file says.
+struct Wiring {
+    /// The rig's end of the flight-controller line.
+    fc: TTYPort,
+    /// The rig's end of the status line.
+    status: TTYPort,
+    /// The ports the receiver fixtures write to, in receiver order.
+    receivers: Vec<String>,
+    /// The port the IFS fixture writes to, when the config names IFS channels and the rig
+    /// wires one.
+    ifs: Option<String>,
+    /// What an emulated device opens.
+    device_ends: DeviceEnds,
+    /// The emulated wires into the device: receivers in order, then IFS.
+    links: Vec<PtyLink>,
+    ptys: Vec<PtyPair>,
+}
+
+/// The paths an emulated device opens: its end of each line.
+#[derive(Default)]
+struct DeviceEnds {
+    fc: String,
+    status: String,
+    receivers: Vec<String>,
+    ifs: Option<String>,
+}
+
+impl Wiring {
+    fn new(
+        section: &MultirxSection,
+        config: &multirx_core::Config,
+        log_dir: &Path,
+        emulated: bool,
+    ) -> Result<Wiring> {
+        let mut ptys = Vec::new();
+        let mut links = Vec::new();
+        let mut device_ends = DeviceEnds::default();
+
+        // Lines the rig reads: flight controller and status.
+        let mut rig_side = |name: &str, spec: &PortSpec| -> Result<(TTYPort, String)> {
+            match spec {
+                PortSpec::Pty => {
+                    let mut pair = PtyPair::new()?;
+                    let master = pair.take_master()?;
+                    let path = pair.path().to_string();
+                    ptys.push(pair);
+                    Ok((master, path))
+                }
+                PortSpec::Path(path) if !emulated => {
+                    let port = hostio::sbus::port(&path.to_string_lossy())
+                        .open_native()
+                        .with_context(|| format!("cannot open {name} port {}", path.display()))?;
+                    Ok((port, String::new()))
+                }
+                PortSpec::Path(path) => bail!(
+                    "multirx.ports.{name} = \"{}\": an emulated device is wired with \"pty\" \
+                     ports; device paths are for kind = \"board\"",
+                    path.display()
+                ),
+            }
+        };
+        let (fc, fc_end) = rig_side("fc", &section.ports.fc)?;
+        let (status, status_end) = rig_side("status", &section.ports.status)?;
+        device_ends.fc = fc_end;
+        device_ends.status = status_end;
+
+        // Lines fixtures write into the device: receivers and IFS; the fixture's end and the
+        // device's.
+        let mut fixture_port = |name: &str, spec: &PortSpec| -> Result<(String, String)> {
+            match spec {
+                PortSpec::Pty => {
+                    // The device opens a stable name, as a bench's /dev/serial/by-id: a
+                    // receiver can be unplugged and plugged in again under it.
+                    let link =
+                        PtyLink::with_stable_output(name, &log_dir.join(format!("{name}-device")))?;
+                    let ends = (link.input_path().to_string(), link.output_path());
+                    links.push(link);
+                    Ok(ends)
+                }
+                PortSpec::Path(path) if !emulated => {
+                    Ok((path.to_string_lossy().into_owned(), String::new()))
+                }
+                PortSpec::Path(path) => bail!(
+                    "multirx.ports.{name} = \"{}\": an emulated device is wired with \"pty\" ports",
+                    path.display()
+                ),
+            }
+        };
+        let mut receivers = Vec::new();
+        for (i, spec) in section.ports.receivers.iter().enumerate() {
+            let (fixture, device) = fixture_port(&format!("rx{i}"), spec)?;
+            receivers.push(fixture);
+            device_ends.receivers.push(device);
+        }
+        let ifs = match (&section.ports.ifs, config.ifs_channels.is_empty()) {
+            (Some(spec), false) => {
+                let (fixture, device) = fixture_port("ifs", spec)?;
+                device_ends.ifs = Some(device);
+                Some(fixture)
+            }
+            _ => None,
+        };
+        Ok(Wiring {
+            fc,
+            status,
+            receivers,
+            ifs,
+            device_ends,
+            links,
+            ptys,
+        })
+    }
+}
+
+/// Pilot `i`'s receiver on `port`: its own stick values on channels 1–4 and the flight-mode
+/// channel at auto-loiter, powered off until the device powers it.
+fn receiver_spec(
+    section: &MultirxSection,
+    config: &multirx_core::Config,
+    options: SessionOptions,
+    i: usize,
+    port: &str,
+) -> ReceiverSpec {
+    let stick = pilot_stick(i as u8);
+    let fm = config.flight_mode_channel + 1;
+    ReceiverSpec {
+        name: format!("rx{i}"),
+        port: port.to_owned(),
+        period_ms: section.receivers.period_ms,
+        boot_ms: section.receivers.boot_ms,
+        boot_jitter_ms: section.receivers.period_ms,
+        loss: options.loss,
+        powered: false,
+        channels: vec![
+            (1, stick),
+            (2, stick),
+            (3, stick),
+            (4, stick),
+            (fm, config.auto_loiter_value),
+        ],
+    }
+}
+
+/// The independent fail-safe system on `port`: always powered, sending nothing until told.
+fn ifs_spec(section: &MultirxSection, port: &str) -> ReceiverSpec {
+    ReceiverSpec {
+        name: "ifs".into(),
+        port: port.to_owned(),
+        period_ms: section.receivers.period_ms,
+        boot_ms: 0,
+        boot_jitter_ms: section.receivers.period_ms,
+        loss: Loss::Silent,
+        powered: true,
+        channels: vec![],
+    }
+}
+
+/// Starts `fixtures/sbus_receiver.py` as `spec` says.
+fn start_receiver(rig: &RigFile, spec: &ReceiverSpec, log_dir: &Path) -> Result<ReceiverFixture> {
+    let script = rig.fixtures.dir.join("sbus_receiver.py");
+    Ok(ReceiverFixture::start(
+        &rig.fixtures.python,
+        &script,
+        spec,
+        log_dir,
+    )?)
+}
+
+/// Starts the emulated device (`program`, else `multirx-emu` next to the rig) with the config
+/// at `config` on its ends of the lines; fails if it exits at once.
+fn spawn_emulator(
+    program: Option<&Path>,
+    config: &Path,
+    ends: &DeviceEnds,
+    log_dir: &Path,
+) -> Result<Process> {
+    let program = match program {
+        Some(p) => p.to_path_buf(),
+        None => MULTIRX_EMU
+            .find()
+            .map_err(|e| anyhow::anyhow!("{e}, or set program in [multirx.device]"))?,
+    };
+    let mut command = Command::new(&program);
+    command.arg("--config").arg(config);
+    for path in &ends.receivers {
+        command.args(["--rx", path]);
+    }
+    command.args(["--fc", &ends.fc, "--status", &ends.status]);
+    if let Some(ifs) = &ends.ifs {
+        command.args(["--ifs", ifs]);
+    }
+    command.arg("--tx-log").arg(log_dir.join(TX_LOG));
+    // Its counters as data, kept with the phase's evidence.
+    command.arg("--status-json").arg(log_dir.join(EMU_STATUS));
+    let mut process = Process::spawn("multirx-emu", command, &log_dir.join("multirx-emu.log"))?;
+    std::thread::sleep(Duration::from_millis(50));
+    process.check_running()?;
+    Ok(process)
 }
 
 /// The emulated device's TX probe file, in the session's log folder.

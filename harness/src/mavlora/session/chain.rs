@@ -69,104 +69,25 @@ impl MavloraSession {
             options.radio.radio()?,
             dir,
         )?);
-
-        // Flight controller: its own pty behind a bridge; the radio's port when naive.
         let fc_summary = dir.join("fc.json");
-        let mut command = Command::new(&options.python);
-        command
-            .arg(options.fixtures_dir.join(options.fc_profile.fixture()))
-            .arg("--summary")
-            .arg(&fc_summary)
-            .args(options.fc_profile.fixture_args());
-        if let Some(item) = options.fc_reboot_at_item {
-            command.args(["--reboot-at-item", &item.to_string()]);
-        }
-        if !bridged {
-            command.args(["--port", &radio.air_path()]);
-        }
-        let fc = Fixture::start("mavlora_fc", command, &dir.join("fc.log"))?;
-        let fixture_timeout = Duration::from_secs(10);
-        let ready = fc
-            .wait_for("ready", fixture_timeout, |l| {
-                matches!(l.event, FcEvent::Ready { .. })
-            })
-            .map_err(|e| SessionError::FixtureStart {
-                name: options.fc_profile.fixture().into(),
-                timeout: fixture_timeout,
-                log: fc.log_path().to_path_buf(),
-                reason: e.to_string(),
-            })?;
-        let FcEvent::Ready { port: fc_port, .. } = ready.event else {
-            unreachable!("waited for ready")
-        };
-        tracing::debug!(port = %fc_port, "FC fixture ready");
-
-        let mut bridge = None;
-        let mut bridge_spawn = None;
-        let mut router = None;
-        let mut router_spawn = None;
-        let gcs_target: Vec<String>;
-        let mut router_ground = None;
-        let mut gcs_key = None;
-        if bridged {
-            // The radio leg is signed in every phase: a fresh key per session, owner-only
-            // (the binaries refuse others-readable keys), each end with its own state file.
-            let key = write_key(dir, "radio.key")?;
-            let mut spawn = BridgeSpawn {
-                fc_port: fc_port.clone(),
-                key: key.clone(),
-                starts: 0,
-            };
-            bridge = Some(spawn.start(&options, &radio.air_path())?);
-            bridge_spawn = Some(spawn);
-            let port = free_udp_port(dir)?;
-            let bind = SocketAddr::from(([127, 0, 0, 1], free_udp_port(dir)?));
-            router_ground = Some(bind);
-            if options.ground_key {
-                gcs_key = Some(write_key(dir, "ground.key")?);
-            }
-            let mut spawn = RouterSpawn {
-                key,
-                ground_key: gcs_key.clone(),
-                send_to: port,
-                bind,
-                starts: 0,
-            };
-            router = Some(spawn.start(&options, &radio.ground_path())?);
-            router_spawn = Some(spawn);
-            gcs_target = vec!["--udp".into(), format!("127.0.0.1:{port}")];
+        // Flight controller: its own pty behind a bridge; the radio's port when naive.
+        let (fc, fc_port) = start_fc(&options, &fc_summary, (!bridged).then(|| radio.air_path()))?;
+        let link = if bridged {
+            Some(Bridged::start(&options, &radio, fc_port)?)
         } else {
-            gcs_target = vec!["--serial".into(), radio.ground_path()];
-        }
-
-        let p = &options.gcs;
-        let mut command = Command::new(&options.python);
-        command
-            .arg(options.fixtures_dir.join("mavlora_gcs.py"))
-            .args(&gcs_target)
-            .arg("--events")
-            .args(["--listen", &p.listen_s.to_string()])
-            .args(["--warmup", &p.warmup_s.to_string()])
-            .args(["--commands", &p.commands.to_string()])
-            .args(["--command-interval", &p.command_interval_s.to_string()])
-            .args(["--command-retry", &p.command_retry_s.to_string()])
-            .args(["--command-tries", &p.command_tries.to_string()])
-            .args(["--items", &p.items.to_string()])
-            .args(["--item-timeout", &p.item_timeout_s.to_string()])
-            .args(["--upload-timeout", &p.upload_timeout_s.to_string()]);
-        if let Some(key) = &gcs_key {
-            command.arg("--key").arg(key);
-        }
-        // Each line carries the radio's counters when it was read, so a
-        // rate taken from the radio covers the GCS's own window.
-        let counters = radio.clone();
-        let gcs = Fixture::start_with("mavlora_gcs", command, &dir.join("gcs.log"), move || {
-            (
-                counters.stats(Direction::Downlink),
-                counters.stats(Direction::Uplink),
-            )
-        })?;
-
+            None
+        };
+        let gcs = start_gcs(&options, &radio, link.as_ref())?;
+        let (bridge, bridge_spawn, router, router_spawn, router_ground) = match link {
+            Some(l) => (
+                Some(l.bridge),
+                Some(l.bridge_spawn),
+                Some(l.router),
+                Some(l.router_spawn),
+                Some(l.router_ground),
+            ),
+            None => (None, None, None, None, None),
+        };
         let mut session = MavloraSession {
             telemetry_at: started,
             started,
@@ -182,9 +103,14 @@ impl MavloraSession {
             fc_summary,
             options,
         };
-        // Up when the vehicle's first message reaches the ground station.
-        let timeout = session.options.ready_timeout;
-        let first = session.gcs.wait_for("telemetry", timeout, |l| {
+        session.wait_for_telemetry()?;
+        Ok(session)
+    }
+
+    /// Up when the vehicle's first message reaches the ground station.
+    fn wait_for_telemetry(&mut self) -> Result<()> {
+        let timeout = self.options.ready_timeout;
+        let first = self.gcs.wait_for("telemetry", timeout, |l| {
             matches!(l.event, GcsEvent::Telemetry { .. })
         });
         let first = match first {
@@ -194,26 +120,23 @@ impl MavloraSession {
                 return Err(e.into());
             }
             Err(_) => {
-                for p in [&mut session.bridge, &mut session.router]
-                    .into_iter()
-                    .flatten()
-                {
+                for p in [&mut self.bridge, &mut self.router].into_iter().flatten() {
                     p.check_running()?;
                 }
-                session.fc.check_running()?;
+                self.fc.check_running()?;
                 return Err(SessionError::NoTelemetry {
                     timeout,
-                    dir: session.options.out_dir.clone(),
+                    dir: self.options.out_dir.clone(),
                 });
             }
         };
-        session.telemetry_at = first.at;
+        self.telemetry_at = first.at;
         tracing::info!(
-            session = %session.options.name,
-            after_ms = first.at.ms_since(started),
+            session = %self.options.name,
+            after_ms = first.at.ms_since(self.started),
             "telemetry at the GCS"
         );
-        Ok(session)
+        Ok(())
     }
 
     /// Kills `which` program outright (SIGKILL: a crash, nothing flushed), waits `down`, and
@@ -494,6 +417,144 @@ impl std::fmt::Display for Program {
             Program::Router => "router",
         })
     }
+}
+
+/// Starts the FC fixture the options name, writing its summary to `summary`, on `port` if
+/// given (else on a pty of its own); returns it, once ready, with the port it serves.
+fn start_fc(
+    options: &SessionOptions,
+    summary: &Path,
+    port: Option<String>,
+) -> Result<(Fixture<FcEvent>, String)> {
+    let mut command = Command::new(&options.python);
+    command
+        .arg(options.fixtures_dir.join(options.fc_profile.fixture()))
+        .arg("--summary")
+        .arg(summary)
+        .args(options.fc_profile.fixture_args());
+    if let Some(item) = options.fc_reboot_at_item {
+        command.args(["--reboot-at-item", &item.to_string()]);
+    }
+    if let Some(port) = &port {
+        command.args(["--port", port]);
+    }
+    let fc = Fixture::start("mavlora_fc", command, &options.out_dir.join("fc.log"))?;
+    let fixture_timeout = Duration::from_secs(10);
+    let ready = fc
+        .wait_for("ready", fixture_timeout, |l| {
+            matches!(l.event, FcEvent::Ready { .. })
+        })
+        .map_err(|e| SessionError::FixtureStart {
+            name: options.fc_profile.fixture().into(),
+            timeout: fixture_timeout,
+            log: fc.log_path().to_path_buf(),
+            reason: e.to_string(),
+        })?;
+    let FcEvent::Ready { port: fc_port, .. } = ready.event else {
+        unreachable!("waited for ready")
+    };
+    tracing::debug!(port = %fc_port, "FC fixture ready");
+    Ok((fc, fc_port))
+}
+
+/// The bridge and router of a bridged session, started.
+struct Bridged {
+    bridge: Process,
+    bridge_spawn: BridgeSpawn,
+    router: Process,
+    router_spawn: RouterSpawn,
+    /// Where the router takes ground stations' datagrams.
+    router_ground: SocketAddr,
+    /// The GCS fixture's port, where the router sends until a ground station talks.
+    gcs_port: u16,
+    /// The ground signing key, when the session signs the ground side.
+    gcs_key: Option<PathBuf>,
+}
+
+impl Bridged {
+    /// Starts the bridge on the FC fixture's `fc_port` and the radio's air end, and the router
+    /// on its ground end.
+    fn start(options: &SessionOptions, radio: &RadioEmulator, fc_port: String) -> Result<Bridged> {
+        let dir = &options.out_dir;
+        // The radio leg is signed in every phase: a fresh key per session, owner-only
+        // (the binaries refuse others-readable keys), each end with its own state file.
+        let key = write_key(dir, "radio.key")?;
+        let mut bridge_spawn = BridgeSpawn {
+            fc_port,
+            key: key.clone(),
+            starts: 0,
+        };
+        let bridge = bridge_spawn.start(options, &radio.air_path())?;
+        let gcs_port = free_udp_port(dir)?;
+        let router_ground = SocketAddr::from(([127, 0, 0, 1], free_udp_port(dir)?));
+        let gcs_key = if options.ground_key {
+            Some(write_key(dir, "ground.key")?)
+        } else {
+            None
+        };
+        let mut router_spawn = RouterSpawn {
+            key,
+            ground_key: gcs_key.clone(),
+            send_to: gcs_port,
+            bind: router_ground,
+            starts: 0,
+        };
+        let router = router_spawn.start(options, &radio.ground_path())?;
+        Ok(Bridged {
+            bridge,
+            bridge_spawn,
+            router,
+            router_spawn,
+            router_ground,
+            gcs_port,
+            gcs_key,
+        })
+    }
+}
+
+/// Starts the GCS fixture on its plan: on the router's UDP side when bridged, else straight
+/// on the radio's ground end.
+fn start_gcs(
+    options: &SessionOptions,
+    radio: &Arc<RadioEmulator>,
+    link: Option<&Bridged>,
+) -> Result<Fixture<GcsEvent, RadioCounters>> {
+    let p = &options.gcs;
+    let mut command = Command::new(&options.python);
+    command.arg(options.fixtures_dir.join("mavlora_gcs.py"));
+    match link {
+        Some(l) => command.args(["--udp", &format!("127.0.0.1:{}", l.gcs_port)]),
+        None => command.args(["--serial", &radio.ground_path()]),
+    };
+    command
+        .arg("--events")
+        .args(["--listen", &p.listen_s.to_string()])
+        .args(["--warmup", &p.warmup_s.to_string()])
+        .args(["--commands", &p.commands.to_string()])
+        .args(["--command-interval", &p.command_interval_s.to_string()])
+        .args(["--command-retry", &p.command_retry_s.to_string()])
+        .args(["--command-tries", &p.command_tries.to_string()])
+        .args(["--items", &p.items.to_string()])
+        .args(["--item-timeout", &p.item_timeout_s.to_string()])
+        .args(["--upload-timeout", &p.upload_timeout_s.to_string()]);
+    if let Some(key) = link.and_then(|l| l.gcs_key.as_ref()) {
+        command.arg("--key").arg(key);
+    }
+    // Each line carries the radio's counters when it was read, so a
+    // rate taken from the radio covers the GCS's own window.
+    let counters = radio.clone();
+    let gcs = Fixture::start_with(
+        "mavlora_gcs",
+        command,
+        &options.out_dir.join("gcs.log"),
+        move || {
+            (
+                counters.stats(Direction::Downlink),
+                counters.stats(Direction::Uplink),
+            )
+        },
+    )?;
+    Ok(gcs)
 }
 
 /// The log of a program's `n`th start: `<stem>.<ext>`, then `<stem>-<n>.<ext>`.
