@@ -405,14 +405,42 @@ impl Line {
     }
 }
 
+/// A line of a status file that is not a status line of this schema.
+#[derive(Debug, thiserror::Error)]
+#[error("line {line}: {error}")]
+pub struct FileError {
+    /// Its number, from 1.
+    pub line: usize,
+    /// What is wrong with it.
+    #[source]
+    pub error: LineError,
+}
+
+/// Every line of `text` (a whole status file), in order. Only a torn last line (a program
+/// killed mid-write: no newline after it) is passed over; any other line that is not a status
+/// line of this schema is an error naming it.
+pub fn lines(text: &str) -> Result<Vec<Line>, FileError> {
+    let torn = !text.is_empty() && !text.ends_with('\n');
+    let raw: Vec<&str> = text.lines().collect();
+    let mut out = Vec::with_capacity(raw.len());
+    for (i, l) in raw.iter().enumerate() {
+        match Line::parse(l) {
+            Ok(line) => out.push(line),
+            Err(_) if torn && i + 1 == raw.len() => {}
+            Err(error) => return Err(FileError { line: i + 1, error }),
+        }
+    }
+    Ok(out)
+}
+
 /// The last line of `text` (a whole status file) that carries counters: the stop line of a
 /// program that ended after running, else its latest status line (a program still running,
-/// or killed). Lines that do not parse, a torn last line included, are skipped.
-pub fn last_counters(text: &str) -> Option<Line> {
-    text.lines()
+/// or killed); `None` if it has none. Errors as [`lines`].
+pub fn last_counters(text: &str) -> Result<Option<Line>, FileError> {
+    Ok(lines(text)?
+        .into_iter()
         .rev()
-        .filter_map(|l| Line::parse(l).ok())
-        .find(|l| l.counters.is_some())
+        .find(|l| l.counters.is_some()))
 }
 
 #[cfg(test)]
@@ -474,7 +502,7 @@ mod tests {
         assert_eq!(lines[2].rest["error"], Value::Null);
         assert_eq!(lines[2].counter("frames"), Some(7.0));
         assert!(lines[0].mono_s > 0.0 && lines[2].t_s >= lines[0].t_s);
-        assert_eq!(last_counters(&text).unwrap().kind, Kind::Stop);
+        assert_eq!(last_counters(&text).unwrap().unwrap().kind, Kind::Stop);
     }
 
     #[test]
@@ -490,14 +518,23 @@ mod tests {
         assert_eq!(stop.rest["exit_code"], 1);
         assert_eq!(stop.rest["error"], "radio port: no such device");
         assert!(stop.counters.is_none());
-        assert!(last_counters(&text).is_none());
+        assert!(last_counters(&text).unwrap().is_none());
     }
 
     #[test]
     fn the_last_counters_skip_a_torn_last_line() {
         let status = r#"{"schema":"c2-status/1","program":"p","kind":"status","t_s":1.0,"mono_s":9.0,"counters":{"n":4},"gauges":{}}"#;
         let text = format!("{status}\n{{\"schema\":\"c2-sta");
-        assert_eq!(last_counters(&text).unwrap().counter("n"), Some(4.0));
+        assert_eq!(
+            last_counters(&text).unwrap().unwrap().counter("n"),
+            Some(4.0)
+        );
+        // The same bytes inside the file are not a torn line but a bad one.
+        let e = last_counters(&format!("{status}\n{{\"schema\":\"c2-sta\n{status}\n")).unwrap_err();
+        assert_eq!(e.line, 2);
+        let other = status.replace("c2-status/1", "c2-status/2");
+        let e = last_counters(&format!("{status}\n{other}\n")).unwrap_err();
+        assert!(matches!(e.error, LineError::Schema { .. }), "{e}");
     }
 
     #[test]

@@ -118,22 +118,10 @@ impl ProgramStatus {
     /// not a status line, is an error naming the file and line: only a torn last line (a
     /// program killed mid-write) is passed over.
     pub fn read(path: &Path) -> anyhow::Result<Option<Self>> {
-        let text = match std::fs::read_to_string(path) {
-            Ok(text) => text,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-            Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
-        };
-        let lines: Vec<&str> = text.lines().collect();
-        let torn = !text.ends_with('\n');
-        let mut last = None;
-        for (i, raw) in lines.iter().enumerate() {
-            match StatusLine::parse(raw) {
-                Ok(line) if line.counters.is_some() => last = Some(line),
-                Ok(_) => {}
-                Err(_) if torn && i + 1 == lines.len() => {}
-                Err(e) => anyhow::bail!("{}:{}: {e}", path.display(), i + 1),
-            }
-        }
+        let last = status_lines(path)?
+            .into_iter()
+            .rev()
+            .find(|l| l.counters.is_some());
         Ok(last.map(|line| ProgramStatus {
             path: path.to_path_buf(),
             line,
@@ -172,32 +160,31 @@ impl LinkNotice {
     /// not there). A line that does not parse is an error naming file and line, but for a
     /// torn last line.
     pub fn read_all(path: &Path) -> anyhow::Result<Vec<LinkNotice>> {
-        let text = match std::fs::read_to_string(path) {
-            Ok(text) => text,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-            Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
-        };
-        let lines: Vec<&str> = text.lines().collect();
-        let torn = !text.ends_with('\n');
         let mut notices = Vec::new();
-        for (i, raw) in lines.iter().enumerate() {
-            let at = || format!("{}:{}", path.display(), i + 1);
-            let line = match StatusLine::parse(raw) {
-                Ok(line) => line,
-                Err(_) if torn && i + 1 == lines.len() => continue,
-                Err(e) => anyhow::bail!("{}: {e}", at()),
-            };
+        for (i, line) in status_lines(path)?.into_iter().enumerate() {
             if line.kind != StatusKind::Event
                 || line.rest.get("event").and_then(|e| e.as_str()) != Some("link_notice")
             {
                 continue;
             }
             let notice = serde_json::from_value(serde_json::Value::Object(line.rest))
-                .with_context(|| format!("{}: a link_notice event", at()))?;
+                .with_context(|| format!("{}:{}: a link_notice event", path.display(), i + 1))?;
             notices.push(notice);
         }
         Ok(notices)
     }
+}
+
+/// Every line of the status file at `path` (none if it is not there): only a torn last line
+/// is passed over, any other line that is not of the schema is an error naming file and line.
+fn status_lines(path: &Path) -> anyhow::Result<Vec<StatusLine>> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
+    };
+    hostio::status::lines(&text)
+        .map_err(|e| anyhow::anyhow!("{}:{}: {}", path.display(), e.line, e.error))
 }
 
 /// `program kind t_s: counters {...} gauges {...}`, for a phase's log.
