@@ -1,8 +1,10 @@
 //! Generates the MavLora dialect from `../message_definitions/mavlora.xml` with mavlink-bindgen,
 //! the generator the `mavlink` crate uses for its own dialects (see its `build/main.rs`).
 
+use std::collections::HashSet;
+use std::fmt::Write as _;
 use std::fs;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use mavlink_bindgen::XmlDefinitions;
@@ -39,10 +41,59 @@ fn main() -> ExitCode {
         eprintln!("cannot write dialect_mod.rs: {error}");
         return ExitCode::FAILURE;
     }
+    if let Err(error) = write_ardupilot_crc_extras(&definitions, &out_dir) {
+        eprintln!("cannot read ardupilotmega.xml: {error}");
+        return ExitCode::FAILURE;
+    }
     // The generated code carries `cfg(feature = "serde")` and similar for features this crate
     // does not offer.
     println!(
         "cargo::rustc-check-cfg=cfg(feature, values(\"serde\", \"arbitrary\", \"ts-rs\", \"mav2-message-extensions\"))"
     );
     ExitCode::SUCCESS
+}
+
+/// The CRC_EXTRA of every message ArduPilot speaks (`ardupilotmega.xml` and its includes), as
+/// a sorted `(id, extra)` table in `ardupilotmega_crc_extra.rs`: enough to check and rebuild
+/// their frames without generating (and compiling) their types, which nothing here decodes.
+fn write_ardupilot_crc_extras(definitions: &Path, out_dir: &Path) -> Result<(), String> {
+    let files = [
+        "ardupilotmega.xml",
+        "uAvionix.xml",
+        "icarous.xml",
+        "loweheiser.xml",
+        "cubepilot.xml",
+        "csAirLink.xml",
+    ];
+    for file in files {
+        println!(
+            "cargo::rerun-if-changed={}",
+            definitions.join(file).display()
+        );
+    }
+    let profile = mavlink_bindgen::parser::parse_profile(
+        definitions,
+        Path::new("ardupilotmega.xml"),
+        &mut HashSet::new(),
+    )
+    .map_err(|e| e.to_string())?;
+    let mut table: Vec<(u32, u8)> = profile
+        .messages
+        .values()
+        .map(|m| (m.id, mavlink_bindgen::parser::extra_crc(m)))
+        .collect();
+    table.sort_unstable();
+    let mut code = String::from(
+        "/// `(message id, CRC_EXTRA)` of `ardupilotmega.xml` and its includes, by id.\n",
+    );
+    let _ = writeln!(
+        code,
+        "pub const ARDUPILOTMEGA_CRC_EXTRA: [(u32, u8); {}] = [",
+        table.len()
+    );
+    for (id, extra) in table {
+        let _ = writeln!(code, "    ({id}, {extra}),");
+    }
+    code.push_str("];\n");
+    fs::write(out_dir.join("ardupilotmega_crc_extra.rs"), code).map_err(|e| e.to_string())
 }

@@ -53,7 +53,7 @@ pub fn raw_frame(
         }
     };
     bytes.extend_from_slice(payload);
-    let crc = mavlink::calculate_crc(&bytes[1..], known::crc_extra(msgid).unwrap_or(0));
+    let crc = mavlink::calculate_crc(&bytes[1..], known::checkable_crc_extra(msgid).unwrap_or(0));
     bytes.extend_from_slice(&crc.to_le_bytes());
     OwnedFrame::new_checked(bytes).expect("well-formed test frame")
 }

@@ -12,4 +12,12 @@
 
 include!(concat!(env!("OUT_DIR"), "/dialect_mod.rs"));
 
+/// The CRC_EXTRA of the messages ArduPilot speaks (`ardupilotmega.xml` and its includes,
+/// `common.xml` among them): a third of a real ArduPilot stream is its own messages (SIMSTATE,
+/// AHRS2, EKF_STATUS_REPORT, ...), which a reader must check and a converter rebuild without
+/// decoding them.
+pub mod ardupilotmega {
+    include!(concat!(env!("OUT_DIR"), "/ardupilotmega_crc_extra.rs"));
+}
+
 pub use mavlora::*;

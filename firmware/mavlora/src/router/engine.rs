@@ -509,7 +509,7 @@ impl Router {
         let stream = (frame.system_id(), frame.component_id());
         if self.resequenced.contains_key(&stream)
             && !frame.is_signed()
-            && let Some(extra) = known::crc_extra(frame.message_id())
+            && let Some(extra) = known::checkable_crc_extra(frame.message_id())
         {
             let seq = self.next_sequence(stream);
             frame.set_sequence(seq);

@@ -14,6 +14,19 @@ pub fn crc_extra(id: u32) -> Option<u8> {
         .map(|_| MavMessage::extra_crc(id))
 }
 
+/// CRC_EXTRA of message `id` for checking or rebuilding its frame: this library's dialect's,
+/// else ArduPilot's (`ardupilotmega.xml`); `None` for ids neither defines (forwarded
+/// unchecked). Frames of ArduPilot's own ids can be checked but not decoded here.
+pub fn checkable_crc_extra(id: u32) -> Option<u8> {
+    crc_extra(id).or_else(|| {
+        let table = &crate::dialect::ardupilotmega::ARDUPILOTMEGA_CRC_EXTRA;
+        table
+            .binary_search_by_key(&id, |&(i, _)| i)
+            .ok()
+            .map(|i| table[i].1)
+    })
+}
+
 /// Message id for a name such as `"GLOBAL_POSITION_INT"`.
 pub fn message_id(name: &str) -> Option<u32> {
     MavMessage::message_id_from_name(name)
@@ -29,6 +42,31 @@ mod tests {
     use super::*;
     use crate::dialect::{LINK_QUALITY_DATA, MAVLORA_TELEMETRY_DATA};
     use mavlink::MessageData;
+
+    #[test]
+    fn ardupilot_messages_are_checkable_with_mavgen_s_values() {
+        let table = &crate::dialect::ardupilotmega::ARDUPILOTMEGA_CRC_EXTRA;
+        assert!(
+            table.windows(2).all(|w| w[0].0 < w[1].0),
+            "sorted, no id twice"
+        );
+        // pymavlink's ardupilotmega dialect (mavgen) gives these.
+        for (name, id, extra) in [
+            ("SIMSTATE", 164, 154),
+            ("AHRS", 163, 127),
+            ("AHRS2", 178, 47),
+            ("HWSTATUS", 165, 21),
+            ("MEMINFO", 152, 208),
+            ("EKF_STATUS_REPORT", 193, 71),
+        ] {
+            assert_eq!(crc_extra(id), None, "{name} is not in our dialect");
+            assert_eq!(checkable_crc_extra(id), Some(extra), "{name}");
+        }
+        // Ours and common's come from our dialect.
+        assert_eq!(checkable_crc_extra(15), crc_extra(15));
+        assert_eq!(checkable_crc_extra(33), crc_extra(33));
+        assert_eq!(checkable_crc_extra(60_000), None);
+    }
 
     #[test]
     fn id_list_is_sorted_for_binary_search() {

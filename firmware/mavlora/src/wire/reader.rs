@@ -80,9 +80,11 @@ impl Default for FrameReader {
 }
 
 impl FrameReader {
-    /// A reader that checks every message of the MavLora dialect (common + ours).
+    /// A reader that checks every message of the MavLora dialect (common + ours) and of
+    /// ArduPilot's (`ardupilotmega.xml`), so an autopilot's own messages are checked and never
+    /// wait on the unknown-id rule below.
     pub fn new() -> Self {
-        Self::with_crc_extra(known::crc_extra)
+        Self::with_crc_extra(known::checkable_crc_extra)
     }
 
     /// A reader with another dialect's CRC_EXTRA table.

@@ -3,9 +3,9 @@
 //! in the version the peer on the far side speaks.
 //!
 //! A frame's checksum covers its header and payload plus the message's CRC_EXTRA, so
-//! rebuilding a frame needs the CRC_EXTRA. Ids the dialect knows take it from the table;
-//! for other ids (ArduPilot's SIMSTATE, AHRS2, ...) it is recovered from the frame's own
-//! checksum: the X.25 CRC's last step is injective in the CRC_EXTRA byte for a given state,
+//! rebuilding a frame needs the CRC_EXTRA. Ids the dialect or ArduPilot's knows take it from
+//! their tables ([`known::checkable_crc_extra`]); for other ids it is recovered from the
+//! frame's own checksum: the X.25 CRC's last step is injective in the CRC_EXTRA byte for a given state,
 //! so at most one of the 256 values reproduces a carried checksum. A corrupted frame matches
 //! none of them, except with probability 1/256, and then the value is wrong, so its rebuilt
 //! checksum stays wrong for a receiver that knows the message.
@@ -16,10 +16,11 @@ use super::frame::{Frame, OwnedFrame, STX_V1, STX_V2};
 use super::known;
 use crate::dialect::MavMessage;
 
-/// The CRC_EXTRA to rebuild `frame`'s checksum with: the dialect's, or for an unknown id the
-/// one its carried checksum was made with; `None` if no value reproduces it (corrupted).
+/// The CRC_EXTRA to rebuild `frame`'s checksum with: the dialects' tables', or for an unknown
+/// id the one its carried checksum was made with; `None` if no value reproduces it
+/// (corrupted).
 pub fn crc_extra_of<T: AsRef<[u8]>>(frame: &Frame<T>) -> Option<u8> {
-    if let Some(extra) = known::crc_extra(frame.message_id()) {
+    if let Some(extra) = known::checkable_crc_extra(frame.message_id()) {
         return Some(extra);
     }
     let bytes = frame.as_bytes();
@@ -108,9 +109,11 @@ mod tests {
     use crate::wire::ids::ATTITUDE;
 
     /// SIMSTATE (ArduPilot, id 164, CRC_EXTRA 154 in ardupilotmega.xml): not in our dialect.
-    fn simstate_v1(seq: u8) -> OwnedFrame {
+    /// A MAVLink 1 frame of an id no dialect here defines (197), made with CRC_EXTRA 154.
+    fn unknown_v1(seq: u8) -> OwnedFrame {
+        assert_eq!(known::checkable_crc_extra(197), None);
         let payload: Vec<u8> = (0..44).map(|i| i as u8 ^ 0x5a).collect();
-        let mut f = raw_frame(MavlinkVersion::V1, 1, 1, seq, 164, &payload);
+        let mut f = raw_frame(MavlinkVersion::V1, 1, 1, seq, 197, &payload);
         f.fill_checksum(154);
         f
     }
@@ -139,12 +142,12 @@ mod tests {
 
     #[test]
     fn unknown_v1_frame_keeps_its_crc_extra_both_ways() {
-        let v1 = simstate_v1(9);
+        let v1 = unknown_v1(9);
         assert_eq!(crc_extra_of(&v1), Some(154));
         let v2 = to_v2(v1.clone()).unwrap();
         assert!(
             v2.crc_matches(154),
-            "v2 checksum made with SIMSTATE's CRC_EXTRA"
+            "v2 checksum made with the CRC_EXTRA the v1 frame carried"
         );
         assert_eq!(v2.payload(), v1.payload());
         assert_eq!(to_v1(v2).unwrap(), v1);
@@ -153,7 +156,7 @@ mod tests {
     /// Every single-bit error in an unknown frame is refused or stays an error.
     #[test]
     fn corrupted_unknown_frame_is_refused_or_stays_corrupted() {
-        let good = simstate_v1(3).into_inner();
+        let good = unknown_v1(3).into_inner();
         let mut refused = 0;
         // from the sequence byte on (a changed length byte is a different frame)
         for bit in 16..(good.len() - 2) * 8 {

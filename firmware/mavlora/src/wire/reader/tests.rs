@@ -179,8 +179,8 @@ fn finish_releases_a_frame_stuck_behind_an_incomplete_candidate() {
 
 #[test]
 fn unknown_ids_are_forwarded_unchecked() {
-    assert_eq!(known::crc_extra(42_000), None);
-    let unknown = raw_frame(MavlinkVersion::V2, 1, 1, 0, 42_000, &[1, 2, 3]);
+    assert_eq!(known::crc_extra(60_000), None);
+    let unknown = raw_frame(MavlinkVersion::V2, 1, 1, 0, 60_000, &[1, 2, 3]);
     let next = frame(HEARTBEAT, 1, 1, 1);
     let input = concat(&[unknown.as_bytes(), next.as_bytes()]);
     let (out, stats) = read_all(&input);
@@ -192,11 +192,44 @@ fn unknown_ids_are_forwarded_unchecked() {
     assert_eq!(stats.lost, 0, "unchecked frames advance the sequence too");
 }
 
+/// Regression: ArduPilot's own messages were unknown ids, so one whose bytes hold a start
+/// byte announcing a longer frame (SIMSTATE's floats often do) waited for that many more
+/// bytes, or the idle flush, before it came out: HEARTBEATs behind it reached the radio
+/// 71 ms late at the median. With ArduPilot's CRC_EXTRAs it is checked, and out at once.
+#[test]
+fn an_ardupilot_frame_holding_a_start_byte_comes_out_at_once_checked() {
+    const SIMSTATE: u32 = 164;
+    // 0xFD then a length of 200 inside the payload: a candidate the reader would wait on.
+    let mut payload = vec![0x11; 44];
+    payload[30] = 0xFD;
+    payload[31] = 200;
+    let simstate = raw_frame(MavlinkVersion::V2, 1, 1, 0, SIMSTATE, &payload);
+    let mut reader = FrameReader::new();
+    reader.push(simstate.as_bytes());
+    let out = reader
+        .next_frame()
+        .expect("a whole, checked frame is not held");
+    assert_eq!(out.frame, simstate);
+    assert_eq!(out.integrity, Integrity::Checked);
+    assert_eq!(reader.buffered(), 0);
+    // The same bytes with a broken checksum are a bad frame, not one forwarded unchecked.
+    let mut broken = simstate.as_bytes().to_vec();
+    let last = broken.len() - 1;
+    broken[last] ^= 0xFF;
+    let mut reader = FrameReader::new();
+    reader.push(&broken);
+    reader.finish();
+    while let Some(r) = reader.next_frame() {
+        assert_ne!(r.frame.message_id(), SIMSTATE, "{r:?}");
+    }
+    assert_eq!(reader.stats().bad_crc, 1);
+}
+
 #[test]
 fn unknown_id_garbage_does_not_swallow_a_valid_frame() {
     // Garbage that parses as an unknown-id candidate whose span covers a valid frame.
     let good = frame(GLOBAL_POSITION_INT, 1, 1, 0);
-    let fake = [0xFD, 60, 0, 0, 0, 9, 9, 0x10, 0xA4, 0x00]; // msgid 42000, 60-byte payload
+    let fake = [0xFD, 60, 0, 0, 0, 9, 9, 0x60, 0xEA, 0x00]; // msgid 60000, 60-byte payload
     let mut input = concat(&[&fake, good.as_bytes()]);
     input.extend(std::iter::repeat_n(0x22, 60));
     for chunks in [vec![input.len()], vec![1], vec![7, 3]] {
@@ -286,7 +319,7 @@ fn segment() -> impl Strategy<Value = Segment> {
     prop_oneof![
         4 => known_frame().prop_map(Segment::Known),
         1 => (prop::collection::vec(any::<u8>(), 0..40), any::<u8>())
-            .prop_map(|(p, seq)| Segment::Unknown(raw_frame(MavlinkVersion::V2, 1, 1, seq, 42_000, &p))),
+            .prop_map(|(p, seq)| Segment::Unknown(raw_frame(MavlinkVersion::V2, 1, 1, seq, 60_000, &p))),
         3 => prop::collection::vec(garbage_byte(), 1..40).prop_map(Segment::Garbage),
         1 => (known_frame(), any::<prop::sample::Index>()).prop_map(|(f, i)| {
             let b = f.as_bytes();
