@@ -54,6 +54,7 @@ struct Variant {
     position_hz: Handle,
     radio_dropped: Handle,
     loss_alarms: Handle,
+    fc_partials: Handle,
     commands: CommandsAfter,
 }
 
@@ -109,6 +110,17 @@ fn plan(d: &mut Declarations) -> Script {
                      as MAVLink 2 must not count as loss otherwise: the loss the pilot is told \
                      of is radio loss only",
                 )),
+                fc_partials: d.declare(
+                    variant("fc_partials_dropped", "")
+                        .describe(
+                            "partial frames the bridge's FC reader gave up on (its status file): \
+                             on a clean pty every frame arrives whole, so each one is an \
+                             autopilot's frame the reader held and dropped, not line noise; \
+                             ArduPilot's own messages are checked with their CRC_EXTRA, never \
+                             held",
+                        )
+                        .equal_to(0.0),
+                ),
                 commands: CommandsAfter::declare(
                     d,
                     &format!("ardupilot_{v}"),
@@ -168,6 +180,11 @@ fn run(
         let alarms = loss_alarms(ctx, report);
         ctx.record(m.loss_alarms, alarms as f64);
         ctx.record(m.radio_dropped, report.downlink.bytes_dropped as f64);
+        let bridge = report
+            .bridge_status
+            .as_ref()
+            .context("the bridge wrote no status")?;
+        ctx.record(m.fc_partials, bridge.counter("fc_partials_dropped")?);
         m.commands.record(ctx, report)?;
     }
     unsigned.record(ctx, &reports.iter().collect::<Vec<_>>())?;
