@@ -24,7 +24,7 @@ pub use options::{
     Decibels, DecibelsError, Percent, PercentError, Program, RadioOptions, RadioSigning, Seconds,
     SecondsError, UsageError, main,
 };
-pub use queue::{Lane, PopError, Queue, QueueStats};
+pub use queue::{Lane, Order, PopError, Queue, QueueStats};
 pub use serial::{SerialCounters, SerialEvent, SerialLink, frame_gap};
 pub use signing_state::{SAVE_EVERY, SigningStateFile};
 pub use station::{RadioEngine, Setup, Side, Station};

@@ -10,9 +10,12 @@
 //! the consumer and never has its own bytes dropped; one that cannot (UDP) pushes and lets
 //! the queue drop.
 //!
-//! Priority items leave first (a ground command does not wait behind megabytes of radio
-//! bytes when the main loop falls behind); bulk and keep items leave in the order they
-//! entered, so a port's bytes and its open/idle/closed events stay in order.
+//! In a [`Order::PriorityFirst`] queue priority items leave first (a ground command does not
+//! wait behind megabytes of radio bytes when the main loop falls behind); bulk and keep items
+//! leave in the order they entered, so a port's bytes and its open/idle/closed events stay in
+//! order. In an [`Order::Arrival`] queue every item leaves in the order it entered (lanes
+//! then only say what is dropped first): for a port whose frames were already ordered,
+//! numbered and signed for the wire.
 
 use std::collections::VecDeque;
 use std::sync::{Condvar, Mutex, MutexGuard};
@@ -27,6 +30,17 @@ pub enum Lane {
     Priority,
     /// Never dropped: control events.
     Keep,
+}
+
+/// Which item leaves next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Order {
+    /// Priority items first, then the others in the order they entered.
+    PriorityFirst,
+    /// Every item in the order it entered: the radio port, whose frames the engine scheduled,
+    /// numbered and signed in their order on the air; a frame overtaken there reads as a
+    /// replay (rejected) and its stream as lost at the far end.
+    Arrival,
 }
 
 /// What a queue has dropped so far.
@@ -73,16 +87,24 @@ struct State<T> {
 #[derive(Debug)]
 pub struct Queue<T> {
     capacity: usize,
+    order: Order,
     state: Mutex<State<T>>,
     ready: Condvar,
     room: Condvar,
 }
 
 impl<T> Queue<T> {
-    /// A queue holding at most `capacity` bytes (as the producers count them).
+    /// A queue holding at most `capacity` bytes (as the producers count them), priority items
+    /// leaving first.
     pub fn new(capacity: usize) -> Self {
+        Self::with_order(capacity, Order::PriorityFirst)
+    }
+
+    /// A queue holding at most `capacity` bytes whose items leave in `order`.
+    pub fn with_order(capacity: usize, order: Order) -> Self {
         Self {
             capacity,
+            order,
             state: Mutex::new(State {
                 lanes: [VecDeque::new(), VecDeque::new(), VecDeque::new()],
                 next_seq: 0,
@@ -158,7 +180,7 @@ impl<T> Queue<T> {
     pub fn pop_until(&self, deadline: Option<Instant>) -> Result<T, PopError> {
         let mut s = self.lock();
         loop {
-            if let Some(item) = s.pop() {
+            if let Some(item) = s.pop(self.order) {
                 // Only a waiting producer costs the pop a wake-up.
                 if std::mem::take(&mut s.room_wanted) {
                     self.room.notify_all();
@@ -227,8 +249,13 @@ impl<T> Queue<T> {
 }
 
 impl<T> State<T> {
-    fn pop(&mut self) -> Option<T> {
-        let lane = if self.lanes[Lane::Priority as usize].is_empty() {
+    fn pop(&mut self, order: Order) -> Option<T> {
+        let lane = if order == Order::Arrival {
+            (0..self.lanes.len())
+                .filter_map(|i| self.lanes[i].front().map(|e| (e.seq, i)))
+                .min()?
+                .1
+        } else if self.lanes[Lane::Priority as usize].is_empty() {
             [Lane::Bulk as usize, Lane::Keep as usize]
                 .into_iter()
                 .filter_map(|i| self.lanes[i].front().map(|e| (e.seq, i)))
@@ -277,6 +304,21 @@ mod tests {
             (1, 10, 0)
         );
         assert_eq!(s.peak_bytes, 50);
+    }
+
+    #[test]
+    fn an_arrival_queue_keeps_the_order_and_still_drops_bulk_first() {
+        let q = Queue::with_order(50, Order::Arrival);
+        q.push(1, 10, Lane::Priority);
+        q.push(2, 10, Lane::Bulk);
+        q.push(3, 10, Lane::Bulk);
+        q.push(6, 0, Lane::Keep);
+        q.push(4, 10, Lane::Priority);
+        q.push(7, 10, Lane::Bulk);
+        assert!(q.push(5, 10, Lane::Bulk));
+        // The oldest bulk item (2) made room; the rest leave as they came.
+        assert_eq!(drain(&q), [1, 3, 6, 4, 7, 5]);
+        assert_eq!(q.stats().dropped_items, 1);
     }
 
     #[test]

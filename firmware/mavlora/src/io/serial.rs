@@ -23,7 +23,7 @@ use hostio::device::{DeviceError, Identity, PortName, Reopen};
 use serialport::{SerialPort, TTYPort};
 use tracing::{error, info, warn};
 
-use super::queue::{Lane, Queue};
+use super::queue::{Lane, Order, Queue};
 use super::wake::{Ready, Wake};
 use super::{Event, Inbox};
 use crate::schedule::Class;
@@ -111,12 +111,15 @@ pub struct SerialLink {
 impl SerialLink {
     /// Starts the threads for the port named `port` (a path or `usb-serial:SERIAL`) at `baud`;
     /// events go to `inbox`. `idle_gap`: after bytes, this long without any sends
-    /// [`SerialEvent::Idle`] (see [`frame_gap`]). Fails only on a name that names nothing.
+    /// [`SerialEvent::Idle`] (see [`frame_gap`]). Frames leave in `order`: the radio's in the
+    /// order they were written (numbered and signed for the air), another port's commands
+    /// and mission traffic first. Fails only on a name that names nothing.
     pub fn spawn(
         name: &'static str,
         port: &str,
         baud: u32,
         idle_gap: Duration,
+        order: Order,
         inbox: Inbox,
         stop: Arc<AtomicBool>,
     ) -> anyhow::Result<Self> {
@@ -135,7 +138,7 @@ impl SerialLink {
             written: AtomicU64::default(),
             dropped: AtomicU64::default(),
         });
-        let out = Arc::new(Queue::new(WRITE_QUEUE_BYTES));
+        let out = Arc::new(Queue::with_order(WRITE_QUEUE_BYTES, order));
         let s = shared.clone();
         thread::Builder::new()
             .name(format!("serial-{name}"))

@@ -12,7 +12,7 @@ use tracing::info;
 
 use super::status::{Joined, RadioCounters, RadioGauges, RadioStats, Status, StatusReport};
 use super::{
-    Clock, Event, INBOX_BYTES, Inbox, PopError, RadioOptions, RadioSigning, SerialEvent,
+    Clock, Event, INBOX_BYTES, Inbox, Order, PopError, RadioOptions, RadioSigning, SerialEvent,
     SerialLink, frame_gap, on_signal,
 };
 use crate::quality::{LinkQualityConfig, Notice};
@@ -173,11 +173,23 @@ impl Setup {
         baud: u32,
         idle_gap: std::time::Duration,
     ) -> anyhow::Result<SerialLink> {
+        self.spawn_ordered(name, path, baud, idle_gap, Order::PriorityFirst)
+    }
+
+    fn spawn_ordered(
+        &self,
+        name: &'static str,
+        path: &str,
+        baud: u32,
+        idle_gap: std::time::Duration,
+        order: Order,
+    ) -> anyhow::Result<SerialLink> {
         SerialLink::spawn(
             name,
             path,
             baud,
             idle_gap,
+            order,
             self.inbox.clone(),
             self.stop.clone(),
         )
@@ -197,7 +209,14 @@ impl Setup {
     /// whichever is slower) and the clock.
     pub fn open_radio(self) -> anyhow::Result<Station> {
         let gap = frame_gap(self.rate.min(self.radio_baud / 10));
-        let radio = self.spawn(RADIO, &self.radio_path, self.radio_baud, gap)?;
+        // Frames leave as the engine numbered and signed them: never reordered here.
+        let radio = self.spawn_ordered(
+            RADIO,
+            &self.radio_path,
+            self.radio_baud,
+            gap,
+            Order::Arrival,
+        )?;
         Ok(Station {
             radio,
             clock: Clock::start(),
