@@ -570,10 +570,14 @@ impl Router {
         }
         self.quality.handle_timeout(now, self.radio_reader.stats());
         if let Some(report) = self.quality.poll_report() {
-            let frame = self.sender.frame(&MavMessage::LINK_QUALITY(report));
+            let msg = MavMessage::LINK_QUALITY(report);
             self.stats.link_quality_sent += 1;
-            self.enqueue_gcs(now, frame.clone());
-            self.scheduler.push(frame, Class::Periodic, now);
+            self.scheduler
+                .push(self.sender.frame(&msg), Class::Periodic, now);
+            // The ground station's copy speaks for the vehicle's radio, as the link
+            // announcements do: the router's own ids (system 0 until configured) name no
+            // vehicle a ground station shows.
+            self.send_as_radio(now, &[msg]);
         }
         self.link_monitor(now);
         while let Some((system, heartbeat)) = self.expander.poll_heartbeat(now) {
@@ -591,10 +595,9 @@ impl Router {
     /// only their vehicle's messages show these.
     fn link_monitor(&mut self, now: Instant) {
         self.monitor.handle_timeout(now, &self.quality);
-        let Some(system) = self.vehicle else {
+        if self.vehicle.is_none() {
             return;
-        };
-        const RADIO_COMPONENT: u8 = 68; // MAV_COMP_ID_TELEMETRY_RADIO
+        }
         let mut out = Vec::new();
         while let Some(notice) = self.monitor.poll_notice() {
             self.stats.link_notices += 1;
@@ -608,13 +611,24 @@ impl Router {
             self.stats.radio_status_sent += 1;
             out.push(MavMessage::RADIO_STATUS(status));
         }
-        for msg in out {
+        self.send_as_radio(now, &out);
+    }
+
+    /// Sends `messages` to the ground stations as the vehicle's telemetry radio (component
+    /// 68, as a SiK radio would), so ground stations that show only their vehicle's messages
+    /// show these; nothing before the vehicle is known.
+    fn send_as_radio(&mut self, now: Instant, messages: &[MavMessage]) {
+        const RADIO_COMPONENT: u8 = 68; // MAV_COMP_ID_TELEMETRY_RADIO
+        let Some(system) = self.vehicle else {
+            return;
+        };
+        for msg in messages {
             let header = MavHeader {
                 system_id: system.into(),
                 component_id: RADIO_COMPONENT,
                 sequence: self.next_sequence((system, RADIO_COMPONENT)),
             };
-            self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, &msg));
+            self.enqueue_gcs(now, encode(MavlinkVersion::V2, header, msg));
         }
     }
 

@@ -482,3 +482,39 @@ fn a_restarted_bridge_is_not_read_as_loss_even_when_its_first_frame_is_lost() {
         Some(crate::quality::Health::Degraded)
     );
 }
+
+/// Regression: the router's own LINK_QUALITY reached the ground stations as system 0 (its
+/// unconfigured id), a vehicle no ground station shows. Its ground copy speaks for the
+/// vehicle's radio (component 68), as the link announcements do, and none goes out before
+/// the vehicle is known.
+#[test]
+fn link_quality_reaches_the_ground_as_the_vehicle_s_radio_never_as_system_0() {
+    let link_quality_to_ground = |frames: &[OwnedFrame]| -> Vec<(u8, u8)> {
+        frames
+            .iter()
+            .filter(|f| f.message_id() == ids::LINK_QUALITY)
+            .map(|f| (f.system_id(), f.component_id()))
+            .collect()
+    };
+    let mut r = router();
+    for k in 1..=30 {
+        r.handle_timeout(ms(1000 * k));
+    }
+    assert!(r.stats().link_quality_sent > 0, "reports went to the radio");
+    assert_eq!(
+        link_quality_to_ground(&gcs_out(&mut r)),
+        [],
+        "no vehicle yet"
+    );
+    let mut fc = Sender::new(7, 1, MavlinkVersion::V2);
+    let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+    let mut ground = Vec::new();
+    for k in 31..=60 {
+        r.handle_radio_bytes(ms(1000 * k), fc.frame(&hb).as_bytes());
+        r.handle_timeout(ms(1000 * k + 1));
+        ground.extend(gcs_out(&mut r));
+    }
+    let seen = link_quality_to_ground(&ground);
+    assert!(!seen.is_empty(), "the ground gets the router's reports");
+    assert!(seen.iter().all(|&ids| ids == (7, 68)), "{seen:?}");
+}
