@@ -249,8 +249,10 @@ impl CommandId {
     }
 
     /// Whether a `COMMAND_ACK` for `command` from (`system`, `component`) can answer this.
+    /// A target of 0 is a broadcast: every receiver acks it with its own ids, so any system's
+    /// (and any component's) ack answers it.
     pub fn answered_by(&self, system: u8, component: u8, command: u32) -> bool {
-        self.target_system == system
+        (self.target_system == 0 || self.target_system == system)
             && self.command == command
             && (self.target_component == 0 || self.target_component == component)
     }

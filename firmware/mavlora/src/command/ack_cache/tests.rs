@@ -89,6 +89,38 @@ fn a_copy_is_dropped_in_flight_and_answered_after_the_ack() {
     );
 }
 
+/// Regression: a broadcast command (target system 0) never matched the autopilot's ack, so
+/// each copy the router resent went to the autopilot and ran again.
+#[test]
+fn a_broadcast_command_s_copy_is_answered_from_the_cache_not_run_again() {
+    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let broadcast = |confirmation: u8, gcs: &mut Sender| {
+        let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            target_system: 0,
+            target_component: 0,
+            command: MavCmd::MAV_CMD_DO_SET_MODE,
+            confirmation,
+            param1: 4.0,
+            ..Default::default()
+        });
+        (gcs.frame(&msg), msg)
+    };
+    let t0 = Instant::from_millis(0);
+    let (f, m) = broadcast(0, &mut gcs);
+    assert_eq!(forwarded_confirmation(c.command(&f, &m, t0)), 0);
+    let (af, am) = ack(&mut fc);
+    c.ack(t0 + MS(100), 1, 1, &af, &am)
+        .expect("the autopilot's ack answers the broadcast");
+    // The router's copy after its ack was lost: answered again, not run a second time.
+    let (f2, m2) = broadcast(1, &mut gcs);
+    assert!(
+        matches!(c.command(&f2, &m2, t0 + MS(1200)), CacheVerdict::Replay(_)),
+        "a copy of an acked broadcast is answered from the cache"
+    );
+}
+
 #[test]
 fn a_late_copy_within_the_router_window_is_not_run_again() {
     // the camera trigger ran, its acks were lost for 7 s: a copy at 7.1 s is answered

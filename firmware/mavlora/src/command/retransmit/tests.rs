@@ -130,6 +130,36 @@ fn an_ack_from_another_vehicle_component_or_command_does_not_count() {
     assert!(resend(&mut r, t0 + MS(1000)).is_some());
 }
 
+/// Regression: a command to system 0 (a broadcast) never matched its ack, which comes from
+/// the vehicle's own system id: the router resent it on every timeout and the vehicle ran
+/// ARM five times.
+#[test]
+fn a_broadcast_command_is_answered_by_the_vehicle_s_ack() {
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 0,
+        target_component: 0,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    });
+    let frame = gcs.frame(&msg);
+    let t0 = Instant::from_millis(0);
+    forwarded(r.from_ground(t0, GCS, &frame, &msg));
+    assert!(r.from_radio(
+        t0 + MS(150),
+        1,
+        1,
+        &ack(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM)
+    ));
+    assert!(
+        resend(&mut r, t0 + MS(10_000)).is_none(),
+        "acked: nothing goes again"
+    );
+    assert_eq!((r.stats().acked, r.stats().retransmissions), (1, 0));
+}
+
 #[test]
 fn gives_up_after_the_last_attempt() {
     let mut r = retransmitter();
