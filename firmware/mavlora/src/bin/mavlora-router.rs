@@ -44,7 +44,7 @@ struct Options {
     #[arg(long, value_delimiter = ',')]
     allow: Option<Vec<IpNet>>,
     /// System ids whose frames from the ground go to the radio, comma-separated
-    /// [default: 255].
+    /// [default: 255,245: QGroundControl, Mission Planner, MAVProxy; MAVSDK].
     #[arg(long, value_delimiter = ',')]
     allow_sysid: Option<Vec<u8>>,
     /// MAVLink 2 signing key file for the ground side (64 hex characters, mode 600; not

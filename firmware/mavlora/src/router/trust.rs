@@ -7,8 +7,9 @@
 //! - a source **address** must be in `allow` (IP networks; the port is not part of it, a ground
 //!   station restarted on another port is the same station): a datagram or TCP chunk from
 //!   elsewhere is rejected whole, before any of it is parsed;
-//! - each frame's **system id** must be in `allow_sysid` (a ground station's, 255 by
-//!   convention): frames from others are rejected one by one;
+//! - each frame's **system id** must be in `allow_sysid` (the standard ground stations':
+//!   255 for QGroundControl, Mission Planner and MAVProxy, 245 for MAVSDK): frames from others
+//!   are rejected one by one;
 //! - each source (address) has at most `commands_in_flight` commands being relayed at once, so
 //!   one sender cannot fill the radio's priority queue and push another's commands out.
 //!
@@ -126,15 +127,17 @@ pub struct GroundPolicy {
 
 impl Default for GroundPolicy {
     /// This host only (`127.0.0.1`, `::1`: not all of `127.0.0.0/8`, a local process
-    /// has to choose another loopback address to be rejected, and tests do), system id 255 (QGroundControl, MAVProxy,
-    /// Mission Planner, pymavlink's default), 4 commands in flight per source.
+    /// has to choose another loopback address to be rejected, and tests do); system ids 255
+    /// (QGroundControl, MAVProxy, Mission Planner, pymavlink's default) and 245 (MAVSDK's
+    /// ground station), so the standard ground stations work out of the box; 4 commands in
+    /// flight per source.
     fn default() -> Self {
         Self {
             allow: vec![
                 IpNet::new(Ipv4Addr::LOCALHOST.into(), 32).expect("valid"),
                 IpNet::new(Ipv6Addr::LOCALHOST.into(), 128).expect("valid"),
             ],
-            allow_sysid: vec![255],
+            allow_sysid: vec![255, 245],
             commands_in_flight: 4,
             log_every: Duration::from_secs(10),
         }
@@ -228,6 +231,24 @@ impl GroundInput {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Regression: MAVSDK's ground station (system id 245) was refused by default, so its
+    /// missions and commands timed out.
+    #[test]
+    fn the_standard_ground_stations_are_allowed_by_default() {
+        let p = GroundPolicy::default();
+        for (station, id) in [
+            ("QGroundControl, MAVProxy, Mission Planner", 255),
+            ("MAVSDK", 245),
+        ] {
+            assert!(p.allows_system(id), "{station}");
+        }
+        assert!(
+            !p.allows_system(1),
+            "an autopilot's id is not a ground station's"
+        );
+        assert!(!p.allows_system(0));
+    }
 
     fn ip(s: &str) -> IpAddr {
         s.parse().unwrap()

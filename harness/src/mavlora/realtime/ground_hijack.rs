@@ -5,7 +5,7 @@
 //! partial frames between them. Two sessions side by side, one per way the router tells the
 //! pilot from others:
 //!
-//! - `ground_hijack` (the default policy: `--allow 127.0.0.1`, `--allow-sysid 255`): another
+//! - `ground_hijack` (the default policy: `--allow 127.0.0.1`, system ids 255 and 245): another
 //!   host (127.0.0.2, every 127.x is loopback on Linux) spoofing the ground's system id 255,
 //!   and another program on the ground computer with system id 66;
 //! - `ground_hijack_signed` (`--ground-key`, the pilot's station signs): programs on the
