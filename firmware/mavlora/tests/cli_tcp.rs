@@ -110,3 +110,74 @@ fn tcp_ground_station_talks_to_the_vehicle_through_the_router() {
     assert!(log.contains("TCP ground station connected"), "{log}");
     assert!(status.success(), "exit status {status:?}\n{log}");
 }
+
+/// Regression: a TCP client from an address the ground policy does not allow was served the
+/// vehicle's telemetry (and eight of them took every client slot from the allowed pilot). It
+/// is closed at once, gets no frame, takes no slot, and is counted.
+#[test]
+fn a_tcp_client_from_an_address_not_allowed_gets_nothing_and_takes_no_slot() {
+    let dir = std::env::temp_dir().join(format!("mavlora-tcp-refused-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (mut radio, slave) = TTYPort::pair().unwrap();
+    radio.set_timeout(Duration::from_millis(100)).unwrap();
+    let port = free_port();
+    let udp_sink = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let log = std::fs::File::create(dir.join("router.log")).unwrap();
+    // Only 127.0.0.2 may talk to the vehicle; the test connects from 127.0.0.1.
+    let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
+        .arg("--radio")
+        .arg(slave.name().unwrap())
+        .args(["--udp", &udp_sink.local_addr().unwrap().to_string()])
+        .args(["--udp-bind", "127.0.0.1:0", "--allow", "127.0.0.2"])
+        .args(["--tcp-listen", &format!("127.0.0.1:{port}")])
+        .args(["--tcp-max-clients", "1"])
+        .arg("--status-json")
+        .arg(dir.join("router.status.jsonl"))
+        .env("RUST_LOG", "info")
+        .stderr(Stdio::from(log))
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut clients = Vec::new();
+    while clients.len() < 3 {
+        match TcpStream::connect(("127.0.0.1", port)) {
+            Ok(s) => {
+                s.set_read_timeout(Some(Duration::from_millis(100)))
+                    .unwrap();
+                clients.push(s);
+            }
+            Err(_) if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(50)),
+            Err(e) => panic!("router does not listen on TCP {port}: {e}"),
+        }
+    }
+    let mut vehicle = Sender::new(1, 1, MavlinkVersion::V2);
+    let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+    let mut radio_w = radio.try_clone_native().unwrap();
+    let mut got = vec![0usize; clients.len()];
+    let until = Instant::now() + Duration::from_secs(2);
+    while Instant::now() < until {
+        let _ = radio_w.write_all(vehicle.frame(&hb).as_bytes());
+        for (c, n) in clients.iter_mut().zip(got.iter_mut()) {
+            let mut buf = [0u8; 512];
+            if let Ok(k) = c.read(&mut buf) {
+                *n += k;
+            }
+        }
+    }
+    let _ = Command::new("kill")
+        .args(["-TERM", &router.id().to_string()])
+        .status();
+    let status = router.wait().unwrap();
+    let log = std::fs::read_to_string(dir.join("router.log")).unwrap();
+    let status_file = std::fs::read_to_string(dir.join("router.status.jsonl")).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(status.success(), "exit status {status:?}\n{log}");
+    assert_eq!(got, [0, 0, 0], "refused clients got bytes:\n{log}");
+    let stop: serde_json::Value =
+        serde_json::from_str(status_file.lines().last().unwrap()).unwrap();
+    assert_eq!(stop["kind"], "stop");
+    assert_eq!(stop["counters"]["tcp_refused"], 3, "{stop}");
+    assert_eq!(stop["gauges"]["tcp_clients"], 0, "{stop}");
+    assert!(log.contains("address not allowed"), "{log}");
+}

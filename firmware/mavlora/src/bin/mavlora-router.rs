@@ -186,7 +186,15 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
             let max = o
                 .tcp_max_clients
                 .unwrap_or(mavlora::io::DEFAULT_MAX_CLIENTS);
-            Some(TcpEndpoint::spawn(addr, max, inbox.clone(), stop.clone())?)
+            let ground = config.ground.clone();
+            let admits = move |ip| ground.allows_address(ip);
+            Some(TcpEndpoint::spawn(
+                addr,
+                max,
+                admits,
+                inbox.clone(),
+                stop.clone(),
+            )?)
         }
         None => None,
     };

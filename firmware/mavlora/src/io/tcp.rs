@@ -13,7 +13,7 @@
 //! refused with a log line.
 
 use std::io::{ErrorKind, Read, Write};
-use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
+use std::net::{IpAddr, Shutdown, SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread;
@@ -90,10 +90,13 @@ pub struct TcpEndpoint {
 
 impl TcpEndpoint {
     /// Listens on `bind` and starts the accept thread; each client gets a reader thread that
-    /// sends [`Event::Tcp`] with one whole frame each, and a writer thread.
+    /// sends [`Event::Tcp`] with one whole frame each, and a writer thread. A connection from
+    /// an address `admits` refuses is closed at once: it gets no telemetry and takes no
+    /// client slot.
     pub fn spawn(
         bind: SocketAddr,
         max_clients: usize,
+        admits: impl Fn(IpAddr) -> bool + Send + 'static,
         tx: Inbox,
         stop: Arc<AtomicBool>,
     ) -> anyhow::Result<Self> {
@@ -112,7 +115,7 @@ impl TcpEndpoint {
                         return;
                     }
                     match stream {
-                        Ok(stream) => accept(stream, max_clients, &accepted, &tx, &stop),
+                        Ok(stream) => accept(stream, max_clients, &admits, &accepted, &tx, &stop),
                         Err(e) => {
                             warn!(error = %e, "TCP accept failed");
                             thread::sleep(Duration::from_millis(200));
@@ -161,6 +164,7 @@ impl TcpEndpoint {
 fn accept(
     stream: TcpStream,
     max_clients: usize,
+    admits: &dyn Fn(IpAddr) -> bool,
     shared: &Arc<Shared>,
     tx: &Inbox,
     stop: &Arc<AtomicBool>,
@@ -168,6 +172,14 @@ fn accept(
     let from = stream
         .peer_addr()
         .unwrap_or_else(|_| ([0, 0, 0, 0], 0).into());
+    if !admits(from.ip()) {
+        let n = shared.refused.fetch_add(1, Ordering::Relaxed) + 1;
+        if n == 1 || n.is_multiple_of(100) {
+            warn!(client = %from, refused = n, "TCP client refused: address not allowed");
+        }
+        let _ = stream.shutdown(Shutdown::Both);
+        return;
+    }
     let connected = shared.clients().len();
     if connected >= max_clients {
         let n = shared.refused.fetch_add(1, Ordering::Relaxed) + 1;
