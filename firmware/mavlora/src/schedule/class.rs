@@ -49,6 +49,33 @@ const PRIORITY: &[u32] = &[
     ids::SETUP_SIGNING,
 ];
 
+/// Message ids whose frames are parts of a sequence or distinct records, not samples of one
+/// state: RTCM corrections in fragments, a serial console's bytes, log entries and log data,
+/// extended parameters, events, encapsulated images, tunnels. Each frame counts, so none may
+/// replace another; a full queue still drops them (oldest first) as it drops telemetry.
+const SEQUENCE: &[u32] = &[
+    ids::GPS_RTCM_DATA,
+    ids::GPS_INJECT_DATA,
+    ids::SERIAL_CONTROL,
+    ids::LOG_ENTRY,
+    ids::LOG_DATA,
+    ids::LOGGING_DATA,
+    ids::LOGGING_DATA_ACKED,
+    ids::PARAM_EXT_VALUE,
+    ids::EVENT,
+    ids::RESPONSE_EVENT_ERROR,
+    ids::ENCAPSULATED_DATA,
+    ids::DATA_TRANSMISSION_HANDSHAKE,
+    ids::TUNNEL,
+    ids::V2_EXTENSION,
+];
+
+/// Whether a newer frame of `message_id` from the same sender may replace a queued one: only
+/// samples of periodic state, never a part of a sequence.
+pub fn replaceable(message_id: u32) -> bool {
+    !SEQUENCE.contains(&message_id)
+}
+
 impl Class {
     /// Default class of a message id: [`Class::Priority`] for command, mission, parameter
     /// request and status-text messages, [`Class::Param`] for `PARAM_VALUE`,
@@ -74,6 +101,19 @@ impl Class {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn state_samples_are_replaceable_and_sequence_parts_are_not() {
+        assert!(replaceable(ids::GLOBAL_POSITION_INT) && replaceable(ids::ATTITUDE));
+        for id in [
+            ids::GPS_RTCM_DATA,
+            ids::SERIAL_CONTROL,
+            ids::LOG_DATA,
+            ids::EVENT,
+        ] {
+            assert!(!replaceable(id), "{id}");
+        }
+    }
 
     #[test]
     fn telemetry_is_periodic_and_commands_are_priority() {

@@ -5,7 +5,7 @@ use std::collections::VecDeque;
 use tracing::{debug, warn};
 
 use super::bucket::TokenBucket;
-use super::class::Class;
+use super::class::{Class, replaceable};
 use crate::time::Instant;
 use crate::wire::{MAX_FRAME_LEN, OwnedFrame};
 
@@ -70,19 +70,23 @@ pub struct SchedulerStats {
 }
 
 /// Identity of a periodic stream: a newer frame with the same key replaces the queued one.
+/// A part of a sequence ([`replaceable`] says no) gets a key of its own, `part`, so it is
+/// never replaced.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 struct Key {
     system: u8,
     component: u8,
     message: u32,
+    part: u64,
 }
 
 impl Key {
-    fn of(frame: &OwnedFrame) -> Self {
+    fn of(frame: &OwnedFrame, part: u64) -> Self {
         Self {
             system: frame.system_id(),
             component: frame.component_id(),
             message: frame.message_id(),
+            part,
         }
     }
 }
@@ -118,7 +122,9 @@ pub const SPARE_RESERVE_BYTES: usize = 64;
 ///   only gets what is left and is dropped first when the queue is full; spare-capacity
 ///   traffic never takes the last [`SPARE_RESERVE_BYTES`] of the budget;
 /// - a periodic frame replaces a queued frame of the same (sysid, compid, msgid) in place,
-///   so the freshest sample leaves at the older one's turn instead of queueing behind it.
+///   so the freshest sample leaves at the older one's turn instead of queueing behind it;
+///   parts of a sequence (RTCM fragments, serial console bytes, log data, events) are never
+///   replaced.
 #[derive(Debug)]
 pub struct LinkScheduler {
     config: SchedulerConfig,
@@ -131,6 +137,8 @@ pub struct LinkScheduler {
     /// parameter byte sent on this credit costs `PARAM_SHARE_DIVISOR - 1`. Capped so an idle
     /// stretch earns no burst.
     param_credit: u64,
+    /// Parts of sequences queued so far: each one's own key.
+    parts: u64,
     /// Few distinct keys (one per periodic message per sender), so a linear scan for
     /// replacement beats maintaining an index.
     periodic: VecDeque<(Key, OwnedFrame)>,
@@ -171,6 +179,7 @@ impl LinkScheduler {
             params: VecDeque::new(),
             param_bytes: 0,
             param_credit: 0,
+            parts: 0,
             periodic: VecDeque::new(),
             unlisted: VecDeque::new(),
             queued_bytes: 0,
@@ -241,7 +250,13 @@ impl LinkScheduler {
                 self.params.push_back(frame);
             }
             Class::Periodic | Class::Unlisted => {
-                let key = Key::of(&frame);
+                let part = if replaceable(frame.message_id()) {
+                    0
+                } else {
+                    self.parts += 1;
+                    self.parts
+                };
+                let key = Key::of(&frame, part);
                 let queue = if class == Class::Periodic {
                     &mut self.periodic
                 } else {

@@ -89,6 +89,38 @@ fn newest_periodic_sample_replaces_the_queued_one_in_place() {
     assert_eq!(s.queued_bytes(), 0);
 }
 
+/// Regression: eight GPS_RTCM_DATA fragments of one correction became one, because a newer
+/// frame of the same (sender, message) replaced the queued one; the FC cannot rebuild the
+/// correction from the last fragment. Parts of a sequence all leave, in order.
+#[test]
+fn sequence_fragments_are_never_replaced() {
+    use crate::wire::ids::{GPS_RTCM_DATA, SERIAL_CONTROL};
+    let mut s = LinkScheduler::new(config(100_000), ms(0)).unwrap();
+    for k in 0..8u8 {
+        let fragment = raw_frame(MavlinkVersion::V2, 255, 190, k, GPS_RTCM_DATA, &[k + 1; 60]);
+        s.push(fragment, Class::Periodic, ms(0));
+    }
+    for k in 0..3u8 {
+        let console = raw_frame(MavlinkVersion::V2, 1, 1, k, SERIAL_CONTROL, &[k + 1; 30]);
+        s.push(console, Class::Unlisted, ms(0));
+    }
+    assert_eq!(s.stats().replaced, 0);
+    let out: Vec<_> = (0..100)
+        .flat_map(|t| drain(&mut s, ms(10 * t)))
+        .map(|f| (f.message_id(), f.sequence()))
+        .collect();
+    let rtcm: Vec<u8> = out
+        .iter()
+        .filter(|(id, _)| *id == GPS_RTCM_DATA)
+        .map(|&(_, seq)| seq)
+        .collect();
+    assert_eq!(rtcm, (0..8).collect::<Vec<_>>(), "every fragment, in order");
+    assert_eq!(
+        out.iter().filter(|(id, _)| *id == SERIAL_CONTROL).count(),
+        3
+    );
+}
+
 #[test]
 fn rate_is_enforced_and_poll_timeout_says_when() {
     let mut s = LinkScheduler::new(config(100), ms(0)).unwrap();
