@@ -45,14 +45,11 @@ pub fn firmware_configs(rig: &RigFile) -> Vec<(String, PathBuf)> {
 /// The files a rig file's device sections name (device configs), kept with the evidence as
 /// inputs: the name to keep each under, and where it is.
 pub fn input_files(rig: &RigFile) -> Vec<(String, PathBuf)> {
-    let Some(m) = &rig.devices.multirx else {
-        return Vec::new();
-    };
-    m.device
-        .configs
-        .iter()
-        .map(|(mode, loaded)| (format!("multirx-{mode}.toml"), loaded.path.clone()))
-        .collect()
+    rig.devices
+        .multirx
+        .as_ref()
+        .map(MultirxSection::input_files)
+        .unwrap_or_default()
 }
 
 /// Each device's section of a rig file, checked; `None`: the rig does not test that device.

@@ -4,7 +4,8 @@
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, UdpSocket};
-use std::process::{Command, Stdio};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use mavlink::MavlinkVersion;
@@ -39,27 +40,36 @@ fn wait_for(read: &mut dyn Read, id: u32, timeout: Duration, mut poke: impl FnMu
     false
 }
 
-#[test]
-fn tcp_ground_station_talks_to_the_vehicle_through_the_router() {
-    let dir = std::env::temp_dir().join(format!("mavlora-tcp-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+/// A router on a fresh radio pty listening for TCP on a free port (UDP to a socket nobody
+/// reads: TCP alone must carry the conversation), logging into `dir/router.log`, with `args`.
+/// Returns it with the radio's master end and the TCP port; the pty's slave end and the UDP
+/// sink stay open as long as the returned value lives.
+fn tcp_router(dir: &Path, args: &[&str]) -> (Child, TTYPort, u16, (TTYPort, UdpSocket)) {
+    std::fs::create_dir_all(dir).unwrap();
     let (mut radio, slave) = TTYPort::pair().unwrap();
     radio.set_timeout(Duration::from_millis(100)).unwrap();
     let port = free_port();
-    // UDP goes to a socket nobody reads: TCP alone must carry the conversation.
     let udp_sink = UdpSocket::bind("127.0.0.1:0").unwrap();
     let log = std::fs::File::create(dir.join("router.log")).unwrap();
-    let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+    let router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
         .arg("--unsigned")
         .arg("--radio")
         .arg(slave.name().unwrap())
         .args(["--udp", &udp_sink.local_addr().unwrap().to_string()])
         .args(["--udp-bind", "127.0.0.1:0"])
         .args(["--tcp-listen", &format!("127.0.0.1:{port}")])
+        .args(args)
         .env("RUST_LOG", "info")
         .stderr(Stdio::from(log))
         .spawn()
         .unwrap();
+    (router, radio, port, (slave, udp_sink))
+}
+
+#[test]
+fn tcp_ground_station_talks_to_the_vehicle_through_the_router() {
+    let dir = std::env::temp_dir().join(format!("mavlora-tcp-{}", std::process::id()));
+    let (mut router, mut radio, port, _held) = tcp_router(&dir, &[]);
 
     let deadline = Instant::now() + Duration::from_secs(10);
     let mut gcs = loop {
@@ -117,27 +127,19 @@ fn tcp_ground_station_talks_to_the_vehicle_through_the_router() {
 #[test]
 fn a_tcp_client_from_an_address_not_allowed_gets_nothing_and_takes_no_slot() {
     let dir = std::env::temp_dir().join(format!("mavlora-tcp-refused-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (mut radio, slave) = TTYPort::pair().unwrap();
-    radio.set_timeout(Duration::from_millis(100)).unwrap();
-    let port = free_port();
-    let udp_sink = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let log = std::fs::File::create(dir.join("router.log")).unwrap();
     // Only 127.0.0.2 may talk to the vehicle; the test connects from 127.0.0.1.
-    let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
-        .arg("--unsigned")
-        .arg("--radio")
-        .arg(slave.name().unwrap())
-        .args(["--udp", &udp_sink.local_addr().unwrap().to_string()])
-        .args(["--udp-bind", "127.0.0.1:0", "--allow", "127.0.0.2"])
-        .args(["--tcp-listen", &format!("127.0.0.1:{port}")])
-        .args(["--tcp-max-clients", "1"])
-        .arg("--status-json")
-        .arg(dir.join("router.status.jsonl"))
-        .env("RUST_LOG", "info")
-        .stderr(Stdio::from(log))
-        .spawn()
-        .unwrap();
+    let status_json = dir.join("router.status.jsonl");
+    let (mut router, radio, port, _held) = tcp_router(
+        &dir,
+        &[
+            "--allow",
+            "127.0.0.2",
+            "--tcp-max-clients",
+            "1",
+            "--status-json",
+            status_json.to_str().unwrap(),
+        ],
+    );
     let deadline = Instant::now() + Duration::from_secs(10);
     let mut clients = Vec::new();
     while clients.len() < 3 {

@@ -286,9 +286,8 @@ mod tests {
         std::iter::from_fn(|| q.pop_until(Some(Instant::now())).ok()).collect()
     }
 
-    #[test]
-    fn full_queue_drops_oldest_bulk_first_and_priority_leaves_first() {
-        let q = Queue::new(50);
+    /// Fills a 50-byte queue with bulk, priority and keep items, one bulk item too many.
+    fn push_mixed(q: &Queue<u32>) {
         q.push(1, 10, Lane::Priority);
         q.push(2, 10, Lane::Bulk);
         q.push(3, 10, Lane::Bulk);
@@ -296,6 +295,12 @@ mod tests {
         q.push(4, 10, Lane::Priority);
         q.push(7, 10, Lane::Bulk);
         assert!(q.push(5, 10, Lane::Bulk));
+    }
+
+    #[test]
+    fn full_queue_drops_oldest_bulk_first_and_priority_leaves_first() {
+        let q = Queue::new(50);
+        push_mixed(&q);
         // Priority first; bulk and keep in the order they came.
         assert_eq!(drain(&q), [1, 4, 3, 6, 7, 5]);
         let s = q.stats();
@@ -309,13 +314,7 @@ mod tests {
     #[test]
     fn an_arrival_queue_keeps_the_order_and_still_drops_bulk_first() {
         let q = Queue::with_order(50, Order::Arrival);
-        q.push(1, 10, Lane::Priority);
-        q.push(2, 10, Lane::Bulk);
-        q.push(3, 10, Lane::Bulk);
-        q.push(6, 0, Lane::Keep);
-        q.push(4, 10, Lane::Priority);
-        q.push(7, 10, Lane::Bulk);
-        assert!(q.push(5, 10, Lane::Bulk));
+        push_mixed(&q);
         // The oldest bulk item (2) made room; the rest leave as they came.
         assert_eq!(drain(&q), [1, 3, 6, 4, 7, 5]);
         assert_eq!(q.stats().dropped_items, 1);

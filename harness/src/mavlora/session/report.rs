@@ -118,10 +118,10 @@ impl ProgramStatus {
     /// not a status line, is an error naming the file and line: only a torn last line (a
     /// program killed mid-write) is passed over.
     pub fn read(path: &Path) -> anyhow::Result<Option<Self>> {
-        let last = status_lines(path)?
-            .into_iter()
-            .rev()
-            .find(|l| l.counters.is_some());
+        let Some(text) = status_text(path)? else {
+            return Ok(None);
+        };
+        let last = hostio::status::last_counters(&text).map_err(|e| file_error(path, &e))?;
         Ok(last.map(|line| ProgramStatus {
             path: path.to_path_buf(),
             line,
@@ -160,8 +160,12 @@ impl LinkNotice {
     /// not there). A line that does not parse is an error naming file and line, but for a
     /// torn last line.
     pub fn read_all(path: &Path) -> anyhow::Result<Vec<LinkNotice>> {
+        let Some(text) = status_text(path)? else {
+            return Ok(Vec::new());
+        };
+        let lines = hostio::status::lines(&text).map_err(|e| file_error(path, &e))?;
         let mut notices = Vec::new();
-        for (i, line) in status_lines(path)?.into_iter().enumerate() {
+        for (i, line) in lines.into_iter().enumerate() {
             if line.kind != StatusKind::Event
                 || line.rest.get("event").and_then(|e| e.as_str()) != Some("link_notice")
             {
@@ -175,16 +179,18 @@ impl LinkNotice {
     }
 }
 
-/// Every line of the status file at `path` (none if it is not there): only a torn last line
-/// is passed over, any other line that is not of the schema is an error naming file and line.
-fn status_lines(path: &Path) -> anyhow::Result<Vec<StatusLine>> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(text) => text,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
-    };
-    hostio::status::lines(&text)
-        .map_err(|e| anyhow::anyhow!("{}:{}: {}", path.display(), e.line, e.error))
+/// The status file at `path`, `None` if it is not there.
+fn status_text(path: &Path) -> anyhow::Result<Option<String>> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => Ok(Some(text)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e).with_context(|| format!("cannot read {}", path.display())),
+    }
+}
+
+/// A line of the status file at `path` that is not of the schema, naming file and line.
+fn file_error(path: &Path, e: &hostio::status::FileError) -> anyhow::Error {
+    anyhow::anyhow!("{}:{}: {}", path.display(), e.line, e.error)
 }
 
 /// `program kind t_s: counters {...} gauges {...}`, for a phase's log.

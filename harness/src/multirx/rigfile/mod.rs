@@ -40,6 +40,16 @@ impl MultirxSection {
     pub fn config(&self, mode: Mode) -> Option<&LoadedConfig> {
         self.device.configs.get(&mode)
     }
+
+    /// The config files it names, to keep with evidence: `multirx-<mode>.toml` and where each
+    /// is.
+    pub fn input_files(&self) -> Vec<(String, PathBuf)> {
+        self.device
+            .configs
+            .iter()
+            .map(|(mode, loaded)| (format!("multirx-{mode}.toml"), loaded.path.clone()))
+            .collect()
+    }
 }
 
 /// A MultiRX config file, read and checked when the rig file was loaded:
