@@ -10,6 +10,7 @@ use std::sync::Arc;
 use harness_radio::RadioSetup;
 use serde::Deserialize;
 
+use crate::driver::autopilot::AutopilotSpec;
 use crate::evidence::build::FirmwareCrate;
 use crate::mavlora::rigfile::{MavloraSection, RawMavlora};
 use crate::mavlora::{self, Mavlora};
@@ -75,12 +76,13 @@ impl RawSections {
         self,
         checker: &Checker,
         radios: &BTreeMap<String, RadioSetup>,
+        autopilots: &BTreeMap<String, AutopilotSpec>,
     ) -> Result<Sections, RigFileError> {
         Ok(Sections {
             multirx: self.multirx.map(|m| checker.multirx(m)).transpose()?,
             mavlora: self
                 .mavlora
-                .map(|m| checker.mavlora(m, radios))
+                .map(|m| checker.mavlora(m, radios, autopilots))
                 .transpose()?,
         })
     }

@@ -218,11 +218,26 @@ fn execute(command: Command) -> Result<ExitCode> {
                     preset.max_data_rate()
                 );
             }
+            for (name, spec) in &rig.autopilots {
+                // A missing build is not an error: its phases are reported as not run.
+                match spec.available() {
+                    Ok(()) => println!("autopilot {name}: {}, ok", spec.kind()),
+                    Err(e) => println!(
+                        "autopilot {name}: {}, its phases will not run: {e}",
+                        spec.kind()
+                    ),
+                }
+            }
             if let Some(m) = &rig.devices.mavlora {
                 for suite in &m.suites {
                     println!("mavlora: suite {}", suite.as_str());
                 }
-                for profile in ["px4-normal.toml", "px4-compact.toml"] {
+                for profile in [
+                    "px4-normal.toml",
+                    "px4-compact.toml",
+                    "ardupilot-compact.toml",
+                    "ardupilot-mavlink1.toml",
+                ] {
                     let path = m.profiles.join(profile);
                     mavlora::filter::Profile::load(&path)?;
                     println!("{}: ok", path.display());

@@ -3,6 +3,7 @@
 //! programs of this workspace, the radio emulator. Device-specific drivers live in the
 //! device's folder.
 
+pub mod autopilot;
 pub mod fixture;
 pub mod process;
 pub mod program;

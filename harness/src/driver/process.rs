@@ -97,6 +97,31 @@ impl Process {
         })
     }
 
+    /// Starts `command` with stdout and stderr both to `log` and stdin closed: a program that
+    /// talks only through its ports and prints as it goes (a SITL), which a pipe nobody reads
+    /// would stall.
+    pub fn spawn_logged(name: &str, mut command: Command, log: &Path) -> Result<Process> {
+        let out = File::create(log).with_context(|| format!("cannot create {}", log.display()))?;
+        let err = out
+            .try_clone()
+            .with_context(|| format!("cannot reopen {}", log.display()))?;
+        let program = command.get_program().to_string_lossy().into_owned();
+        detach_and_tie(&mut command);
+        let child = command
+            .stdin(Stdio::null())
+            .stdout(out)
+            .stderr(err)
+            .spawn()
+            .with_context(|| format!("cannot start {name} ({program})"))?;
+        tracing::debug!(name, pid = child.id(), "started");
+        running().push(child.id() as i32);
+        Ok(Process {
+            name: name.to_string(),
+            child,
+            log: log.to_path_buf(),
+        })
+    }
+
     pub fn name(&self) -> &str {
         &self.name
     }

@@ -232,6 +232,61 @@ fn relay(
     }
 }
 
+/// A two-way serial cable between two programs that each open a path (a flight
+/// controller's telemetry port wired to a companion computer): what one writes at its end,
+/// the other reads at its own. Both programs open a pty slave; the rig relays between the
+/// masters, so neither needs to create a pty (SITL and the bridge both open a path).
+pub struct PtyCable {
+    ends: [PtyPair; 2],
+    stop: Arc<AtomicBool>,
+    relays: Vec<JoinHandle<()>>,
+}
+
+impl PtyCable {
+    pub fn new(name: &str) -> Result<PtyCable> {
+        let mut ends = [PtyPair::new()?, PtyPair::new()?];
+        let a = ends[0].take_master()?;
+        let b = ends[1].take_master()?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut relays = Vec::new();
+        for (label, from, to) in [("a-b", &a, &b), ("b-a", &b, &a)] {
+            let mut from = from
+                .try_clone_native()
+                .with_context(|| format!("cannot clone the master of cable {name}"))?;
+            let to = to
+                .try_clone_native()
+                .with_context(|| format!("cannot clone the master of cable {name}"))?;
+            set_cloexec(&from)?;
+            set_cloexec(&to)?;
+            from.set_timeout(Duration::from_millis(100))?;
+            let mut to = to;
+            to.set_timeout(Duration::from_millis(20))?;
+            let (flag, name) = (stop.clone(), format!("{name}-{label}"));
+            let no_swap = Mutex::new(None);
+            relays.push(
+                std::thread::Builder::new()
+                    .name(format!("pty-cable-{name}"))
+                    .spawn(move || relay(&name, &mut from, Some(to), &flag, &no_swap))?,
+            );
+        }
+        Ok(PtyCable { ends, stop, relays })
+    }
+
+    /// The path one program opens (`0`: the first end, `1`: the other).
+    pub fn path(&self, end: usize) -> &str {
+        self.ends[end].path()
+    }
+}
+
+impl Drop for PtyCable {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for relay in self.relays.drain(..) {
+            let _ = relay.join();
+        }
+    }
+}
+
 impl Drop for PtyLink {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
@@ -264,6 +319,26 @@ mod tests {
         let mut got = [0u8; 6];
         reader.read_exact(&mut got).unwrap();
         assert_eq!(&got, b"\x0fhello");
+    }
+
+    #[test]
+    fn cable_carries_bytes_both_ways() {
+        let cable = PtyCable::new("test").unwrap();
+        let open = |path: &str| {
+            serialport::new(path, 57_600)
+                .timeout(Duration::from_millis(500))
+                .open_native()
+                .unwrap()
+        };
+        let (mut fc, mut companion) = (open(cable.path(0)), open(cable.path(1)));
+        fc.write_all(b"down").unwrap();
+        companion.write_all(b"up").unwrap();
+        let mut got = [0u8; 4];
+        companion.read_exact(&mut got).unwrap();
+        assert_eq!(&got, b"down");
+        let mut got = [0u8; 2];
+        fc.read_exact(&mut got).unwrap();
+        assert_eq!(&got, b"up");
     }
 
     /// A replugged reading end: the reader's port hangs up, the stable name leads nowhere

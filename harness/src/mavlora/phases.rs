@@ -8,6 +8,7 @@ use anyhow::Result;
 use super::realtime::{self, SessionDefaults};
 use super::rigfile::{MavloraSection, Suite};
 use super::simulated::{self, Radios};
+use super::sitl;
 use super::{MAVLORA_BRIDGE, MAVLORA_ROUTER};
 use crate::measurement::Declarations;
 use crate::record::DeviceIdentity;
@@ -85,8 +86,8 @@ impl Device for Mavlora {
         if section.suites.contains(&Suite::Soak) {
             realtime_scenarios.push(realtime::soak::SCENARIO);
         }
+        let defaults = Arc::new(session_defaults(&self.rig, section));
         if !realtime_scenarios.is_empty() {
-            let defaults = Arc::new(session_defaults(&self.rig, section));
             for scenario in realtime_scenarios {
                 let mut declared = Declarations::new();
                 let script = (scenario.plan)(&mut declared);
@@ -99,6 +100,9 @@ impl Device for Mavlora {
                     .side_by_side(REALTIME),
                 );
             }
+        }
+        if section.suites.contains(&Suite::Sitl) {
+            phases.extend(sitl::phases(&section.sitl, &defaults));
         }
         Ok(phases)
     }

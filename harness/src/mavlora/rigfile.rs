@@ -18,6 +18,13 @@
 //!
 //! [mavlora.radios]                    # a [radios] name, or a built-in preset name (no loss)
 //! mission = ["lora-bursty", "sik-bursty"]
+//!
+//! [mavlora.sitl]                      # the "sitl" suite: real autopilots behind the bridge
+//! autopilots = ["arducopter", "px4"]  # [autopilots] names; each scenario runs with each
+//! telemetry = ["sik-64k", "lora-sf7", "sik-bursty"]   # radios of each scenario
+//! params = ["sik-64k"]
+//! mission = ["sik-bursty"]
+//! flight = ["sik-64k"]
 //! ```
 
 use std::collections::BTreeMap;
@@ -25,6 +32,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+use crate::driver::autopilot::AutopilotSpec;
 use crate::rigfile::{Checker, RigFileError};
 use harness_radio::{Preset, RadioSetup};
 
@@ -46,6 +54,9 @@ pub enum Suite {
     Realtime,
     /// The same, one long run on the real clock (`soak_minutes`): opt-in, never a default.
     Soak,
+    /// The real programs behind real autopilots (ArduPilot, PX4 SITL: `[mavlora.sitl]`),
+    /// judged against each autopilot's own truth connection.
+    Sitl,
 }
 
 impl Suite {
@@ -55,6 +66,7 @@ impl Suite {
             Suite::Simulated => "simulated",
             Suite::Realtime => "realtime",
             Suite::Soak => "soak",
+            Suite::Sitl => "sitl",
         }
     }
 }
@@ -84,6 +96,23 @@ pub struct MavloraSection {
     pub profiles: PathBuf,
     /// `[mavlora.radios]`: scenario role → radios, each resolved.
     pub radios: RadioRoles,
+    /// `[mavlora.sitl]`: the autopilots and radios of the `sitl` suite.
+    pub sitl: SitlPlan,
+}
+
+/// Which autopilots fly the `sitl` suite and over which radios each scenario runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SitlPlan {
+    /// `[autopilots]` entries, by rig-file name, in file order.
+    pub autopilots: Vec<(String, AutopilotSpec)>,
+    /// Steady telemetry: rates, bytes, position freshness.
+    pub telemetry: Vec<NamedRadio>,
+    /// Parameter download as a ground station does it, with a PARAM_SET in flight.
+    pub params: Vec<NamedRadio>,
+    /// Mission, fence and rally upload and download.
+    pub mission: Vec<NamedRadio>,
+    /// A whole flight: GUIDED, arm, takeoff, AUTO, RTL, landed.
+    pub flight: Vec<NamedRadio>,
 }
 
 /// Which radio each scenario uses. Defaults follow the paper's radios and loss, and the
@@ -122,6 +151,18 @@ pub(crate) struct RawMavlora {
     pub profiles: Option<PathBuf>,
     #[serde(default)]
     pub radios: RawRoles,
+    #[serde(default)]
+    pub sitl: RawSitl,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawSitl {
+    pub autopilots: Option<Vec<String>>,
+    pub telemetry: Option<Vec<String>>,
+    pub params: Option<Vec<String>>,
+    pub mission: Option<Vec<String>>,
+    pub flight: Option<Vec<String>>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -143,13 +184,15 @@ impl Checker<'_> {
         &self,
         raw: RawMavlora,
         radios: &BTreeMap<String, RadioSetup>,
+        autopilots: &BTreeMap<String, AutopilotSpec>,
     ) -> Result<MavloraSection, RigFileError> {
         let suites = match raw.suites {
             None => vec![Suite::Simulated, Suite::Realtime],
             Some(s) if s.is_empty() => {
                 return Err(self.invalid(
                     &["mavlora", "suites"],
-                    "empty; list \"simulated\", \"realtime\" and/or \"soak\", or remove [mavlora]",
+                    "empty; list \"simulated\", \"realtime\", \"sitl\" and/or \"soak\", or \
+                     remove [mavlora]",
                 ));
             }
             Some(s) => {
@@ -191,6 +234,7 @@ impl Checker<'_> {
                 .unwrap_or(Path::new(DEFAULT_PROFILES_DIR)),
         );
 
+        let sitl = self.sitl_plan(raw.sitl, radios, autopilots, suites.contains(&Suite::Sitl))?;
         let r = raw.radios;
         let one = |key: &str, given: Option<String>, default: &str| {
             self.named_radio(key, given.as_deref().unwrap_or(default), radios)
@@ -231,12 +275,80 @@ impl Checker<'_> {
             router,
             profiles,
             radios: roles,
+            sitl,
+        })
+    }
+
+    /// `[mavlora.sitl]`: every autopilot named is defined; radios as the other roles. With
+    /// the `sitl` suite listed, at least one autopilot.
+    fn sitl_plan(
+        &self,
+        raw: RawSitl,
+        radios: &BTreeMap<String, RadioSetup>,
+        autopilots: &BTreeMap<String, AutopilotSpec>,
+        listed: bool,
+    ) -> Result<SitlPlan, RigFileError> {
+        let names = raw.autopilots.unwrap_or_default();
+        if listed && names.is_empty() {
+            return Err(self.invalid(
+                &["mavlora", "sitl", "autopilots"],
+                "the \"sitl\" suite is listed but names no autopilot; list [autopilots] \
+                 names here, e.g. autopilots = [\"arducopter\"]",
+            ));
+        }
+        let mut chosen = Vec::new();
+        for (i, name) in names.iter().enumerate() {
+            if names[..i].contains(name) {
+                return Err(self.invalid(
+                    &["mavlora", "sitl", "autopilots"],
+                    format!("\"{name}\" is listed twice"),
+                ));
+            }
+            let Some(spec) = autopilots.get(name) else {
+                let known: Vec<&str> = autopilots.keys().map(String::as_str).collect();
+                return Err(self.invalid(
+                    &["mavlora", "sitl", "autopilots"],
+                    format!(
+                        "no autopilot named \"{name}\"; define [autopilots.{name}]{}",
+                        if known.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" or use one of: {}", known.join(", "))
+                        }
+                    ),
+                ));
+            };
+            chosen.push((name.clone(), spec.clone()));
+        }
+        let many = |key: &str, given: Option<Vec<String>>, default: &[&str]| {
+            let names: Vec<String> =
+                given.unwrap_or_else(|| default.iter().map(|s| s.to_string()).collect());
+            names
+                .iter()
+                .map(|n| self.radio_at(&["mavlora", "sitl", key], n, radios))
+                .collect::<Result<Vec<_>, _>>()
+        };
+        Ok(SitlPlan {
+            autopilots: chosen,
+            telemetry: many("telemetry", raw.telemetry, &["sik-64k"])?,
+            params: many("params", raw.params, &["sik-64k"])?,
+            mission: many("mission", raw.mission, &["sik-64k"])?,
+            flight: many("flight", raw.flight, &["sik-64k"])?,
         })
     }
 
     fn named_radio(
         &self,
         key: &str,
+        name: &str,
+        radios: &BTreeMap<String, RadioSetup>,
+    ) -> Result<NamedRadio, RigFileError> {
+        self.radio_at(&["mavlora", "radios", key], name, radios)
+    }
+
+    fn radio_at(
+        &self,
+        at: &[&str],
         name: &str,
         radios: &BTreeMap<String, RadioSetup>,
     ) -> Result<NamedRadio, RigFileError> {
@@ -253,7 +365,7 @@ impl Checker<'_> {
                 let mut known: Vec<&str> = radios.keys().map(String::as_str).collect();
                 known.extend(Preset::BUILTIN);
                 Err(self.invalid(
-                    &["mavlora", "radios", key],
+                    at,
                     format!(
                         "no radio named \"{name}\"; define [radios.{name}] or use one of: {}",
                         known.join(", ")
@@ -407,6 +519,60 @@ c2 = "sik-bursty"
                 .to_string()
                 .contains("listed twice")
         );
+    }
+
+    #[test]
+    fn the_sitl_suite_names_defined_autopilots() {
+        let with = |sitl: &str| {
+            format!(
+                "{GOOD}\n[autopilots.copter]\nkind = \"ardupilot-sitl\"\nprogram = \
+                 \"../sitl/arducopter\"\nfc_mavlink = 1\n\n[mavlora.sitl]\n{sitl}\n"
+            )
+            .replace("seed = 7", "seed = 7\nsuites = [\"sitl\"]")
+        };
+        let m = load(&with(
+            "autopilots = [\"copter\"]\nmission = [\"sik-bursty\"]",
+        ))
+        .unwrap()
+        .devices
+        .mavlora
+        .unwrap();
+        assert_eq!(m.suites, vec![Suite::Sitl]);
+        let (name, spec) = &m.sitl.autopilots[0];
+        assert_eq!(name, "copter");
+        let AutopilotSpec::ArdupilotSitl(a) = spec else {
+            panic!("{spec:?}")
+        };
+        assert_eq!(a.program, PathBuf::from("/r/sitl/arducopter"));
+        assert_eq!((a.fc_mavlink, a.fc_baud), (1, 57_600));
+        assert_eq!(m.sitl.mission[0].name, "sik-bursty");
+        assert_eq!(m.sitl.telemetry[0].name, "sik-64k");
+
+        let err = load(&with("autopilots = [\"coptr\"]"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("mavlora.sitl.autopilots")
+                && err.contains("\"coptr\"")
+                && err.contains("copter"),
+            "{err}"
+        );
+        let err = load(&with("")).unwrap_err().to_string();
+        assert!(err.contains("names no autopilot"), "{err}");
+        let err = load(&with("autopilots = [\"copter\"]\nflight = [\"sik\"]"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("mavlora.sitl.flight"), "{err}");
+        let err =
+            load(&with("autopilots = [\"copter\"]").replace("fc_mavlink = 1", "fc_mavlink = 3"))
+                .unwrap_err()
+                .to_string();
+        assert!(err.contains("autopilots.copter.fc_mavlink"), "{err}");
+        let err =
+            load(&with("autopilots = [\"copter\"]").replace("fc_mavlink = 1", "fc_mavlnk = 1"))
+                .unwrap_err()
+                .to_string();
+        assert!(err.contains("fc_mavlnk"), "{err}");
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //! absolute relative to the rig file's folder, and every [`RigFileError`] names the
 //! file, line and dotted key.
 //!
-//! This module reads what every rig has (`[rig]`, `[fixtures]`, `[radios]`, `[limits]`);
+//! This module reads what every rig has (`[rig]`, `[fixtures]`, `[radios]`, `[autopilots]`,
+//! `[limits]`);
 //! each device's section is its own module's (`rigfile.rs` in the device's folder), and the
 //! device registry ([`crate::devices`]) says which top-level tables are devices.
 
@@ -22,6 +23,7 @@ use toml::de::DeTable;
 
 use crate::measurement::Limits;
 
+mod autopilots;
 mod error;
 mod radios;
 mod schema;
@@ -49,6 +51,8 @@ pub struct RigFile {
     pub fixtures: FixturesSection,
     /// `[radios]`: emulated radios by name, checked against the model.
     pub radios: BTreeMap<String, harness_radio::RadioSetup>,
+    /// `[autopilots]`: what can play the flight controller, by name.
+    pub autopilots: BTreeMap<String, crate::driver::autopilot::AutopilotSpec>,
     /// Each device's section, checked by the device's module.
     pub devices: crate::devices::Sections,
     /// `[limits]`: overrides of built-in SLA limits, by measurement name.
@@ -240,7 +244,7 @@ impl RigFile {
 }
 
 /// The top-level tables every rig file may have, whatever its devices.
-const SHARED_SECTIONS: [&str; 4] = ["rig", "fixtures", "radios", "limits"];
+const SHARED_SECTIONS: [&str; 5] = ["rig", "fixtures", "radios", "autopilots", "limits"];
 
 type Table<'i> = toml::Spanned<DeTable<'i>>;
 
@@ -341,7 +345,8 @@ impl Checker<'_> {
             ),
         };
         let radios = self.radios(raw.radios)?;
-        let devices = raw_devices.check(self, &radios)?;
+        let autopilots = self.autopilots(raw.autopilots)?;
+        let devices = raw_devices.check(self, &radios, &autopilots)?;
         let mut limit_locations = BTreeMap::new();
         for (name, limits) in &raw.limits {
             let at = ["limits", name.as_str()];
@@ -359,6 +364,7 @@ impl Checker<'_> {
             rig,
             fixtures,
             radios,
+            autopilots,
             devices,
             limits: raw.limits,
             limit_locations,

@@ -20,6 +20,8 @@ pub(super) struct RawFile {
     #[serde(default)]
     pub radios: BTreeMap<String, harness_radio::RadioSetup>,
     #[serde(default)]
+    pub autopilots: BTreeMap<String, super::autopilots::RawAutopilot>,
+    #[serde(default)]
     pub limits: BTreeMap<String, Limits>,
 }
 

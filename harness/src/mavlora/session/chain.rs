@@ -458,23 +458,27 @@ fn start_fc(
 }
 
 /// The bridge and router of a bridged session, started.
-struct Bridged {
-    bridge: Process,
-    bridge_spawn: BridgeSpawn,
-    router: Process,
-    router_spawn: RouterSpawn,
+pub(crate) struct Bridged {
+    pub(crate) bridge: Process,
+    pub(crate) bridge_spawn: BridgeSpawn,
+    pub(crate) router: Process,
+    pub(crate) router_spawn: RouterSpawn,
     /// Where the router takes ground stations' datagrams.
-    router_ground: SocketAddr,
+    pub(crate) router_ground: SocketAddr,
     /// The GCS fixture's port, where the router sends until a ground station talks.
-    gcs_port: u16,
+    pub(crate) gcs_port: u16,
     /// The ground signing key, when the session signs the ground side.
-    gcs_key: Option<PathBuf>,
+    pub(crate) gcs_key: Option<PathBuf>,
 }
 
 impl Bridged {
     /// Starts the bridge on the FC fixture's `fc_port` and the radio's air end, and the router
     /// on its ground end.
-    fn start(options: &SessionOptions, radio: &RadioEmulator, fc_port: String) -> Result<Bridged> {
+    pub(crate) fn start(
+        options: &SessionOptions,
+        radio: &RadioEmulator,
+        fc_port: String,
+    ) -> Result<Bridged> {
         let dir = &options.out_dir;
         // The radio leg is signed in every phase: a fresh key per session, owner-only
         // (the binaries refuse others-readable keys), each end with its own state file.
@@ -566,7 +570,7 @@ fn nth(dir: &Path, stem: &str, ext: &str, n: u32) -> PathBuf {
 }
 
 /// What starting the router takes, kept to start it again.
-struct RouterSpawn {
+pub(crate) struct RouterSpawn {
     key: PathBuf,
     ground_key: Option<PathBuf>,
     /// The GCS fixture's port, where the router sends until a ground station talks.
@@ -578,7 +582,7 @@ struct RouterSpawn {
 
 impl RouterSpawn {
     /// The running router's status file: `router.status.jsonl`, then `router-<n>.status.jsonl`.
-    fn status_path(&self, dir: &Path) -> PathBuf {
+    pub(crate) fn status_path(&self, dir: &Path) -> PathBuf {
         nth(dir, "router", "status.jsonl", self.starts)
     }
 
@@ -626,7 +630,7 @@ impl RouterSpawn {
 }
 
 /// What starting the bridge takes, kept to start it again.
-struct BridgeSpawn {
+pub(crate) struct BridgeSpawn {
     fc_port: String,
     key: PathBuf,
     /// Bridges started so far.
@@ -635,7 +639,7 @@ struct BridgeSpawn {
 
 impl BridgeSpawn {
     /// The running bridge's status file: `bridge.status.jsonl`, then `bridge-<n>.status.jsonl`.
-    fn status_path(&self, dir: &Path) -> PathBuf {
+    pub(crate) fn status_path(&self, dir: &Path) -> PathBuf {
         nth(dir, "bridge", "status.jsonl", self.starts)
     }
 
@@ -667,6 +671,9 @@ impl BridgeSpawn {
             .env("NO_COLOR", "1");
         if options.compact {
             command.arg("--compact");
+        }
+        if let Some(baud) = options.fc_baud {
+            command.args(["--fc-baud", &baud.to_string()]);
         }
         if let Some(period) = options.link_quality_period {
             command.args(["--link-quality-period", &period.to_string()]);

@@ -31,6 +31,7 @@ use std::time::Duration;
 use crate::driver::fixture::FixtureError;
 use crate::driver::program::ProgramMissing;
 pub use crate::driver::radio_emulator::End;
+pub(crate) use chain::Bridged;
 pub use chain::{GcsLine, MavloraSession, Program, RadioCounters};
 pub use options::{
     FcProfile, GcsPlan, SessionDefaults, SessionOptions, Variant, sik_with_independent_loss,

@@ -135,6 +135,8 @@ pub struct SessionOptions {
     pub ground_key: bool,
     /// The FC fixture reboots when this item of an upload reaches it (`--reboot-at-item`).
     pub fc_reboot_at_item: Option<u32>,
+    /// `--fc-baud` of the bridge; `None`: its default.
+    pub fc_baud: Option<u32>,
 }
 
 /// What comes from the rig file, shared by every real-time scenario.
@@ -195,6 +197,7 @@ impl SessionDefaults {
             ready_timeout: Duration::from_secs(15),
             ground_key: false,
             fc_reboot_at_item: None,
+            fc_baud: None,
         }
     }
 }
