@@ -180,6 +180,11 @@ impl Autopilot {
         self.truth
     }
 
+    /// The started SITL's process id.
+    pub fn pid(&self) -> Option<u32> {
+        self.process.as_ref().map(Process::id)
+    }
+
     /// The SITL's log (its stdout and stderr), if the rig started one.
     pub fn log_path(&self) -> Option<&Path> {
         self.process.as_ref().map(Process::log_path)

@@ -82,7 +82,8 @@ impl Px4Sitl {
             .with_context(|| format!("cannot create {}", work.display()))
             .map_err(start_err)?;
         let cable = PtyCable::new(name).map_err(start_err)?;
-        let bin = self.root.join("bin");
+        let bin = client_links(&self.program(), &self.root.join("bin"), &work)
+            .map_err(start_err)?;
         let path = match std::env::var_os("PATH") {
             Some(p) => {
                 let mut dirs = vec![bin.clone()];
@@ -91,7 +92,7 @@ impl Px4Sitl {
                     .context("PATH")
                     .map_err(start_err)?
             }
-            None => bin.clone().into_os_string(),
+            None => bin.into_os_string(),
         };
         let mut command = Command::new(self.program());
         command
@@ -120,4 +121,33 @@ impl Px4Sitl {
             cable: Some(cable),
         })
     }
+}
+
+/// PX4's start-up script runs its modules' client commands (`px4-param`, `px4-mavlink`...),
+/// each a link to `px4` named for its command, found on `PATH`. Links do not survive every
+/// copy (they become small files holding the target's name), so the rig makes them afresh
+/// in the working folder's `bin/`, one per `px4-*` name in the build's `bin/`, beside the
+/// alias script; returns that folder.
+fn client_links(program: &Path, build_bin: &Path, work: &Path) -> anyhow::Result<PathBuf> {
+    let bin = work.join("bin");
+    std::fs::create_dir_all(&bin).with_context(|| format!("cannot create {}", bin.display()))?;
+    let entries = std::fs::read_dir(build_bin)
+        .with_context(|| format!("cannot list {}", build_bin.display()))?;
+    for entry in entries {
+        let name = entry?.file_name();
+        let Some(name) = name.to_str() else { continue };
+        if !name.starts_with("px4-") {
+            continue;
+        }
+        let target = if name.ends_with(".sh") {
+            build_bin.join(name)
+        } else {
+            program.to_path_buf()
+        };
+        let link = bin.join(name);
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(&target, &link)
+            .with_context(|| format!("cannot link {} to {}", link.display(), target.display()))?;
+    }
+    Ok(bin)
 }
