@@ -313,11 +313,10 @@ fn sitl_position_age(h: &mut String, dir: &Path, run: &RunRecord) {
         .iter()
         .filter(|p| p.name.starts_with("mavlora::sitl::flight::"))
     {
-        let Some(a) = phase
-            .attachments
-            .iter()
-            .find(|a| a.path.ends_with(crate::mavlora::sitl::freshness::SERIES_FILE))
-        else {
+        let Some(a) = phase.attachments.iter().find(|a| {
+            a.path
+                .ends_with(crate::mavlora::sitl::freshness::SERIES_FILE)
+        }) else {
             continue;
         };
         let Ok(csv) = std::fs::read_to_string(dir.join(&a.path)) else {
@@ -332,7 +331,10 @@ fn sitl_position_age(h: &mut String, dir: &Path, run: &RunRecord) {
             })
             .collect();
         series.push(Series {
-            name: phase.name.trim_start_matches("mavlora::sitl::flight::").to_string(),
+            name: phase
+                .name
+                .trim_start_matches("mavlora::sitl::flight::")
+                .to_string(),
             points,
             step: false,
         });

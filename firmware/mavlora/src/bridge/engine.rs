@@ -339,8 +339,15 @@ impl Bridge {
         let Some((sys, comp)) = self.watch.fc() else {
             return;
         };
-        // MAVLink 1 autopilots predate SET_MESSAGE_INTERVAL (ArduPilot < 4.0, APM).
-        if self.watch.version() == Some(MavlinkVersion::V1)
+        // MAVLink 1 autopilots predate SET_MESSAGE_INTERVAL (ArduPilot < 4.0, APM). A profile
+        // that names its streams only by group asks by group whatever the version: ArduPilot
+        // 4.x takes REQUEST_DATA_STREAM over MAVLink 2 too, and would otherwise get nothing.
+        let groups_only = self
+            .config
+            .profile
+            .rules()
+            .all(|(_, rule)| rule.stream_hz.is_none());
+        if (self.watch.version() == Some(MavlinkVersion::V1) || groups_only)
             && !self.config.profile.data_streams().is_empty()
         {
             self.start_data_streams(now);

@@ -347,6 +347,26 @@ fn set_message_interval_refused_as_unsupported_falls_back_to_data_streams() {
     assert!(intervals(&to_fc(&mut b, ms(2200))).is_empty());
 }
 
+/// Issue 22 B: ArduPilot 4.x speaks MAVLink 2 and both shipped ArduPilot profiles name their
+/// streams only by group: the bridge sent nothing at all ("configuring stream rates", then
+/// `config_acks=0`), and a ground station that does not ask for streams itself never saw a
+/// position. ArduPilot takes REQUEST_DATA_STREAM in either MAVLink version.
+#[test]
+fn a_mavlink2_autopilot_gets_the_data_streams_of_a_profile_that_names_streams_only_by_group() {
+    let mut c = config();
+    c.profile = Profile::parse(
+        "[data_streams]\nall = 0\nposition = 3\n[defaults]\nradio = \"pass\"\n",
+        "groups-only",
+    )
+    .unwrap();
+    let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    b.handle_fc_bytes(ms(100), fc_heartbeat(&mut fc).as_bytes());
+    let msgs = to_fc(&mut b, ms(100));
+    assert!(intervals(&msgs).is_empty());
+    assert_eq!(data_streams(&msgs), vec![(0, 0, 0), (6, 3, 1)]);
+}
+
 #[test]
 fn without_data_streams_a_mavlink1_autopilot_still_gets_set_message_interval() {
     let mut b = Bridge::new(config(), Instant::ZERO).unwrap();

@@ -82,8 +82,8 @@ impl Px4Sitl {
             .with_context(|| format!("cannot create {}", work.display()))
             .map_err(start_err)?;
         let cable = PtyCable::new(name).map_err(start_err)?;
-        let bin = client_links(&self.program(), &self.root.join("bin"), &work)
-            .map_err(start_err)?;
+        let bin =
+            client_links(&self.program(), &self.root.join("bin"), &work).map_err(start_err)?;
         let path = match std::env::var_os("PATH") {
             Some(p) => {
                 let mut dirs = vec![bin.clone()];
