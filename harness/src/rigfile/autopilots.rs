@@ -12,7 +12,7 @@
 //! [autopilots.px4]
 //! kind = "px4-sitl"
 //! root = "../../shared/px4-sitl"                         # holds bin/px4 and etc/
-//! # model = "sihsim_quadx", fc_baud = 57600
+//! # model = "sihsim_quadx", home = "-35.363261,149.165230,584", fc_baud = 57600
 //!
 //! [autopilots.bench-fc]
 //! kind = "serial"
@@ -49,6 +49,7 @@ pub(crate) enum RawAutopilot {
     Px4Sitl {
         root: PathBuf,
         model: Option<String>,
+        home: Option<String>,
         fc_baud: Option<u32>,
     },
     Serial {
@@ -125,11 +126,20 @@ impl Checker<'_> {
                 RawAutopilot::Px4Sitl {
                     root,
                     model,
+                    home,
                     fc_baud,
                 } => {
                     let mut p = Px4Sitl::new(self.resolve(&root));
                     if let Some(m) = model {
                         p.model = m;
+                    }
+                    if let Some(h) = home {
+                        if !is_position(&h, 3) {
+                            return Err(
+                                self.invalid(&at("home"), format!("\"{h}\" is not lat,lon,alt_m"))
+                            );
+                        }
+                        p.home = h;
                     }
                     p.fc_baud = baud("fc_baud", fc_baud)?;
                     AutopilotSpec::Px4Sitl(p)
@@ -150,6 +160,12 @@ impl Checker<'_> {
         }
         Ok(out)
     }
+}
+
+/// Whether `s` is `n` numbers separated by commas.
+fn is_position(s: &str, n: usize) -> bool {
+    let parts: Vec<&str> = s.split(',').collect();
+    parts.len() == n && parts.iter().all(|p| p.trim().parse::<f64>().is_ok())
 }
 
 /// `tcp:HOST:PORT` or `udp:HOST:PORT`.

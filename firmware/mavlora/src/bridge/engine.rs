@@ -9,6 +9,7 @@ use tracing::{debug, info};
 use super::config::BridgeConfig;
 use super::fc_watch::{FcEvent, FcWatch};
 use super::gcs_heartbeat::GcsHeartbeat;
+use super::param_answers::ParamAnswers;
 use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict, link_loss};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
 use crate::dialect::{MavCmd, MavMessage, MavResult, MavType, RADIO_STATUS_DATA};
@@ -70,6 +71,9 @@ pub struct BridgeStats {
     pub to_fc_not_v1: u64,
     /// Telemetry frames the profile does not name, dropped (`unlisted = "drop"`).
     pub unlisted_dropped: u64,
+    /// `PARAM_VALUE`s that answered the ground's own PARAM_SET or PARAM_REQUEST_READ, sent
+    /// ahead of a parameter list in flight.
+    pub param_answers: u64,
 }
 
 #[derive(Debug)]
@@ -98,6 +102,7 @@ pub struct Bridge {
     commands: AckCache,
     watch: FcWatch,
     gcs_heartbeat: GcsHeartbeat,
+    param_answers: ParamAnswers,
     /// Frames we originate on the radio link (reports, compact telemetry, mission).
     radio_sender: Sender,
     /// Frames we originate on the wire (configuration, mission upload).
@@ -139,6 +144,7 @@ impl Bridge {
                 config.gcs_heartbeat_period,
                 config.gcs_heartbeat_hold,
             ),
+            param_answers: ParamAnswers::default(),
             radio_sender: Sender::new(sys, comp, MavlinkVersion::V2),
             fc_sender: Sender::new(sys, comp, MavlinkVersion::V2),
             to_fc: VecDeque::new(),
@@ -228,6 +234,7 @@ impl Bridge {
         let id = frame.message_id();
         let wants_decode = self.watch.wants(&frame)
             || (self.compactor.is_some() && REPLACED_IDS.contains(&id))
+            || (id == ids::PARAM_VALUE && self.param_answers.waiting())
             || matches!(
                 id,
                 ids::MISSION_REQUEST
@@ -292,6 +299,16 @@ impl Bridge {
                 // The ack of a command from the radio, tagged with the command it answers.
                 if self.filter.check(&tagged, now) == Verdict::Pass {
                     self.scheduler.push(tagged, Class::of(id), now);
+                }
+                return;
+            }
+            if id == ids::PARAM_VALUE && self.param_answers.answers(now, msg) {
+                // The answer to the ground's own question overtakes a list in flight.
+                if self.filter.check(&frame, now) == Verdict::Pass
+                    && let Some(frame) = self.radio_leg.admit(frame)
+                {
+                    self.stats.param_answers += 1;
+                    self.scheduler.push(frame, Class::Priority, now);
                 }
                 return;
             }
@@ -498,6 +515,12 @@ impl Bridge {
                 if id != ids::HEARTBEAT && for_vehicle && self.mission.handle_radio(now, from, &msg)
                 {
                     return;
+                }
+            }
+            // Questions whose answers go ahead of a parameter list in flight.
+            ids::PARAM_SET | ids::PARAM_REQUEST_READ => {
+                if let Ok(msg) = frame.decode::<MavMessage>() {
+                    self.param_answers.asked(now, &msg);
                 }
             }
             // Commands the router may have resent: each reaches the FC once.

@@ -9,6 +9,7 @@ mod config;
 mod engine;
 mod fc_watch;
 mod gcs_heartbeat;
+mod param_answers;
 
 pub use config::BridgeConfig;
 pub use engine::{Bridge, BridgeStats};

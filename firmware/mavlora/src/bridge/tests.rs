@@ -10,7 +10,8 @@ use super::*;
 use crate::compact::CompactConfig;
 use crate::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, COMMAND_LONG_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA,
-    LINK_QUALITY_DATA, MavAutopilot, MavCmd, MavMessage, MavResult, MavType,
+    LINK_QUALITY_DATA, MavAutopilot, MavCmd, MavMessage, MavParamType, MavResult, MavType,
+    PARAM_SET_DATA, PARAM_VALUE_DATA,
 };
 use crate::filter::Profile;
 use crate::schedule::SchedulerConfig;
@@ -176,6 +177,69 @@ fn telemetry_is_filtered_limited_and_commands_go_first() {
     );
     let out = to_radio(&mut b, ms(1000));
     assert_eq!(out.first().map(|f| f.message_id()), Some(76));
+}
+
+/// Issue 21: real ArduPilot behind compact MavLora: a PARAM_SET sent while a parameter list
+/// was in flight was echoed to the ground after 7.2 s (8.3 s on LoRa, three sends): the echo
+/// waited behind the list in the parameter queue. The answer to the ground's own question
+/// goes first; the list keeps its order.
+#[test]
+fn a_param_set_echo_overtakes_the_parameter_list_in_flight() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    b.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
+    to_fc(&mut b, ms(0));
+    let value = |name: &str, index: u16, v: f32| {
+        MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+            param_id: name.into(),
+            param_value: v,
+            param_index: index,
+            param_count: 1396,
+            ..Default::default()
+        })
+    };
+    // A list in flight: 200 values queued at 1000 B/s (~10 s of them).
+    for i in 0..200u16 {
+        b.handle_fc_bytes(ms(10), fc.frame(&value("LIST_PARAM", i, 0.0)).as_bytes());
+    }
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    let set = MavMessage::PARAM_SET(PARAM_SET_DATA {
+        target_system: 1,
+        target_component: 1,
+        param_id: "RTL_ALT".into(),
+        param_value: 2500.0,
+        param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+    });
+    b.handle_radio_bytes(ms(20), ground.frame(&set).as_bytes());
+    assert!(matches!(
+        to_fc(&mut b, ms(20))[..],
+        [MavMessage::PARAM_SET(_)]
+    ));
+    // ArduPilot's echo: index 65535.
+    b.handle_fc_bytes(
+        ms(30),
+        fc.frame(&value("RTL_ALT", 65535, 2500.0)).as_bytes(),
+    );
+    let mut echoed_at = None;
+    let mut now = ms(30);
+    while now < ms(12_000) && echoed_at.is_none() {
+        for f in to_radio(&mut b, now) {
+            if let Ok(MavMessage::PARAM_VALUE(v)) = f.decode::<MavMessage>()
+                && v.param_index == 65535
+            {
+                echoed_at = Some(now);
+            }
+        }
+        now += Duration::from_millis(50);
+    }
+    let at = echoed_at.expect("the echo left");
+    assert!(at <= ms(1030), "the echo left at {at:?}, behind the list");
+    // The list's values are not given priority.
+    let mut b2 = Bridge::new(config(), Instant::ZERO).unwrap();
+    b2.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
+    b2.handle_radio_bytes(ms(1), ground.frame(&set).as_bytes());
+    b2.handle_fc_bytes(ms(2), fc.frame(&value("OTHER", 3, 1.0)).as_bytes());
+    assert_eq!(b2.stats().param_answers, 0);
 }
 
 #[test]

@@ -126,6 +126,8 @@ impl ArdupilotSitl {
         tracing::info!(name, instance, fc = cable.path(1), "ArduPilot SITL started");
         Ok(Autopilot {
             name: name.to_string(),
+            // SYSID_THISMAV's default; -I does not change it.
+            sysid: 1,
             fc_port: cable.path(1).to_string(),
             truth: Some(TruthPort::Tcp(SocketAddr::from((
                 [127, 0, 0, 1],

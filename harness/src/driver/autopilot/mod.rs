@@ -140,6 +140,7 @@ impl AutopilotSpec {
             AutopilotSpec::Px4Sitl(p) => p.start(name, dir),
             AutopilotSpec::Serial { port, truth, .. } => Ok(Autopilot {
                 name: name.to_string(),
+                sysid: 1,
                 fc_port: port.display().to_string(),
                 truth: *truth,
                 process: None,
@@ -162,6 +163,8 @@ impl AutopilotSpec {
 pub struct Autopilot {
     /// Its rig-file name.
     pub name: String,
+    /// Its MAVLink system id (PX4 SITL instance N is system N + 1).
+    pub sysid: u8,
     fc_port: String,
     truth: Option<TruthPort>,
     process: Option<Process>,

@@ -35,6 +35,9 @@ pub struct Px4Sitl {
     pub root: PathBuf,
     /// `PX4_SIM_MODEL`: an SIH airframe.
     pub model: String,
+    /// `lat,lon,alt_m` (`PX4_HOME_LAT`/`_LON`/`_ALT`): by default ArduPilot autotest's home,
+    /// so both autopilots fly the same plans.
+    pub home: String,
     pub fc_baud: u32,
 }
 
@@ -43,6 +46,7 @@ impl Px4Sitl {
         Px4Sitl {
             root,
             model: "sihsim_quadx".into(),
+            home: "-35.363261,149.165230,584".into(),
             fc_baud: DEFAULT_FC_BAUD,
         }
     }
@@ -94,7 +98,14 @@ impl Px4Sitl {
             }
             None => bin.into_os_string(),
         };
+        let home: Vec<&str> = self.home.split(',').collect();
         let mut command = Command::new(self.program());
+        for (var, value) in ["PX4_HOME_LAT", "PX4_HOME_LON", "PX4_HOME_ALT"]
+            .iter()
+            .zip(&home)
+        {
+            command.env(var, value.trim());
+        }
         command
             .current_dir(&work)
             .env("PATH", path)
@@ -112,6 +123,8 @@ impl Px4Sitl {
         tracing::info!(name, instance, fc = cable.path(1), "PX4 SITL started");
         Ok(Autopilot {
             name: name.to_string(),
+            // PX4 SITL sets MAV_SYS_ID to its instance + 1.
+            sysid: u8::try_from(instance + 1).expect("instances stay below 10"),
             fc_port: cable.path(1).to_string(),
             truth: Some(TruthPort::Udp(SocketAddr::from((
                 [127, 0, 0, 1],

@@ -140,7 +140,8 @@ impl SitlSession {
                 let mut command = Command::new(&o.python);
                 command
                     .arg(o.fixtures_dir.join("sitl_truth.py"))
-                    .args(port.fixture_args());
+                    .args(port.fixture_args())
+                    .args(["--sysid", &autopilot.sysid.to_string()]);
                 let truth = Fixture::start("sitl_truth", command, &dir.join("truth.log"))?;
                 wait_alive(
                     &mut autopilot,
