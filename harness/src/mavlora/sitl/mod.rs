@@ -89,12 +89,24 @@ impl Target {
         lossy(&self.radio.setup.downlink) || lossy(&self.radio.setup.uplink)
     }
 
+    /// The autopilot's rig-file name as a dimension value. The bare `px4` is the PX4-like
+    /// fixture's, kept out of flat names, so a real one named `px4` goes by its kind
+    /// (`px4_sitl`).
+    pub fn autopilot_dimension(&self) -> String {
+        let name = self.autopilot.replace('-', "_");
+        if name == crate::measurement::PX4 {
+            self.spec.kind().replace('-', "_")
+        } else {
+            name
+        }
+    }
+
     /// A measurement of this target: `mavlora.pty.<autopilot>.<radio>.compact.<base>`.
     pub fn spec(&self, base: &str, unit: &str) -> Spec {
         Spec::new(base, unit)
             .dim(Dimension::Device, "mavlora")
             .dim(Dimension::Transport, PTY)
-            .dim(Dimension::Autopilot, self.autopilot.replace('-', "_"))
+            .dim(Dimension::Autopilot, self.autopilot_dimension())
             .dim(Dimension::Radio, self.radio.name.replace('-', "_"))
             .dim(Dimension::Variant, "compact")
     }
