@@ -135,6 +135,7 @@ impl ArdupilotSitl {
             )))),
             process: Some(process),
             cable: Some(cable),
+            leftovers: Vec::new(),
         })
     }
 }

@@ -145,6 +145,7 @@ impl AutopilotSpec {
                 truth: *truth,
                 process: None,
                 cable: None,
+                leftovers: Vec::new(),
             }),
         }
     }
@@ -170,6 +171,8 @@ pub struct Autopilot {
     process: Option<Process>,
     /// The pty pair between a SITL and the bridge, alive as long as the autopilot.
     cable: Option<PtyCable>,
+    /// Files a SITL leaves outside its working folder, removed once it is stopped.
+    leftovers: Vec<PathBuf>,
 }
 
 impl Autopilot {
@@ -214,6 +217,9 @@ impl Autopilot {
     pub fn stop(&mut self, grace: Duration) {
         if let Some(p) = self.process.as_mut() {
             p.stop(grace);
+            for f in self.leftovers.drain(..) {
+                let _ = std::fs::remove_file(f);
+            }
         }
         self.cable = None;
     }

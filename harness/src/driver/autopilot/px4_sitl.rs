@@ -25,6 +25,12 @@ const GCS_PORT_BASE: u16 = 18570;
 /// The offboard link's local port of instance 0.
 const OFFBOARD_PORT_BASE: u16 = 14580;
 
+/// The socket instance `n`'s client commands reach its server through: PX4 replaces a stale
+/// one at start, but leaves it behind when stopped.
+fn server_socket(n: u16) -> PathBuf {
+    PathBuf::from(format!("/tmp/px4-sock-{n}"))
+}
+
 /// PX4 shares one remote offboard port above instance 9; the rig stays below it.
 static INSTANCES: Instances = Instances::new(5, 9);
 
@@ -132,6 +138,7 @@ impl Px4Sitl {
             )))),
             process: Some(process),
             cable: Some(cable),
+            leftovers: vec![server_socket(instance)],
         })
     }
 }
