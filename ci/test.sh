@@ -76,7 +76,18 @@ test_build_pid=$!
 $background "${unlinted[@]}" bash ci/build-firmware.sh > target/firmware-build.log 2>&1 &
 firmware_pid=$!
 trap 'kill "$test_build_pid" "$firmware_pid" 2>/dev/null || true' EXIT
-step "rig suite, emulated rig (includes the real-time MavLora scenarios)"
+# Real autopilots (the sitl suite, the SITL driver and fixture tests) come from ../shared
+# next to the checkout, where rigs/emulated.toml looks. Found, every SITL test must run
+# (C2_REQUIRE_SITL): a lookup that silently finds nothing would pass by doing nothing.
+shared="$(cd .. && pwd)/shared"
+if [ -x "$shared/ardupilot-sitl/arducopter" ] && [ -x "$shared/px4-sitl/bin/px4" ]; then
+    export C2_REQUIRE_SITL=1
+    echo "SITL builds: $shared/ardupilot-sitl, $shared/px4-sitl"
+else
+    echo "WARNING: no ArduPilot/PX4 SITL builds in $shared: the sitl suite's phases are" \
+        "reported as skipped and the SITL tests do not run (see ../shared/*/README.md)" >&2
+fi
+step "rig suite, emulated rig (includes the real-time MavLora scenarios and the sitl suite)"
 RIG_PREBUILT=1 "${unlinted[@]}" bash ci/rig-emulated.sh --out target/rig-report
 step "firmware build and size (built beside the suite)"
 status=0
