@@ -11,7 +11,7 @@ mod fc_watch;
 mod gcs_heartbeat;
 
 pub use config::BridgeConfig;
-pub use engine::{Bridge, BridgeStats};
+pub use engine::{Bridge, BridgeStats, UNLISTED_IDS_KEPT};
 pub use fc_watch::{FcEvent, FcWatch};
 pub use gcs_heartbeat::GcsHeartbeat;
 
