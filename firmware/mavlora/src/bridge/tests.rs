@@ -262,13 +262,19 @@ fn compact_mode_carries_the_link_report_in_its_frames() {
     c.quality.period = Duration::from_secs(2);
     let mut b = Bridge::new(c, Instant::ZERO).unwrap();
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
     let mut frames = Vec::new();
     for k in 0..50u64 {
         let now = ms(k * 200);
         if k % 5 == 0 {
             b.handle_fc_bytes(now, fc_heartbeat(&mut fc).as_bytes());
         }
+        // flying north at 10 m/s
+        let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            time_boot_ms: (k * 200) as u32,
+            lat: 553_700_000 + k as i32 * 180,
+            vx: 1000,
+            ..Default::default()
+        });
         b.handle_fc_bytes(now, fc.frame(&pos).as_bytes());
         frames.extend(to_radio(&mut b, now));
     }
@@ -288,6 +294,10 @@ fn compact_mode_carries_the_link_report_in_its_frames() {
         .count();
     assert!((4..=5).contains(&reports), "{reports} reports in 10 s");
     assert_eq!(b.stats().link_quality_sent as usize, reports);
+    // what they cost: a dozen bytes each, no framing
+    let c = b.stats().compact;
+    assert_eq!(c.link_reports as usize, reports);
+    assert!((5..=14).contains(&(c.link_bytes / c.link_reports)), "{c:?}");
 }
 
 #[test]

@@ -299,6 +299,36 @@ fn predicted(prev_step: i32, dt: i64, prev_dt: i64) -> i32 {
     round_div(i64::from(prev_step) * dt, prev_dt) as i32
 }
 
+/// cos(d°) for d = 0..=90, in 1/32768: the longitude guess's scale, exactly the same integers
+/// at both ends (a platform's `cos` may differ in its last bit).
+const COS_Q15: [i64; 91] = [
+    32768, 32763, 32748, 32723, 32688, 32643, 32588, 32524, 32449, 32365, 32270, 32166, 32052,
+    31928, 31795, 31651, 31499, 31336, 31164, 30983, 30792, 30592, 30382, 30163, 29935, 29698,
+    29452, 29197, 28932, 28660, 28378, 28088, 27789, 27482, 27166, 26842, 26510, 26170, 25822,
+    25466, 25102, 24730, 24351, 23965, 23571, 23170, 22763, 22348, 21926, 21498, 21063, 20622,
+    20174, 19720, 19261, 18795, 18324, 17847, 17364, 16877, 16384, 15886, 15384, 14876, 14365,
+    13848, 13328, 12803, 12275, 11743, 11207, 10668, 10126, 9580, 9032, 8481, 7927, 7371, 6813,
+    6252, 5690, 5126, 4560, 3993, 3425, 2856, 2286, 1715, 1144, 572, 0,
+];
+
+/// Where the velocity says sample 1 is, from sample 0 at `lat` moving at `vx`, `vy` (cm/s,
+/// north and east) for `dt` (10 ms): (latitude, longitude) steps in degE7. A guess, so its
+/// integer arithmetic need only be the same at both ends: 1 m is 89.83 degE7 of latitude
+/// (8983 / 100), of longitude that over cos(latitude) (linear between whole degrees, at least
+/// cos 89°); a step over 60 s is taken as 60 s.
+fn velocity_guess(lat: i32, vx: i16, vy: i16, dt: i64) -> (i32, i32) {
+    // Within a batch a step is at most a minute; any longer (a frame made up of noise) is
+    // guessed as a minute, which keeps the products inside 64 bits.
+    let dt = dt.clamp(0, 6_000);
+    let north = round_div(i64::from(vx) * dt * 8983, 1_000_000);
+    let abs = i64::from(lat).unsigned_abs().min(900_000_000) as i64;
+    let (deg, frac) = ((abs / 10_000_000) as usize, abs % 10_000_000);
+    let next = COS_Q15[(deg + 1).min(90)];
+    let cos = (COS_Q15[deg] + round_div((next - COS_Q15[deg]) * frac, 10_000_000)).max(572);
+    let east = round_div(i64::from(vy) * dt * 8983 * 32768, 1_000_000 * cos);
+    (north as i32, east as i32)
+}
+
 fn encode_positions(w: &mut Writer, p: &Positions, alt_changes: bool) -> Result<(), EncodeError> {
     let first = p.samples[0];
     let t = steps(&p.samples);
@@ -323,12 +353,23 @@ fn encode_positions(w: &mut Writer, p: &Positions, alt_changes: bool) -> Result<
         let dt = t[i] - t[i - 1];
         w.varint(dt as u64);
         let older = (i >= 2).then(|| (p.samples[i - 2], t[i - 1] - t[i - 2]));
-        for (now, before, older) in [
-            (s.lat, prev.lat, older.map(|(o, prev_dt)| (o.lat, prev_dt))),
-            (s.lon, prev.lon, older.map(|(o, prev_dt)| (o.lon, prev_dt))),
+        let by_velocity = velocity_guess(first.lat, p.vx, p.vy, dt);
+        for (now, before, older, first_guess) in [
+            (
+                s.lat,
+                prev.lat,
+                older.map(|(o, prev_dt)| (o.lat, prev_dt)),
+                by_velocity.0,
+            ),
+            (
+                s.lon,
+                prev.lon,
+                older.map(|(o, prev_dt)| (o.lon, prev_dt)),
+                by_velocity.1,
+            ),
         ] {
             let step = now.wrapping_sub(before);
-            let guess = older.map_or(0, |(o, prev_dt)| {
+            let guess = older.map_or(first_guess, |(o, prev_dt)| {
                 predicted(before.wrapping_sub(o), dt, prev_dt)
             });
             w.zvarint(step.wrapping_sub(guess).into());
@@ -381,13 +422,16 @@ fn decode_positions(
         let prev = samples[i - 1];
         let older = (i >= 2).then(|| samples[i - 2]);
         let prev_dt = if i >= 2 { t[i - 1] - t[i - 2] } else { 0 };
-        let mut next = |before: i32, older: Option<i32>| -> Result<i32, DecodeError> {
+        let by_velocity = velocity_guess(lat, vx, vy, dt);
+        let mut next = |before: i32, older: Option<i32>, first_guess: i32| {
             let residual = r.zvarint_i32_wrapping()?;
-            let guess = older.map_or(0, |o| predicted(before.wrapping_sub(o), dt, prev_dt));
-            Ok(before.wrapping_add(guess).wrapping_add(residual))
+            let guess = older.map_or(first_guess, |o| {
+                predicted(before.wrapping_sub(o), dt, prev_dt)
+            });
+            Ok::<i32, DecodeError>(before.wrapping_add(guess).wrapping_add(residual))
         };
-        let lat = next(prev.lat, older.map(|o| o.lat))?;
-        let lon = next(prev.lon, older.map(|o| o.lon))?;
+        let lat = next(prev.lat, older.map(|o| o.lat), by_velocity.0)?;
+        let lon = next(prev.lon, older.map(|o| o.lon), by_velocity.1)?;
         let rel_dm = if alt_changes {
             i32::try_from(i64::from(prev.rel_dm) + r.zvarint()?).map_err(|_| DecodeError::Range)?
         } else {

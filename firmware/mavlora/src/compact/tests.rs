@@ -809,7 +809,7 @@ fn heartbeat_goes_on_at_1_hz_between_frames_and_stops_with_them() {
 }
 
 #[test]
-fn a_cruise_second_costs_at_most_57_bytes_signed() {
+fn a_cruise_second_costs_at_most_55_bytes_signed() {
     // What the shipped batching's byte budget is planned on: 3 samples at 10 m/s, level,
     // heading known; 25 bytes of framing and signature per frame.
     let mut c = Compactor::new(CompactConfig::default());
@@ -830,7 +830,7 @@ fn a_cruise_second_costs_at_most_57_bytes_signed() {
     let f = decoded(&out[0]);
     assert!(f.status.is_none() && f.link.is_none(), "{f:?}");
     let len = f.encoded_len().unwrap();
-    assert!(25 + len <= 57, "{len} bytes of data");
+    assert!(25 + len <= 55, "{len} bytes of data");
 }
 
 proptest! {
