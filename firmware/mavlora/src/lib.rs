@@ -15,16 +15,19 @@
 //!   telemetry, mission relay, link quality.
 //! - [`router`]: the ground station's engine ([`router::Router`]): radio ↔ ground stations,
 //!   compact telemetry expanded back into standard messages.
-//! - [`compact`]: [`compact::Compactor`] and [`compact::Expander`], with their precision.
+//! - [`compact`]: [`compact::Compactor`] and [`compact::Expander`] (`MAVLORA_COMPACT`, id 14:
+//!   positions, the status and the bridge's link report packed in one frame a second), with
+//!   their precision.
 //! - [`mission`]: the mission relay with radio round-trip-time timeouts.
 //! - [`command`]: the command relay: the router resends commands over the radio on a
 //!   measured round-trip timeout, the bridge answers copies from its ack cache.
 //! - [`signing`]: MAVLink 2 signing of the radio link, replay rejection.
 //! - `io` (feature `cli`): the binaries' serial, UDP and `.tlog` driver — the only code here
 //!   that does IO or reads a clock.
-//! - [`dialect`]: the generated MavLora dialect, `common.xml` plus `LINK_QUALITY` (15),
-//!   `MAVLORA_TELEMETRY` (16), `MAVLORA_POSITION_BATCH` (17), `MAVLORA_STATUS` (18) and
-//!   `MAVLORA_MISSION_ITEMS` (19, the mission radio leg's packed items).
+//! - [`dialect`]: the generated MavLora dialect, `common.xml` plus `MAVLORA_COMPACT` (14,
+//!   compact telemetry), `LINK_QUALITY` (15), `MAVLORA_MISSION_ITEMS` (19, the mission radio
+//!   leg's packed items) and, unused by the engines, `MAVLORA_TELEMETRY` (16),
+//!   `MAVLORA_POSITION_BATCH` (17) and `MAVLORA_STATUS` (18).
 //!
 //! # Contract
 //! The engines do no IO and read no clock: callers pass bytes and the current [`Instant`] in

@@ -65,6 +65,8 @@ const BRIDGE_COUNTERS: &[&str] = &[
     "command_acks_replayed",
     "command_copies_dropped",
     "command_acks_repeated",
+    "unlisted_dropped",
+    "unlisted_dropped_bytes",
 ];
 
 const ROUTER_COUNTERS: &[&str] = &[
@@ -76,6 +78,7 @@ const ROUTER_COUNTERS: &[&str] = &[
     "tcp_dropped_bytes",
     "tcp_partials_dropped",
     "expanded",
+    "compact_undecodable",
     "heartbeats_thinned",
     "missions_accepted",
     "missions_failed",
@@ -97,9 +100,14 @@ fn all(radio: &[&'static str], own: &[&'static str]) -> Vec<&'static str> {
 /// Starts `bin` unsigned on `ports`, its radio budget out of the way, a status line every
 /// 0.2 s to `json`.
 fn start(bin: &'static str, ports: &[&str], json: &Path) -> Guard {
+    start_with(bin, ports, &[], json)
+}
+
+fn start_with(bin: &'static str, ports: &[&str], extra: &[&str], json: &Path) -> Guard {
     let child = Command::new(bin)
         .arg("--unsigned")
         .args(ports)
+        .args(extra)
         .args(["--rate", "400000", "--burst", "40000"])
         .args(["--status-interval", "0.2", "--status-json"])
         .arg(json)
@@ -221,6 +229,57 @@ fn bridge_status_json_counts_what_went_through_from_start_to_stop() {
         counter(stop, "radio_offered_bytes"),
         counter(stop, "radio_tx_bytes"),
         "{stop}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bridge_status_json_counts_unlisted_telemetry_it_dropped_by_message_id() {
+    // A compact profile drops telemetry it does not list; the status says how much, of which
+    // message ids, so an operator sees what a new autopilot version sends (issue 22, item F).
+    let dir = temp_dir("status-unlisted");
+    let json = dir.join("bridge.jsonl");
+    let profile = dir.join("drop.toml");
+    std::fs::write(
+        &profile,
+        "[defaults]\nunlisted = \"drop\"\n[messages.HEARTBEAT]\nradio = \"pass\"\n",
+    )
+    .unwrap();
+    let (mut fc, fc_slave) = pty_pair();
+    let (_radio, radio_slave) = pty_pair();
+    let ports = [
+        "--fc",
+        &fc_slave.name().unwrap(),
+        "--radio",
+        &radio_slave.name().unwrap(),
+    ];
+    let profile_arg = profile.to_str().unwrap();
+    let mut bridge = start_with(BRIDGE, &ports, &["--profile", profile_arg], &json);
+    let up = status_json::wait_for(&json, |l| counter(l, "fc_opens") >= 1);
+    assert!(up.is_some(), "no status line with the port open in 10 s");
+    let mut autopilot = Sender::new(1, 1, MavlinkVersion::V2);
+    let attitude = autopilot.frame(&MavMessage::ATTITUDE(ATTITUDE_DATA {
+        roll: 0.1,
+        ..Default::default()
+    }));
+    let len = attitude.as_bytes().len() as u64;
+    fc.write_all(attitude.as_bytes()).unwrap();
+    for _ in 1..FC_FRAMES {
+        let f = autopilot.frame(&MavMessage::ATTITUDE(ATTITUDE_DATA {
+            roll: 0.1,
+            ..Default::default()
+        }));
+        fc.write_all(f.as_bytes()).unwrap();
+    }
+    let dropped = status_json::wait_for(&json, |l| counter(l, "unlisted_dropped") >= FC_FRAMES);
+    assert!(bridge.terminate(), "the bridge did not stop cleanly");
+    let line = dropped.expect("the drops counted within 10 s");
+    assert_eq!(counter(&line, "unlisted_dropped"), FC_FRAMES, "{line}");
+    assert_eq!(counter(&line, "unlisted_dropped_30"), FC_FRAMES, "{line}");
+    assert_eq!(
+        counter(&line, "unlisted_dropped_bytes"),
+        FC_FRAMES * len,
+        "{line}"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -17,7 +17,6 @@ mod common;
 use common::px4_capture;
 use mavlora::Instant;
 use mavlora::bridge::{Bridge, BridgeConfig};
-use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::quality::LinkQualityConfig;
 use mavlora::router::RouterConfig;
@@ -49,8 +48,10 @@ fn throughput(
 }
 
 fn bridge_path(profile: &str, compact: bool) -> impl FnMut(Instant, &[u8]) {
-    let mut config = BridgeConfig::new(Profile::parse(profile, "bench").unwrap(), wide());
-    config.compact = compact.then(CompactConfig::default);
+    let profile = Profile::parse(profile, "bench").unwrap();
+    let batching = profile.compact().unwrap_or_default();
+    let mut config = BridgeConfig::new(profile, wide());
+    config.compact = compact.then_some(batching);
     let mut bridge = Bridge::new(config, Instant::ZERO).unwrap();
     move |now, bytes| {
         bridge.handle_fc_bytes(now, bytes);
@@ -66,8 +67,10 @@ fn bridge_path(profile: &str, compact: bool) -> impl FnMut(Instant, &[u8]) {
 
 /// Bytes the bridge hands to an ideal wire towards the ground, per second.
 fn radio_rate(profile: &str, compact: bool) -> f64 {
-    let mut b = BridgeConfig::new(Profile::parse(profile, "bench").unwrap(), wide());
-    b.compact = compact.then(CompactConfig::default);
+    let profile = Profile::parse(profile, "bench").unwrap();
+    let batching = profile.compact().unwrap_or_default();
+    let mut b = BridgeConfig::new(profile, wide());
+    b.compact = compact.then_some(batching);
     // Link monitoring paced as on LoRa SF7 (its default), as the simulated Table II does:
     // paced for the wide budget, link-quality reports alone would be ~45 B/s.
     b.quality = LinkQualityConfig::default();

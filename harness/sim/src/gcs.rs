@@ -129,6 +129,9 @@ pub struct GcsMock {
     /// Each `GLOBAL_POSITION_INT` received: when, and its `time_boot_ms` (the autopilot's
     /// clock, which in the world starts with the world's): the position lag is the difference.
     pub positions: Vec<(Instant, u32)>,
+    /// Each change of the vehicle's mode as its HEARTBEATs show it: when the first HEARTBEAT
+    /// with a new (`custom_mode`, armed) arrived.
+    pub modes: Vec<(Instant, u32, bool)>,
     commands: Option<Commands>,
 }
 
@@ -151,6 +154,7 @@ impl GcsMock {
             items_sent: 0,
             received: Default::default(),
             positions: Vec::new(),
+            modes: Vec::new(),
             commands: None,
         }
     }
@@ -457,6 +461,18 @@ impl GcsMock {
     fn handle(&mut self, msg: MavMessage, now: Instant) {
         if let MavMessage::GLOBAL_POSITION_INT(p) = &msg {
             self.positions.push((now, p.time_boot_ms));
+        }
+        if let MavMessage::HEARTBEAT(h) = &msg
+            && h.mavtype != MavType::MAV_TYPE_GCS
+        {
+            let mode = (
+                h.custom_mode,
+                h.base_mode
+                    .contains(mavlora::dialect::MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
+            );
+            if self.modes.last().is_none_or(|&(_, m, a)| (m, a) != mode) {
+                self.modes.push((now, mode.0, mode.1));
+            }
         }
         if let MavMessage::COMMAND_ACK(a) = &msg {
             self.command_ack(a.command, now);

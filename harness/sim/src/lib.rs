@@ -12,6 +12,7 @@
 //! - [`GcsMock`]: mission upload, download and clear, a command loop with 1.5 s retries.
 //! - [`profiles`]: MavLora's shipped profiles, built in.
 //! - [`scheduler_for`]: the engines' byte budget for a radio preset.
+//! - [`freshness`]: compact telemetry's bytes against its freshness, per batching and radio.
 //! - [`SplitMix64`]: seeded randomness for the simulated parts.
 //!
 //! Contract: no IO and no clock; the clock jumps to the earliest deadline of any part and
@@ -23,6 +24,7 @@
 
 pub mod autopilot;
 mod budget;
+pub mod freshness;
 mod gcs;
 pub mod profiles;
 mod rng;

@@ -7,7 +7,6 @@
 use harness_radio::{Direction, Preset, RadioSetup};
 use harness_sim::{ArduPilotConfig, ArduPilotFc, CommandPlan, World, scheduler_for};
 use mavlora::bridge::BridgeConfig;
-use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::router::RouterConfig;
 use mavlora::wire::ids;
@@ -34,8 +33,9 @@ fn world(profile: &str, compact: bool, ap: ArduPilotConfig) -> World<ArduPilotFc
 
 fn world_with(profile: Profile, compact: bool, ap: ArduPilotConfig) -> World<ArduPilotFc> {
     let budget = scheduler_for(Some(&Preset::lora_sf7()));
+    let batching = profile.compact().unwrap_or_default();
     let mut b = BridgeConfig::new(profile, budget);
-    b.compact = compact.then(CompactConfig::default);
+    b.compact = compact.then_some(batching);
     World::new(
         ArduPilotFc::new(ap, Instant::ZERO, 7),
         Some((b, RouterConfig::new(budget))),

@@ -5,7 +5,6 @@
 use harness_radio::{Direction, LinkConfig, Preset, RadioSetup};
 use harness_sim::{GcsMock, PX4_NORMAL, Px4Fc, StreamSpec, World, scheduler_for};
 use mavlora::bridge::BridgeConfig;
-use mavlora::compact::CompactConfig;
 use mavlora::dialect::MavMissionResult;
 use mavlora::filter::Profile;
 use mavlora::quality::LinkQualityConfig;
@@ -43,8 +42,10 @@ fn budget() -> SchedulerConfig {
 }
 
 fn relay_world(profile_name: &str, compact: bool, loss: f64, seed: u64) -> World {
-    let mut b = BridgeConfig::new(profile(profile_name), budget());
-    b.compact = compact.then(CompactConfig::default);
+    let profile = profile(profile_name);
+    let batching = profile.compact().unwrap_or_default();
+    let mut b = BridgeConfig::new(profile, budget());
+    b.compact = compact.then_some(batching);
     World::new(
         Px4Fc::new(PX4_NORMAL, Instant::ZERO, seed),
         Some((b, RouterConfig::new(budget()))),
@@ -121,8 +122,10 @@ fn naive_relay_with_px4_retries_floods_duplicates() {
     naive.run_until_or(secs(120), |w| w.gcs.result.is_some());
     let naive_dups = naive.fc.stats().duplicate_items;
 
-    let mut b = BridgeConfig::new(profile("px4-compact.toml"), budget());
-    b.compact = Some(CompactConfig::default());
+    let profile = profile("px4-compact.toml");
+    let batching = profile.compact();
+    let mut b = BridgeConfig::new(profile, budget());
+    b.compact = Some(batching.unwrap_or_default());
     let mut relay = World::new(
         Px4Fc::new(LIGHT, Instant::ZERO, 7),
         Some((b, RouterConfig::new(budget()))),
@@ -170,8 +173,9 @@ fn compact_telemetry_stays_under_50_bytes_per_second() {
     // An ideal wire: what the bridge sends is all that is measured.
     let run = |profile_text: &str, compact: bool| {
         let p = Profile::parse(profile_text, "inline").unwrap();
+        let batching = p.compact().unwrap_or_default();
         let mut b = BridgeConfig::new(p, wide);
-        b.compact = compact.then(CompactConfig::default);
+        b.compact = compact.then_some(batching);
         // Link monitoring as on the LoRa channel compact is for: the wire's nominal
         // 100 kB/s would buy a report every 0.5 s (as in the Table II scenario).
         b.quality = LinkQualityConfig::default();
@@ -226,8 +230,10 @@ fn signed_radio_link_carries_a_mission_and_rejects_forged_and_replayed_frames() 
         epoch: 3_000_000_000,
         state: Default::default(),
     };
-    let mut b = BridgeConfig::new(profile("px4-compact.toml"), budget());
-    b.compact = Some(CompactConfig::default());
+    let profile = profile("px4-compact.toml");
+    let batching = profile.compact();
+    let mut b = BridgeConfig::new(profile, budget());
+    b.compact = Some(batching.unwrap_or_default());
     b.signing = Some(signing(1));
     let mut r = RouterConfig::new(budget());
     r.signing = Some(signing(2));

@@ -1,4 +1,5 @@
 //! MavLora's MAVLink dialect: everything in `common.xml` plus
+//! [`MAVLORA_COMPACT`](mavlora::MAVLORA_COMPACT_DATA) (id 14),
 //! [`LINK_QUALITY`](mavlora::LINK_QUALITY_DATA) (id 15),
 //! [`MAVLORA_TELEMETRY`](mavlora::MAVLORA_TELEMETRY_DATA) (id 16),
 //! [`MAVLORA_POSITION_BATCH`](mavlora::MAVLORA_POSITION_BATCH_DATA) (id 17),

@@ -6,8 +6,12 @@
 //!   nothing unsigned ever reaches the radio, whatever the flight controller or ground sent;
 //! - neither engine hands the radio more bytes than its budget allows: at most the burst plus
 //!   the rate times the elapsed time (the token bucket's promise).
+//!
+//! Inputs of odd length run the bridge with compact telemetry (its frames, made of whatever
+//! the flight controller sent, are expanded by the router), even ones without.
 
 use mavlora::bridge::{Bridge, BridgeConfig};
+use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::SchedulerConfig;
@@ -83,6 +87,9 @@ pub fn run(data: &[u8]) {
     let profile = Profile::parse(PROFILE, "px4-normal.toml").expect("shipped profile");
     let mut bconf = BridgeConfig::new(profile, scheduler);
     bconf.signing = Some(signing(1));
+    if data.len() % 2 == 1 {
+        bconf.compact = Some(CompactConfig::default());
+    }
     let mut rconf = RouterConfig::new(scheduler);
     rconf.signing = Some(signing(2));
     let mut bridge = Bridge::new(bconf, start).expect("bridge");

@@ -6,11 +6,16 @@
 //!   `stream_hz`) is within `MIN_RATE_HZ..=MAX_RATE_HZ` (`stream_hz` may also be 0, "stop");
 //! - an accepted profile can be used: the stream requests it makes for the flight controller
 //!   and the radio filter limiting each of its messages at any time never panic (validation
-//!   alone does not prove that a value it lets through is safe at run time).
+//!   alone does not prove that a value it lets through is safe at run time);
+//! - an accepted `[compact]` table is within its documented ranges, and a compactor with it
+//!   turns a few seconds of positions into frames without a panic.
 
 use mavlink::{MavHeader, MavlinkVersion, Message as _};
+use mavlora::compact::{Compactor, MAX_BATCH_SAMPLES};
 use mavlora::dialect::MavMessage;
+use mavlora::dialect::{GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA};
 use mavlora::filter::{
+    COMPACT_BATCH_PERIOD_MS, COMPACT_COALESCE_MS, COMPACT_SAMPLE_HZ, COMPACT_STATUS_PERIOD_MS,
     MAX_RATE_HZ, MIN_RATE_HZ, Profile, RadioFilter, RadioRule, request_data_stream_requests,
     set_message_interval_requests,
 };
@@ -65,6 +70,39 @@ pub fn run(data: &[u8]) {
     }
     let _ = set_message_interval_requests(&profile, 1, 1);
     let _ = request_data_stream_requests(&profile, 1, 1);
+    if let Some(c) = profile.compact() {
+        let ms = |d: Duration| d.as_millis() as i64;
+        assert!(COMPACT_SAMPLE_HZ.contains(&c.sample_hz), "{c:?}");
+        assert!((1..=MAX_BATCH_SAMPLES).contains(&c.batch_samples), "{c:?}");
+        assert!(
+            COMPACT_BATCH_PERIOD_MS.contains(&ms(c.batch_period)),
+            "{c:?}"
+        );
+        assert!(
+            COMPACT_STATUS_PERIOD_MS.contains(&ms(c.status_period)),
+            "{c:?}"
+        );
+        assert!(COMPACT_COALESCE_MS.contains(&ms(c.coalesce)), "{c:?}");
+        let mut compactor = Compactor::new(c);
+        let mut now = Instant::ZERO;
+        for k in 0..40u32 {
+            now += Duration::from_millis(100);
+            if k % 10 == 0 {
+                compactor.observe(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()), now);
+            }
+            let pos = GLOBAL_POSITION_INT_DATA {
+                time_boot_ms: k * 100,
+                lat: k as i32 * 50,
+                ..Default::default()
+            };
+            compactor.observe(&MavMessage::GLOBAL_POSITION_INT(pos), now);
+            while compactor.poll(now).is_some() {}
+            assert!(
+                compactor.poll_timeout().is_some(),
+                "a compactor that never wakes"
+            );
+        }
+    }
 
     // Each named message through the filter: twice at once, then far apart (the limiter's
     // interval arithmetic at the profile's extreme rates).

@@ -13,7 +13,6 @@ use serde::{Deserialize, Serialize};
 use tracing::info;
 
 use mavlora::bridge::{Bridge, BridgeConfig};
-use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::io::{
     Event, Program, RadioOptions, SerialEvent, SerialLink, Side, StatusReport, UsageError,
@@ -40,8 +39,8 @@ struct Options {
     #[arg(long, num_args = 0, default_missing_value = "true")]
     compact: Option<bool>,
     /// With --compact: hold compact frames this many ms so they share one radio packet
-    /// (LoRa under a duty-cycle rule: 1500 fits EU 433 MHz's 10 % at SF7/125 kHz), at most
-    /// 60000 [default: 0].
+    /// (LoRa under a duty-cycle rule), at most 60000 [default: the profile's
+    /// `[compact] coalesce_ms`, else 0].
     #[arg(long)]
     coalesce_ms: Option<u64>,
     /// Vehicle system id, until the flight controller's heartbeat tells [default: 1].
@@ -65,7 +64,15 @@ impl Program for Options {
             "fc_baud": self.fc_baud.unwrap_or(FC_BAUD),
             "profile": self.profile,
             "compact": self.compact.unwrap_or(false),
-            "coalesce_ms": self.coalesce_ms.unwrap_or(0),
+            // What runs: the flag, else the profile's [compact] table (read again at start).
+            "coalesce_ms": self.coalesce_ms.unwrap_or_else(|| {
+                self.profile
+                    .as_ref()
+                    .filter(|_| self.compact.unwrap_or(false))
+                    .and_then(|p| Profile::load(p).ok())
+                    .and_then(|p| p.compact())
+                    .map_or(0, |c| c.coalesce.as_millis())
+            }),
         })
     }
 
@@ -91,10 +98,12 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
         return Err(UsageError::option("coalesce_ms", "must be at most 60000 ms").into());
     }
     if o.compact.unwrap_or(false) {
-        config.compact = Some(CompactConfig {
-            coalesce: Duration::from_millis(coalesce_ms.unwrap_or(0)),
-            ..CompactConfig::default()
-        });
+        // The profile's [compact] table, `--coalesce-ms` over its `coalesce_ms`.
+        let mut compact = config.profile.compact().unwrap_or_default();
+        if let Some(ms) = coalesce_ms {
+            compact.coalesce = Duration::from_millis(ms);
+        }
+        config.compact = Some(compact);
     } else if coalesce_ms.is_some() {
         return Err(
             UsageError::option("coalesce_ms", "needs compact telemetry (--compact)").into(),
@@ -147,6 +156,12 @@ struct BridgeCounters {
     command_acks_replayed: u64,
     command_copies_dropped: u64,
     command_acks_repeated: u64,
+    unlisted_dropped: u64,
+    unlisted_dropped_bytes: u64,
+    /// `unlisted_dropped_<id>`: the unlisted frames dropped, per message id (the first
+    /// `UNLISTED_IDS_KEPT` ids seen).
+    #[serde(flatten)]
+    unlisted_dropped_by_id: std::collections::BTreeMap<String, u64>,
 }
 
 impl Side<Bridge> for FcSide {
@@ -188,6 +203,13 @@ impl Side<Bridge> for FcSide {
             command_acks_replayed: s.commands.replayed,
             command_copies_dropped: s.commands.dropped,
             command_acks_repeated: s.commands.repeated,
+            unlisted_dropped: s.unlisted_dropped,
+            unlisted_dropped_bytes: s.unlisted_dropped_bytes,
+            unlisted_dropped_by_id: s
+                .unlisted_dropped_by_id
+                .iter()
+                .map(|(id, n)| (format!("unlisted_dropped_{id}"), *n))
+                .collect(),
         };
         (counters, ())
     }

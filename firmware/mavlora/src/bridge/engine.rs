@@ -23,6 +23,7 @@ use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
 use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
 use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, StreamId, ids, to_v1};
+use std::collections::BTreeMap;
 
 /// Counters of one bridge, for the status line and tests.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -71,10 +72,20 @@ pub struct BridgeStats {
     pub to_fc_not_v1: u64,
     /// Telemetry frames the profile does not name, dropped (`unlisted = "drop"`).
     pub unlisted_dropped: u64,
+    /// Their bytes.
+    pub unlisted_dropped_bytes: u64,
+    /// Of those frames, per message id: the first [`UNLISTED_IDS_KEPT`] ids seen (the rest
+    /// count in the totals only), so an operator sees what a profile keeps off the radio.
+    pub unlisted_dropped_by_id: BTreeMap<u32, u64>,
     /// `PARAM_VALUE`s that answered the ground's own PARAM_SET or PARAM_REQUEST_READ, sent
     /// ahead of a parameter list in flight.
     pub param_answers: u64,
 }
+
+/// Message ids whose dropped unlisted frames [`BridgeStats::unlisted_dropped_by_id`] counts
+/// one by one: an autopilot sends a few dozen types; the bound keeps a stream of made-up ids
+/// from growing the map.
+pub const UNLISTED_IDS_KEPT: usize = 32;
 
 #[derive(Debug)]
 struct ConfigState {
@@ -332,7 +343,13 @@ impl Bridge {
         let class = match Class::of(id) {
             Class::Periodic if !self.filter.profile().names(id) => {
                 if self.filter.profile().unlisted() == Unlisted::Drop {
-                    self.stats.unlisted_dropped += 1;
+                    let s = &mut self.stats;
+                    s.unlisted_dropped += 1;
+                    s.unlisted_dropped_bytes += frame.as_bytes().len() as u64;
+                    let kept = s.unlisted_dropped_by_id.len() < UNLISTED_IDS_KEPT;
+                    if kept || s.unlisted_dropped_by_id.contains_key(&id) {
+                        *s.unlisted_dropped_by_id.entry(id).or_default() += 1;
+                    }
                     return;
                 }
                 Class::Unlisted
@@ -562,34 +579,31 @@ impl Bridge {
     /// Does what is due at `now`: link-quality reports, compact telemetry, regenerated ground
     /// heartbeats, configuration retries, mission timeouts.
     pub fn handle_timeout(&mut self, now: Instant) {
-        let mut released = false;
+        self.quality.handle_timeout(now, self.radio_reader.stats());
+        if let Some(report) = self.quality.poll_report() {
+            self.stats.link_quality_sent += 1;
+            match &mut self.compactor {
+                // Compact telemetry: the report rides in the next compact frame instead of
+                // paying 25 bytes of framing and signature of its own.
+                Some(compactor) => compactor.link_report(report, now),
+                None => {
+                    let frame = self.radio_sender.frame(&MavMessage::LINK_QUALITY(report));
+                    self.scheduler.push(frame, Class::Periodic, now);
+                }
+            }
+        }
         if let Some(compactor) = &mut self.compactor {
             // A coalesced group must leave whole (one radio packet): as priority frames, so a
-            // batch cannot replace the batch before it in the scheduler.
+            // frame cannot wait behind a parameter stream between the others.
             let class = if compactor.coalescing() {
                 Class::Priority
             } else {
                 Class::Periodic
             };
             while let Some(msg) = compactor.poll(now) {
-                released = true;
                 let frame = self.radio_sender.frame(&msg);
                 self.scheduler.push(frame, class, now);
             }
-        }
-        // Coalescing: the report rides with the next group instead of paying its own packet.
-        if !self.coalescing() || released {
-            self.quality.handle_timeout(now, self.radio_reader.stats());
-        }
-        if let Some(report) = self.quality.poll_report() {
-            let frame = self.radio_sender.frame(&MavMessage::LINK_QUALITY(report));
-            self.stats.link_quality_sent += 1;
-            let class = if released {
-                Class::Priority
-            } else {
-                Class::Periodic
-            };
-            self.scheduler.push(frame, class, now);
         }
         while let Some(frame) = self.gcs_heartbeat.poll(now) {
             self.stats.gcs_heartbeats_regenerated += 1;
@@ -607,12 +621,6 @@ impl Bridge {
     /// The loss a command's ack meets on the radio: the worse direction.
     fn link_loss(&self, now: Instant) -> Option<f64> {
         link_loss(self.quality.own_loss(now), self.quality.peer_loss(now))
-    }
-
-    /// Whether compact frames are coalesced and link-quality reports ride with them (only
-    /// once the flight controller is known: before, nothing would carry the reports).
-    fn coalescing(&self) -> bool {
-        self.watch.fc().is_some() && self.compactor.as_ref().is_some_and(Compactor::coalescing)
     }
 
     fn drain_mission(&mut self, now: Instant) {
@@ -651,11 +659,8 @@ impl Bridge {
     /// When the engine next needs [`handle_timeout`](Self::handle_timeout) or can send; a time
     /// already past means at once.
     pub fn poll_timeout(&self) -> Option<Instant> {
-        let quality = (!self.coalescing())
-            .then(|| self.quality.poll_timeout())
-            .flatten();
         [
-            quality,
+            self.quality.poll_timeout(),
             self.scheduler.poll_timeout(),
             self.compactor.as_ref().and_then(|c| c.poll_timeout()),
             self.gcs_heartbeat.poll_timeout(),

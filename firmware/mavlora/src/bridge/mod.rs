@@ -12,7 +12,7 @@ mod gcs_heartbeat;
 mod param_answers;
 
 pub use config::BridgeConfig;
-pub use engine::{Bridge, BridgeStats};
+pub use engine::{Bridge, BridgeStats, UNLISTED_IDS_KEPT};
 pub use fc_watch::{FcEvent, FcWatch};
 pub use gcs_heartbeat::GcsHeartbeat;
 

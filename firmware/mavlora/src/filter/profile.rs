@@ -14,6 +14,13 @@
 //! [data_streams]            # REQUEST_DATA_STREAM, for MAVLink 1 autopilots (APM, old
 //! all = 0                   # ArduPilot) that do not implement SET_MESSAGE_INTERVAL:
 //! position = 3              # MAV_DATA_STREAM_* group (lower case, no prefix) -> Hz, 0 stops
+//!
+//! [compact]                 # the bridge's batching with --compact (CompactConfig)
+//! sample_hz = 3             # position samples per second
+//! batch_samples = 3         # samples per batch frame: a full batch leaves at once
+//! batch_period_ms = 1000    # a batch that is not full leaves this long after its first sample
+//! status_period_ms = 10000  # the vehicle's status rides along at least this often
+//! coalesce_ms = 0           # hold frames so they share one radio packet (--coalesce-ms wins)
 //! ```
 
 // MAV_DATA_STREAM / REQUEST_DATA_STREAM are deprecated upstream in favour of
@@ -26,7 +33,9 @@ use std::path::Path;
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::compact::{CompactConfig, MAX_BATCH_SAMPLES};
 use crate::dialect::MavDataStream;
+use crate::time::Duration;
 use crate::wire::known;
 
 /// What happens to a message on its way to the radio.
@@ -70,6 +79,7 @@ pub struct Profile {
     unlisted: Unlisted,
     rules: BTreeMap<u32, MessageRule>,
     data_streams: Vec<(MavDataStream, u16)>,
+    compact: Option<CompactConfig>,
 }
 
 /// `MAV_DATA_STREAM` groups by their profile key, in the order `all` first: a request for
@@ -176,6 +186,20 @@ pub enum ProfileError {
         /// The value as parsed.
         value: f64,
     },
+    /// A `[compact]` value outside its range.
+    #[error("{origin}:{line}: compact.{key} = {value} (expected {expected})")]
+    InvalidCompact {
+        /// The file.
+        origin: String,
+        /// 1-based line of the value.
+        line: usize,
+        /// The key.
+        key: &'static str,
+        /// The value as parsed.
+        value: f64,
+        /// The range it must be in.
+        expected: String,
+    },
 }
 
 #[derive(Deserialize)]
@@ -187,7 +211,29 @@ struct ProfileFile {
     messages: BTreeMap<Spanned<String>, RuleFile>,
     #[serde(default)]
     data_streams: BTreeMap<Spanned<String>, Spanned<i64>>,
+    #[serde(default)]
+    compact: Option<CompactFile>,
 }
+
+/// `[compact]`: every key optional, the rest from [`CompactConfig::default`].
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CompactFile {
+    sample_hz: Option<Spanned<f64>>,
+    batch_samples: Option<Spanned<i64>>,
+    batch_period_ms: Option<Spanned<i64>>,
+    status_period_ms: Option<Spanned<i64>>,
+    coalesce_ms: Option<Spanned<i64>>,
+}
+
+/// Ranges of the `[compact]` keys.
+pub const COMPACT_SAMPLE_HZ: std::ops::RangeInclusive<f64> = 0.1..=50.0;
+/// See [`COMPACT_SAMPLE_HZ`].
+pub const COMPACT_BATCH_PERIOD_MS: std::ops::RangeInclusive<i64> = 50..=60_000;
+/// See [`COMPACT_SAMPLE_HZ`].
+pub const COMPACT_STATUS_PERIOD_MS: std::ops::RangeInclusive<i64> = 500..=600_000;
+/// See [`COMPACT_SAMPLE_HZ`].
+pub const COMPACT_COALESCE_MS: std::ops::RangeInclusive<i64> = 0..=60_000;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -295,12 +341,23 @@ impl Profile {
         }
         // MAV_DATA_STREAM_ALL (0) first: it overrides the groups sent before it.
         data_streams.sort_by_key(|&(id, _)| id as u32);
+        let compact = file
+            .compact
+            .map(|c| compact_config(c, origin, &line_of))
+            .transpose()?;
         Ok(Self {
             default_radio,
             unlisted,
             rules,
             data_streams,
+            compact,
         })
+    }
+
+    /// The `[compact]` table: the bridge's batching with `--compact` (`None`: the profile
+    /// has none; [`CompactConfig::default`] then).
+    pub fn compact(&self) -> Option<CompactConfig> {
+        self.compact
     }
 
     /// `REQUEST_DATA_STREAM` groups and rates (Hz, 0 = stop), `MAV_DATA_STREAM_ALL` first.
@@ -345,6 +402,81 @@ pub const MAX_RATE_HZ: f64 = 1e6;
 
 fn rate_in_range(hz: f64) -> bool {
     (MIN_RATE_HZ..=MAX_RATE_HZ).contains(&hz)
+}
+
+fn compact_config(
+    file: CompactFile,
+    origin: &str,
+    line_of: &dyn Fn(std::ops::Range<usize>) -> usize,
+) -> Result<CompactConfig, ProfileError> {
+    let mut c = CompactConfig::default();
+    let invalid =
+        |key: &'static str, v: &Spanned<f64>, expected: String| ProfileError::InvalidCompact {
+            origin: origin.to_owned(),
+            line: line_of(v.span()),
+            key,
+            value: *v.get_ref(),
+            expected,
+        };
+    let int = |v: &Spanned<i64>| Spanned::new(v.span(), *v.get_ref() as f64);
+    let ms = |key: &'static str,
+              v: &Option<Spanned<i64>>,
+              range: std::ops::RangeInclusive<i64>|
+     -> Result<Option<Duration>, ProfileError> {
+        match v {
+            None => Ok(None),
+            Some(v) if range.contains(v.get_ref()) => {
+                Ok(Some(Duration::from_millis(*v.get_ref() as u64)))
+            }
+            Some(v) => Err(invalid(
+                key,
+                &int(v),
+                format!("{}..={} ms", range.start(), range.end()),
+            )),
+        }
+    };
+    if let Some(hz) = &file.sample_hz {
+        if !COMPACT_SAMPLE_HZ.contains(hz.get_ref()) {
+            return Err(invalid(
+                "sample_hz",
+                hz,
+                format!(
+                    "{}..={} Hz",
+                    COMPACT_SAMPLE_HZ.start(),
+                    COMPACT_SAMPLE_HZ.end()
+                ),
+            ));
+        }
+        c.sample_hz = *hz.get_ref();
+    }
+    if let Some(n) = &file.batch_samples {
+        if !(1..=MAX_BATCH_SAMPLES as i64).contains(n.get_ref()) {
+            return Err(invalid(
+                "batch_samples",
+                &int(n),
+                format!("1..={MAX_BATCH_SAMPLES} samples"),
+            ));
+        }
+        c.batch_samples = *n.get_ref() as usize;
+    }
+    if let Some(d) = ms(
+        "batch_period_ms",
+        &file.batch_period_ms,
+        COMPACT_BATCH_PERIOD_MS,
+    )? {
+        c.batch_period = d;
+    }
+    if let Some(d) = ms(
+        "status_period_ms",
+        &file.status_period_ms,
+        COMPACT_STATUS_PERIOD_MS,
+    )? {
+        c.status_period = d;
+    }
+    if let Some(d) = ms("coalesce_ms", &file.coalesce_ms, COMPACT_COALESCE_MS)? {
+        c.coalesce = d;
+    }
+    Ok(c)
 }
 
 fn radio_rule(
@@ -460,6 +592,63 @@ radio = 0.5
     }
 
     #[test]
+    fn compact_table_sets_the_batching_and_checks_every_key() {
+        let p = Profile::parse(
+            "[compact]\nsample_hz = 4\nbatch_samples = 2\nbatch_period_ms = 700\n\
+             status_period_ms = 5000\ncoalesce_ms = 250\n",
+            "p.toml",
+        )
+        .unwrap();
+        assert_eq!(
+            p.compact(),
+            Some(CompactConfig {
+                sample_hz: 4.0,
+                batch_samples: 2,
+                batch_period: Duration::from_millis(700),
+                status_period: Duration::from_secs(5),
+                coalesce: Duration::from_millis(250),
+            })
+        );
+        // keys left out keep the defaults; no table, no settings
+        let p = Profile::parse("[compact]\nbatch_samples = 4\n", "p.toml").unwrap();
+        assert_eq!(
+            p.compact(),
+            Some(CompactConfig {
+                batch_samples: 4,
+                ..CompactConfig::default()
+            })
+        );
+        assert_eq!(Profile::parse("", "p").unwrap().compact(), None);
+        // unknown keys and values out of range name the file and line
+        let err = Profile::parse("[compact]\n\nbatch_period = 1000\n", "p.toml").unwrap_err();
+        assert!(matches!(err, ProfileError::Syntax { .. }), "{err}");
+        let text = err.to_string();
+        assert!(
+            text.starts_with("p.toml: ")
+                && text.contains("line 3")
+                && text.contains("batch_period"),
+            "{text}"
+        );
+        for (line, value) in [
+            ("sample_hz = 0", 2),
+            ("sample_hz = 100", 2),
+            ("batch_samples = 0", 2),
+            ("batch_samples = 11", 2),
+            ("batch_period_ms = 10", 2),
+            ("status_period_ms = 99", 2),
+            ("coalesce_ms = -1", 2),
+            ("coalesce_ms = 60001", 2),
+        ] {
+            let err = Profile::parse(&format!("[compact]\n{line}\n"), "p.toml").unwrap_err();
+            assert!(
+                matches!(&err, ProfileError::InvalidCompact { line: l, .. } if *l == value),
+                "{line}: {err}"
+            );
+            assert!(err.to_string().starts_with("p.toml:2: compact."), "{err}");
+        }
+    }
+
+    #[test]
     fn empty_profile_passes_everything() {
         let p = Profile::parse("", "empty").unwrap();
         assert_eq!(p.radio_rule(30), RadioRule::Pass);
@@ -570,5 +759,22 @@ mod shipped_profiles {
         assert!(n >= 3, "only {n} profiles in {dir}");
         let ardupilot = Profile::load(format!("{dir}/ardupilot-mavlink1.toml")).unwrap();
         assert_eq!(ardupilot.data_streams()[0].0 as u32, 0, "`all` goes first");
+    }
+
+    #[test]
+    fn compact_profiles_drop_unlisted_telemetry_and_ship_the_default_batching() {
+        // Their byte promise holds for any autopilot version: what they do not list is
+        // dropped, not sent with spare budget. Their [compact] tables say what the default is.
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/profiles");
+        for name in ["px4-compact.toml", "ardupilot-compact.toml"] {
+            let p = Profile::load(format!("{dir}/{name}")).unwrap();
+            assert_eq!(p.unlisted(), Unlisted::Drop, "{name}");
+            assert_eq!(p.compact(), Some(CompactConfig::default()), "{name}");
+            // a ground station's REQUEST_MESSAGE for it is answered, not dropped as unlisted
+            assert!(
+                p.names(known::message_id("AUTOPILOT_VERSION").unwrap()),
+                "{name}"
+            );
+        }
     }
 }

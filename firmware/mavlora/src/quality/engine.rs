@@ -254,6 +254,13 @@ impl LinkQuality {
         }
     }
 
+    /// The peer's report carried inside another frame (compact telemetry: the bridge's
+    /// report rides in its `MAVLORA_COMPACT` frames), as if its `LINK_QUALITY` had arrived.
+    pub fn handle_report(&mut self, now: Instant, report: LINK_QUALITY_DATA) {
+        self.heard(now);
+        self.peer_report(report, now);
+    }
+
     /// A status report of the local radio: in the radio's byte stream (SiK injects
     /// `RADIO_STATUS` there, see [`handle_frame`](Self::handle_frame)) or read out of band
     /// (a modem's registers), with the scale of its `rssi`/`noise` bytes.

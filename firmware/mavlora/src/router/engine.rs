@@ -96,6 +96,8 @@ pub struct RouterStats {
     pub scheduler: SchedulerStats,
     /// Compact frames expanded.
     pub expanded_frames: u64,
+    /// Compact frames that could not be decoded (a bridge of another version).
+    pub compact_undecodable: u64,
     /// Standard messages produced by expansion.
     pub expanded_messages: u64,
     /// Frames sent to the ground station.
@@ -240,6 +242,7 @@ impl Router {
             mission: self.mission.stats(),
             commands: self.commands.stats(),
             signing: self.radio_leg.stats(),
+            compact_undecodable: self.expander.undecodable(),
             ground_signing: self
                 .ground_signer
                 .as_ref()
@@ -434,9 +437,9 @@ impl Router {
                 self.vehicle = Some(frame.system_id());
             }
             match frame.message_id() {
-                ids::MAVLORA_POSITION_BATCH | ids::MAVLORA_STATUS => {
+                ids::MAVLORA_COMPACT => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
-                        self.expand(now, frame.system_id(), &msg);
+                        self.expand(now, frame.system_id(), frame.component_id(), &msg);
                     }
                 }
                 ids::MISSION_REQUEST
@@ -477,10 +480,30 @@ impl Router {
         self.quality.observe(now, self.radio_reader.stats());
     }
 
-    fn expand(&mut self, now: Instant, system: u8, msg: &MavMessage) {
+    fn expand(&mut self, now: Instant, system: u8, component: u8, msg: &MavMessage) {
         self.stats.expanded_frames += 1;
-        for out in self.expander.expand(now, system, msg) {
-            self.enqueue_expanded(now, system, &out);
+        let expanded = self.expander.expand(now, system, msg);
+        for out in &expanded.messages {
+            self.enqueue_expanded(now, system, out);
+        }
+        // The bridge's link report rode in the frame: for the link monitor as if its own
+        // LINK_QUALITY had come, and to the ground as that LINK_QUALITY (its sender's ids).
+        if let Some(report) = expanded.link {
+            self.vehicle = Some(system);
+            self.quality.handle_report(now, report.clone());
+            let header = MavHeader {
+                system_id: system.into(),
+                component_id: component,
+                sequence: self.next_sequence((system, component)),
+            };
+            self.enqueue_gcs(
+                now,
+                encode(
+                    MavlinkVersion::V2,
+                    header,
+                    &MavMessage::LINK_QUALITY(report),
+                ),
+            );
         }
     }
 

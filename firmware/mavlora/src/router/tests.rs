@@ -1,7 +1,7 @@
 use mavlink::MavlinkVersion;
 
 use super::*;
-use crate::compact::{CompactConfig, Compactor, MAX_BATCH_SAMPLES};
+use crate::compact::{CompactConfig, Compactor};
 use crate::dialect::{
     COMMAND_ACK_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MISSION_COUNT_DATA, MavAutopilot,
     MavMessage, MavType,
@@ -33,20 +33,40 @@ fn gcs_out(r: &mut Router) -> Vec<OwnedFrame> {
 
 #[test]
 fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
+    use crate::dialect::{
+        GPS_RAW_INT_DATA, GpsFixType, MISSION_CURRENT_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
+    };
     let mut c = Compactor::new(CompactConfig::default());
     let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
         mavtype: MavType::MAV_TYPE_QUADROTOR,
         autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
         ..Default::default()
     });
-    c.observe(&hb, ms(0));
-    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
+    let status = [
+        hb.clone(),
+        MavMessage::SYS_STATUS(SYS_STATUS_DATA::default()),
+        MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
+            fix_type: GpsFixType::GPS_FIX_TYPE_3D_FIX,
+            ..Default::default()
+        }),
+        MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA::default()),
+        MavMessage::VFR_HUD(VFR_HUD_DATA::default()),
+    ];
+    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+        time_boot_ms: 1000,
+        ..Default::default()
+    });
     let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
     let mut radio = Vec::new();
-    for k in 0..MAX_BATCH_SAMPLES as u64 {
+    let mut frames = 0;
+    for k in 0..9u64 {
+        for m in &status {
+            c.observe(m, ms(k * 340));
+        }
         c.observe(&pos, ms(k * 340));
         while let Some(m) = c.poll(ms(k * 340)) {
             radio.extend_from_slice(bridge.frame(&m).as_bytes());
+            frames += 1;
         }
     }
     // a frame the autopilot sent itself, forwarded through the bridge, with its own sequence
@@ -56,30 +76,65 @@ fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
     radio.extend_from_slice(fc.frame(&ack).as_bytes());
 
     let mut r = router();
-    r.handle_radio_bytes(ms(2000), &radio);
+    r.handle_radio_bytes(ms(3000), &radio);
     let out = gcs_out(&mut r);
     let mut reader = FrameReader::new();
     for f in &out {
         reader.push(f.as_bytes());
     }
-    let frames: Vec<_> = std::iter::from_fn(|| reader.next_frame()).collect();
-    assert_eq!(frames.len(), out.len(), "every frame checks");
-    let ids: Vec<u32> = frames.iter().map(|f| f.frame.message_id()).collect();
-    assert_eq!(
-        ids.iter().filter(|&&i| i == 33).count(),
-        MAX_BATCH_SAMPLES,
-        "{ids:?}"
-    );
+    let frames_out: Vec<_> = std::iter::from_fn(|| reader.next_frame()).collect();
+    assert_eq!(frames_out.len(), out.len(), "every frame checks");
+    let ids: Vec<u32> = frames_out.iter().map(|f| f.frame.message_id()).collect();
+    assert_eq!(ids.iter().filter(|&&i| i == 33).count(), 9, "{ids:?}");
     for id in [0, 1, 24, 42, 74, 77] {
         assert!(ids.contains(&id), "{id} missing from {ids:?}");
     }
     assert!(
-        frames
+        frames_out
             .iter()
             .all(|f| (f.frame.system_id(), f.frame.component_id()) == (1, 1))
     );
     assert_eq!(reader.stats().lost, 0, "renumbered stream has no gaps");
-    assert_eq!(r.stats().expanded_frames, 2);
+    assert_eq!(r.stats().expanded_frames, frames);
+}
+
+#[test]
+fn the_bridges_link_report_in_a_compact_frame_feeds_the_monitor_and_reaches_the_ground() {
+    use crate::dialect::LINK_QUALITY_DATA;
+    let mut c = Compactor::new(CompactConfig::default());
+    let report = LINK_QUALITY_DATA {
+        time_boot_ms: 5_000,
+        rx_packets: 40,
+        rx_lost: 10,
+        rssi: -80,
+        remote_rssi: -82,
+        noise: -101,
+        ..Default::default()
+    };
+    c.link_report(report.clone(), ms(0));
+    let mut bridge = Sender::new(7, 191, MavlinkVersion::V2);
+    let frame = c
+        .poll(ms(1000))
+        .expect("the report alone after a batch period");
+    let mut r = router();
+    r.handle_radio_bytes(ms(1000), bridge.frame(&frame).as_bytes());
+    assert_eq!(
+        r.quality().peer().map(|p| p.report.clone()),
+        Some(report.clone())
+    );
+    let out = gcs_out(&mut r);
+    let lq: Vec<_> = out
+        .iter()
+        .filter(|f| f.message_id() == ids::LINK_QUALITY)
+        .collect();
+    assert_eq!(lq.len(), 1);
+    assert_eq!((lq[0].system_id(), lq[0].component_id()), (7, 191));
+    assert_eq!(
+        lq[0].decode::<MavMessage>().unwrap(),
+        MavMessage::LINK_QUALITY(report)
+    );
+    // a report alone is the link, not the vehicle: no heartbeat is made of it
+    assert!(out.iter().all(|f| f.message_id() != ids::HEARTBEAT));
 }
 
 #[test]

@@ -51,9 +51,12 @@ const PRIORITY: &[u32] = &[
 
 /// Message ids whose frames are parts of a sequence or distinct records, not samples of one
 /// state: RTCM corrections in fragments, a serial console's bytes, log entries and log data,
-/// extended parameters, events, encapsulated images, tunnels. Each frame counts, so none may
-/// replace another; a full queue still drops them (oldest first) as it drops telemetry.
+/// extended parameters, events, encapsulated images, tunnels, and compact telemetry (each
+/// frame carries its own position samples, and may carry a status change). Each frame
+/// counts, so none may replace another; a full queue still drops them (oldest first) as it
+/// drops telemetry.
 const SEQUENCE: &[u32] = &[
+    ids::MAVLORA_COMPACT,
     ids::GPS_RTCM_DATA,
     ids::GPS_INJECT_DATA,
     ids::SERIAL_CONTROL,

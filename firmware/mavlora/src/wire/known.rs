@@ -40,7 +40,7 @@ pub fn message_name(id: u32) -> Option<&'static str> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dialect::{LINK_QUALITY_DATA, MAVLORA_TELEMETRY_DATA};
+    use crate::dialect::{LINK_QUALITY_DATA, MAVLORA_COMPACT_DATA, MAVLORA_TELEMETRY_DATA};
     use mavlink::MessageData;
 
     #[test]
@@ -62,7 +62,8 @@ mod tests {
             assert_eq!(crc_extra(id), None, "{name} is not in our dialect");
             assert_eq!(checkable_crc_extra(id), Some(extra), "{name}");
         }
-        // Ours and common's come from our dialect.
+        // Ours and common's come from our dialect (14, compact telemetry, is no ArduPilot id).
+        assert_eq!(checkable_crc_extra(14), crc_extra(14));
         assert_eq!(checkable_crc_extra(15), crc_extra(15));
         assert_eq!(checkable_crc_extra(33), crc_extra(33));
         assert_eq!(checkable_crc_extra(60_000), None);
@@ -86,7 +87,11 @@ mod tests {
     fn our_ids_are_unique_in_the_merged_dialect() {
         // bindgen merges included messages by name, so an id clash with common.xml would not
         // be caught at generation time: it would show as a repeated id here.
-        for id in [LINK_QUALITY_DATA::ID, MAVLORA_TELEMETRY_DATA::ID] {
+        for id in [
+            MAVLORA_COMPACT_DATA::ID,
+            LINK_QUALITY_DATA::ID,
+            MAVLORA_TELEMETRY_DATA::ID,
+        ] {
             let clashes = MavMessage::all_ids().iter().filter(|&&i| i == id).count();
             assert_eq!(clashes, 1, "id {id} defined more than once");
             assert!(id < 256, "id {id} must fit MAVLink 1");

@@ -132,6 +132,10 @@ pub struct Px4Fc {
     stats: Px4Stats,
     /// Commands executed (other than `SET_MESSAGE_INTERVAL`), in order.
     executed: Vec<Executed>,
+    /// The mode its HEARTBEAT reports: custom mode and armed.
+    mode: (u32, bool),
+    /// Each change of mode as its HEARTBEATs showed it: when the first with it went out.
+    modes_sent: Vec<(Instant, u32, bool)>,
 }
 
 /// A command the simulated PX4 executed.
@@ -170,7 +174,22 @@ impl Px4Fc {
             flight: Flight::Circle,
             stats: Px4Stats::default(),
             executed: Vec::new(),
+            // AUTO.MISSION, armed
+            mode: (0x0404_0000, true),
+            modes_sent: Vec::new(),
         }
+    }
+
+    /// Changes the mode its HEARTBEATs report from now on (as a pilot's switch or a failsafe
+    /// would); the next heartbeat of its 1 Hz stream shows it, as PX4's does.
+    pub fn set_mode(&mut self, custom_mode: u32, armed: bool) {
+        self.mode = (custom_mode, armed);
+    }
+
+    /// Each change of mode as its HEARTBEATs showed it: when the first heartbeat with the new
+    /// (custom mode, armed) left, the first one at boot included.
+    pub fn modes_sent(&self) -> &[(Instant, u32, bool)] {
+        &self.modes_sent
     }
 
     /// The same flight controller flying `flight` from its boot.
@@ -364,15 +383,29 @@ impl Px4Fc {
         });
         let rel_mm = k.rel_alt_mm();
         let msg = match spec.id {
-            0 => MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                custom_mode: 0x0404_0000, // AUTO.MISSION
-                mavtype: MavType::MAV_TYPE_QUADROTOR,
-                autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
-                base_mode: MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED
-                    | MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                system_status: MavState::MAV_STATE_ACTIVE,
-                mavlink_version: 3,
-            }),
+            0 => {
+                let (custom_mode, armed) = self.mode;
+                if self
+                    .modes_sent
+                    .last()
+                    .is_none_or(|&(_, m, a)| (m, a) != self.mode)
+                {
+                    self.modes_sent.push((now, custom_mode, armed));
+                }
+                MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                    custom_mode,
+                    mavtype: MavType::MAV_TYPE_QUADROTOR,
+                    autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+                    base_mode: if armed {
+                        MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED
+                            | MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+                    } else {
+                        MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+                    },
+                    system_status: MavState::MAV_STATE_ACTIVE,
+                    mavlink_version: 3,
+                })
+            }
             1 => MavMessage::SYS_STATUS(SYS_STATUS_DATA {
                 voltage_battery: 15_800 - (secs * 2.0) as u16,
                 battery_remaining: 80,

@@ -86,7 +86,7 @@ fn plan(d: &mut Declarations) -> Script {
                         .describe(
                             "distinct GLOBAL_POSITION_INT samples the pymavlink ground station \
                              decoded in the window, per second of the autopilot's clock from the \
-                             first to the last (compact telemetry delivers six every 2 s: a count \
+                             first to the last (compact telemetry delivers samples in batches: a count \
                              of arrivals would swing by a batch with the window's phase); the \
                              profile's 3 Hz is the paper's position update need (2.9 allows one \
                              missed update in 10 s)",

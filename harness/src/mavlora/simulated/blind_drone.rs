@@ -255,10 +255,13 @@ pub fn monitoring_cost(radios: &Radios) -> Result<(f64, f64)> {
         Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(Route::PAPER));
     let mavlora = mavlora_configs(PX4_COMPACT_TOML, "px4-compact.toml", true, Some(&preset))?;
     let mut w = World::new(fc, Some(mavlora), Some(&setup))?;
-    // The bytes the reports took on the radio, as sent.
+    // The bytes the reports took on the radio, as sent: the router's LINK_QUALITY frames up;
+    // down, the bridge's report rides inside its compact frames (their share counted by the
+    // compactor) or goes as LINK_QUALITY frames of its own.
     let sent = |w: &World| -> (u64, u64) {
         let lq = |d| w.sent(d).bytes_of(&[ids::LINK_QUALITY]);
-        (lq(Direction::Uplink), lq(Direction::Downlink))
+        let inside = w.bridge().map_or(0, |b| b.stats().compact.link_bytes);
+        (lq(Direction::Uplink), lq(Direction::Downlink) + inside)
     };
     let (start, span) = (60.0, 300.0);
     while w.now < secs(start) {

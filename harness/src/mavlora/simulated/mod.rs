@@ -42,7 +42,6 @@ pub mod table_ii;
 
 use anyhow::{Context, Result};
 use mavlora::bridge::BridgeConfig;
-use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::router::RouterConfig;
 use serde::{Deserialize, Serialize};
@@ -241,8 +240,10 @@ pub fn mavlora_configs(
     let profile = Profile::parse(profile, profile_name)
         .with_context(|| format!("MavLora profile {profile_name}"))?;
     let budget = scheduler_for(preset);
+    // The batching the profile's [compact] table sets, as the bridge program takes it.
+    let batching = profile.compact().unwrap_or_default();
     let mut b = BridgeConfig::new(profile, budget);
-    b.compact = compact.then(CompactConfig::default);
+    b.compact = compact.then_some(batching);
     let mut r = RouterConfig::new(budget);
     if preset.is_none() {
         // An ideal wire has no radio budget for link monitoring to take its share of (its

@@ -71,7 +71,7 @@ fn value(ms: &[Measurement], base: &str, dims: &[(Dimension, &str)]) -> f64 {
 }
 
 /// Table II: every mechanism cuts traffic, limiting + filtering stays under the paper's
-/// 951 B/s and compact telemetry under the project's 50 B/s (a batch every 2 s), and every
+/// 951 B/s and compact telemetry under the project's 50 B/s (unsigned, a frame a second), and every
 /// measurement of the phase passes.
 #[test]
 fn table_ii_reproduces_the_ordering_and_the_filtered_limit() {
@@ -434,7 +434,7 @@ fn duty_cycle_is_the_airtime_of_the_frames_sent() {
         "{} vs {expected}",
         d.down_pct
     );
-    // A batch every 2 s fits the EU 433 MHz 10 % even one frame per packet.
+    // Unsigned, a frame a second fits the EU 433 MHz 10 % even one frame per packet.
     assert!(d.down_pct < 10.0, "{}", d.down_pct);
     // Coalesced for 1.5 s: the same bytes in fewer packets (the status and the link-quality
     // report ride with a batch), so less airtime.
