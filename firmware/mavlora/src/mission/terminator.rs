@@ -502,6 +502,11 @@ impl MissionTerminator {
     }
 
     fn ground_item(&mut self, now: Instant, from: (u8, u8), item: &MISSION_ITEM_INT_DATA) -> bool {
+        // An item of a partial write goes to the autopilot, which asked for it (the ground's
+        // own upload of that type, if any, ended when the partial write began).
+        if self.partial_item(now, from, item.mission_type) {
+            return false;
+        }
         match &mut self.state {
             State::Collecting {
                 ground,
@@ -560,9 +565,8 @@ impl MissionTerminator {
                 }
                 true
             }
-            // An item of a partial write goes to the autopilot, which asked for it; an item
-            // nobody asked for is nobody's business.
-            _ => !self.partial_item(now, from, item.mission_type),
+            // An item nobody asked for is nobody's business.
+            _ => true,
         }
     }
 
@@ -576,6 +580,9 @@ impl MissionTerminator {
         seq: u16,
         t: MavMissionType,
     ) -> bool {
+        if self.partial_item(now, from, t) {
+            return false;
+        }
         match &self.state {
             State::Collecting {
                 ground,
@@ -617,7 +624,7 @@ impl MissionTerminator {
                 mission_type,
                 ..
             } if *ground == from && *mission_type == t => true,
-            _ => !self.partial_item(now, from, t),
+            _ => true,
         }
     }
 
