@@ -518,7 +518,8 @@ impl Ground {
                     return;
                 }
                 if r.seq >= up.next {
-                    up.retries = 0;
+                    // MAVSDK counts the first send of an item as one of its tries too.
+                    up.retries = u32::from(self.rule == Retries::Mavsdk);
                     up.next = r.seq + 1;
                 } else if self.rule == Retries::Mavsdk {
                     // MAVSDK: a request for an item already sent is a retry.
