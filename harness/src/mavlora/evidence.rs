@@ -218,6 +218,70 @@ pub fn html_figures(h: &mut String, dir: &Path, run: &RunRecord) {
     }
 }
 
+/// Position age at the ground over each real-autopilot flight (the `sitl` suite's `flight`
+/// phases), from their `position_age.csv`, against the 1 s freshness target.
+fn sitl_position_age(h: &mut String, dir: &Path, run: &RunRecord) {
+    let mut series = Vec::new();
+    for phase in run
+        .phases
+        .iter()
+        .filter(|p| p.name.starts_with("mavlora::sitl::flight::"))
+    {
+        let Some(a) = phase.attachments.iter().find(|a| {
+            a.path
+                .ends_with(crate::mavlora::sitl::freshness::SERIES_FILE)
+        }) else {
+            continue;
+        };
+        let Ok(csv) = std::fs::read_to_string(dir.join(&a.path)) else {
+            continue;
+        };
+        let points: Vec<(f64, f64)> = csv
+            .lines()
+            .skip(1)
+            .filter_map(|l| {
+                let f: Vec<&str> = l.split(',').collect();
+                Some((f.first()?.parse().ok()?, f.get(2)?.parse().ok()?))
+            })
+            .collect();
+        series.push(Series {
+            name: phase
+                .name
+                .trim_start_matches("mavlora::sitl::flight::")
+                .to_string(),
+            points,
+            step: false,
+        });
+    }
+    if series.is_empty() {
+        missing(
+            h,
+            "plot-sitl-position-age",
+            "Position age over a flight",
+            "No sitl flight phase ran (no SITL build given, or the sitl suite was not run).",
+        );
+        return;
+    }
+    figure(
+        h,
+        "Age of each position at the ground station over a whole flight with a real autopilot \
+         (compact MavLora), judged on the vehicle's clock: arrival minus the sample's \
+         time_boot_ms. Target: p95 <= 1 s.",
+        &line_chart(
+            "plot-sitl-position-age",
+            "Position age over a flight",
+            "time since the first position (s)",
+            "age (s)",
+            &series,
+            &[HLine {
+                y: 1.0,
+                label: "1 s".into(),
+            }],
+            false,
+        ),
+    );
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -302,68 +366,4 @@ mod tests {
             "said missing: {h}"
         );
     }
-}
-
-/// Position age at the ground over each real-autopilot flight (the `sitl` suite's `flight`
-/// phases), from their `position_age.csv`, against the 1 s freshness target.
-fn sitl_position_age(h: &mut String, dir: &Path, run: &RunRecord) {
-    let mut series = Vec::new();
-    for phase in run
-        .phases
-        .iter()
-        .filter(|p| p.name.starts_with("mavlora::sitl::flight::"))
-    {
-        let Some(a) = phase.attachments.iter().find(|a| {
-            a.path
-                .ends_with(crate::mavlora::sitl::freshness::SERIES_FILE)
-        }) else {
-            continue;
-        };
-        let Ok(csv) = std::fs::read_to_string(dir.join(&a.path)) else {
-            continue;
-        };
-        let points: Vec<(f64, f64)> = csv
-            .lines()
-            .skip(1)
-            .filter_map(|l| {
-                let f: Vec<&str> = l.split(',').collect();
-                Some((f.first()?.parse().ok()?, f.get(2)?.parse().ok()?))
-            })
-            .collect();
-        series.push(Series {
-            name: phase
-                .name
-                .trim_start_matches("mavlora::sitl::flight::")
-                .to_string(),
-            points,
-            step: false,
-        });
-    }
-    if series.is_empty() {
-        missing(
-            h,
-            "plot-sitl-position-age",
-            "Position age over a flight",
-            "No sitl flight phase ran (no SITL build given, or the sitl suite was not run).",
-        );
-        return;
-    }
-    figure(
-        h,
-        "Age of each position at the ground station over a whole flight with a real autopilot \
-         (compact MavLora), judged on the vehicle's clock: arrival minus the sample's \
-         time_boot_ms. Target: p95 <= 1 s.",
-        &line_chart(
-            "plot-sitl-position-age",
-            "Position age over a flight",
-            "time since the first position (s)",
-            "age (s)",
-            &series,
-            &[HLine {
-                y: 1.0,
-                label: "1 s".into(),
-            }],
-            false,
-        ),
-    );
 }

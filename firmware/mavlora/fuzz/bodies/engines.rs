@@ -5,18 +5,45 @@
 //!   with the link key (checked by an independent verifier, a `LinkSigner` of our own), so
 //!   nothing unsigned ever reaches the radio, whatever the flight controller or ground sent;
 //! - neither engine hands the radio more bytes than its budget allows: at most the burst plus
-//!   the rate times the elapsed time (the token bucket's promise).
+//!   the rate times the elapsed time (the token bucket's promise);
+//! - ACCEPTED only for the plan the FC acked after receiving every item: a ground station
+//!   with an upload open (its `MISSION_COUNT` of a type, until the first `MISSION_ACK` of that
+//!   type it gets, or until it clears or partially writes that type) is told ACCEPTED only if
+//!   the flight controller acked ACCEPTED, to the bridge, after the bridge had given it every
+//!   item since its `MISSION_COUNT`, and those items are exactly the plan the ground sent
+//!   (its first items in order after its count, as a vehicle takes them).
+//!
+//! Input records `[op, advance, len, bytes...]`: ops below 0xF0 feed the bytes to one of the
+//! four sides (or flush a side's partial frame); ops 0xF0.. are well-formed mission messages
+//! built from the bytes (a ground's count, item, clear-all, partial write, legacy item; the
+//! flight controller's heartbeat, request, ack; an honest autopilot's or ground's next step),
+//! so whole uploads are a few records away from any input.
 //!
 //! Inputs of odd length run the bridge with compact telemetry (its frames, made of whatever
 //! the flight controller sent, are expanded by the router), even ones without.
 
+// MISSION_ITEM is deprecated, and what some ground stations still send.
+#![allow(deprecated)]
+// Full literals keep `..Default::default()`: the dialect may grow.
+#![allow(clippy::needless_update)]
+
+use std::collections::HashMap;
+
+use mavlink::MavlinkVersion;
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
+use mavlora::dialect::{
+    HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA, MISSION_COUNT_DATA,
+    MISSION_ITEM_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA,
+    MISSION_WRITE_PARTIAL_LIST_DATA, MavAutopilot, MavMessage, MavMissionResult, MavMissionType,
+    MavType,
+};
 use mavlora::filter::Profile;
+use mavlora::mission::plan::same_plan;
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::SchedulerConfig;
 use mavlora::signing::{SigningConfig, SigningKey};
-use mavlora::wire::{FrameReader, Integrity, known};
+use mavlora::wire::{FrameReader, Integrity, OwnedFrame, Sender, ids, known};
 use mavlora::{Duration, Instant};
 
 const RATE: u32 = 683;
@@ -81,6 +108,355 @@ fn assert_signed(
     }
 }
 
+const ACCEPTED: MavMissionResult = MavMissionResult::MAV_MISSION_ACCEPTED;
+/// The ground station of the structured ops, another one, the vehicle, the bridge.
+const GROUND: (u8, u8) = (255, 190);
+const OTHER_GROUND: (u8, u8) = (245, 190);
+const FC: (u8, u8) = (1, 1);
+const BRIDGE: (u8, u8) = (1, 191);
+
+fn mission_type(b: u8) -> MavMissionType {
+    match b % 3 {
+        0 => MavMissionType::MAV_MISSION_TYPE_MISSION,
+        1 => MavMissionType::MAV_MISSION_TYPE_FENCE,
+        _ => MavMissionType::MAV_MISSION_TYPE_RALLY,
+    }
+}
+
+/// A ground's upload open, as the router takes it: its items in order after its count.
+struct OpenUpload {
+    mission_type: MavMissionType,
+    count: u16,
+    items: Vec<MISSION_ITEM_INT_DATA>,
+}
+
+/// What the ground sides and the flight controller side said, for the mission invariant.
+#[derive(Default)]
+struct MissionWatch {
+    /// Frames the router got from the ground (the engine frames the same stream).
+    ground_in: FrameReader,
+    /// Each ground's open upload, by (system, component).
+    open: HashMap<(u8, u8), OpenUpload>,
+    /// The bridge's upload to the flight controller: type, count, items given.
+    wire: Option<(MavMissionType, u16, Vec<Option<MISSION_ITEM_INT_DATA>>)>,
+    /// Flight controller bytes, and its ACCEPTED after every item: (type, plan).
+    fc_in: FrameReader,
+    accepted: Vec<(MavMissionType, Vec<MISSION_ITEM_INT_DATA>)>,
+    /// The router's latest item request to the structured ground, for its honest step op:
+    /// (type, seq).
+    router_asked: Option<(MavMissionType, u16)>,
+}
+
+impl MissionWatch {
+    /// Bytes fed to the router from the ground.
+    fn ground_bytes(&mut self, bytes: &[u8]) {
+        self.ground_in.push(bytes);
+        while let Some(rx) = self.ground_in.next_frame() {
+            // Only what the router's ground policy lets in (system ids 255 and 245).
+            let from = (rx.frame.system_id(), rx.frame.component_id());
+            if !matches!(from.0, 255 | 245) || !is_mission(rx.frame.message_id()) {
+                continue;
+            }
+            let Ok(msg) = rx.frame.decode::<MavMessage>() else {
+                continue;
+            };
+            let all = MavMissionType::MAV_MISSION_TYPE_ALL;
+            match msg {
+                MavMessage::MISSION_COUNT(c) => {
+                    self.open.insert(
+                        from,
+                        OpenUpload {
+                            mission_type: c.mission_type,
+                            count: c.count,
+                            items: Vec::new(),
+                        },
+                    );
+                }
+                MavMessage::MISSION_ITEM_INT(i) => {
+                    if let Some(u) = self.open.get_mut(&from)
+                        && u.mission_type == i.mission_type
+                        && usize::from(i.seq) == u.items.len()
+                        && u.items.len() < usize::from(u.count)
+                    {
+                        u.items.push(i);
+                    }
+                }
+                // The ground moved on (or cancelled): its upload is over.
+                MavMessage::MISSION_CLEAR_ALL(c) => {
+                    self.open.retain(|g, u| {
+                        *g != from || (u.mission_type != c.mission_type && c.mission_type != all)
+                    });
+                }
+                MavMessage::MISSION_WRITE_PARTIAL_LIST(w) => {
+                    self.open
+                        .retain(|g, u| *g != from || u.mission_type != w.mission_type);
+                }
+                MavMessage::MISSION_ACK(a) if a.mavtype != ACCEPTED => {
+                    self.open
+                        .retain(|g, u| *g != from || u.mission_type != a.mission_type);
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Bytes the flight controller sent.
+    fn fc_bytes(&mut self, bytes: &[u8]) {
+        self.fc_in.push(bytes);
+        while let Some(rx) = self.fc_in.next_frame() {
+            if rx.frame.message_id() != ids::MISSION_ACK {
+                continue;
+            }
+            let Ok(MavMessage::MISSION_ACK(a)) = rx.frame.decode::<MavMessage>() else {
+                continue;
+            };
+            if a.mavtype != ACCEPTED || a.target_component != BRIDGE.1 {
+                continue;
+            }
+            if let Some((t, n, given)) = &self.wire
+                && *t == a.mission_type
+                && given.len() == usize::from(*n)
+                && given.iter().all(Option::is_some)
+            {
+                let plan = given.iter().flatten().cloned().collect();
+                self.accepted.push((*t, plan));
+            }
+        }
+    }
+
+    /// A frame the bridge sent the flight controller.
+    fn fc_got(&mut self, frame: &OwnedFrame) {
+        if !matches!(
+            frame.message_id(),
+            ids::MISSION_COUNT | ids::MISSION_ITEM_INT
+        ) {
+            return;
+        }
+        match frame.decode::<MavMessage>() {
+            Ok(MavMessage::MISSION_COUNT(c)) => {
+                self.wire = Some((c.mission_type, c.count, vec![None; usize::from(c.count)]));
+            }
+            Ok(MavMessage::MISSION_ITEM_INT(i)) => {
+                if let Some((t, _, given)) = &mut self.wire
+                    && *t == i.mission_type
+                    && let Some(slot) = given.get_mut(usize::from(i.seq))
+                {
+                    *slot = Some(i);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// A frame the router sent the ground stations.
+    fn ground_got(&mut self, frame: &OwnedFrame) {
+        if !matches!(
+            frame.message_id(),
+            ids::MISSION_ACK | ids::MISSION_REQUEST_INT
+        ) {
+            return;
+        }
+        let Ok(msg) = frame.decode::<MavMessage>() else {
+            return;
+        };
+        if let MavMessage::MISSION_REQUEST_INT(r) = &msg {
+            if (r.target_system, r.target_component) == GROUND {
+                self.router_asked = Some((r.mission_type, r.seq));
+            }
+            return;
+        }
+        let MavMessage::MISSION_ACK(a) = msg else {
+            return;
+        };
+        let to = |g: &(u8, u8)| {
+            a.target_system == g.0 && (a.target_component == g.1 || a.target_component == 0)
+        };
+        let grounds: Vec<(u8, u8)> = self
+            .open
+            .iter()
+            .filter(|(g, u)| to(g) && u.mission_type == a.mission_type)
+            .map(|(g, _)| *g)
+            .collect();
+        for g in grounds {
+            // The first ack of that type ends the ground's upload, whatever it says.
+            let u = self.open.remove(&g).unwrap();
+            if a.mavtype != ACCEPTED {
+                continue;
+            }
+            assert!(
+                u.items.len() == usize::from(u.count)
+                    && self
+                        .accepted
+                        .iter()
+                        .any(|(t, plan)| *t == u.mission_type && same_plan(plan, &u.items)),
+                "ground {g:?} told ACCEPTED for a {:?} plan of {} items ({} sent) the flight \
+                 controller never acked after receiving every item",
+                u.mission_type,
+                u.count,
+                u.items.len()
+            );
+        }
+    }
+}
+
+fn is_mission(id: u32) -> bool {
+    matches!(
+        id,
+        ids::MISSION_COUNT
+            | ids::MISSION_ITEM_INT
+            | ids::MISSION_ITEM
+            | ids::MISSION_ACK
+            | ids::MISSION_CLEAR_ALL
+            | ids::MISSION_WRITE_PARTIAL_LIST
+    )
+}
+
+/// The well-formed message structured op `op` (0xF0..) builds from `b`, and who sends it
+/// (the flight controller, or a ground station), by (system, component).
+fn structured(op: u8, b: &[u8], watch: &MissionWatch) -> Option<(MavMessage, (u8, u8))> {
+    let at = |k: usize| b.get(k).copied().unwrap_or(0);
+    let t = mission_type(at(1));
+    let to_fc = |msg| Some((msg, FC));
+    Some(match op & 0x0F {
+        0 => (
+            MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                mavtype: MavType::MAV_TYPE_QUADROTOR,
+                autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+                mavlink_version: 3,
+                ..Default::default()
+            }),
+            FC,
+        ),
+        1 | 10 => (
+            MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                count: u16::from(at(0) % 8),
+                target_system: FC.0,
+                target_component: FC.1,
+                mission_type: t,
+                ..Default::default()
+            }),
+            if op & 0x0F == 1 { GROUND } else { OTHER_GROUND },
+        ),
+        2 => (
+            MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+                seq: u16::from(at(0) % 8),
+                x: i32::from(at(2)),
+                target_system: FC.0,
+                target_component: FC.1,
+                mission_type: t,
+                ..Default::default()
+            }),
+            GROUND,
+        ),
+        3 => {
+            return to_fc(MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
+                seq: u16::from(at(0) % 8),
+                target_system: BRIDGE.0,
+                target_component: BRIDGE.1,
+                mission_type: t,
+                ..Default::default()
+            }));
+        }
+        4 => {
+            let to = if at(3) & 1 == 0 { BRIDGE } else { GROUND };
+            return to_fc(MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+                target_system: to.0,
+                target_component: to.1,
+                mavtype: if at(0) < 128 {
+                    ACCEPTED
+                } else {
+                    ack_result(at(0))
+                },
+                mission_type: t,
+                opaque_id: u32::from(at(2)),
+                ..Default::default()
+            }));
+        }
+        5 => (
+            MavMessage::MISSION_CLEAR_ALL(MISSION_CLEAR_ALL_DATA {
+                target_system: FC.0,
+                target_component: FC.1,
+                mission_type: if at(0) & 4 == 0 {
+                    mission_type(at(0))
+                } else {
+                    MavMissionType::MAV_MISSION_TYPE_ALL
+                },
+                ..Default::default()
+            }),
+            GROUND,
+        ),
+        6 => (
+            MavMessage::MISSION_WRITE_PARTIAL_LIST(MISSION_WRITE_PARTIAL_LIST_DATA {
+                start_index: i16::from(at(0) % 8),
+                end_index: i16::from(at(2) % 8),
+                target_system: FC.0,
+                target_component: FC.1,
+                mission_type: t,
+                ..Default::default()
+            }),
+            GROUND,
+        ),
+        7 => (
+            MavMessage::MISSION_ITEM(MISSION_ITEM_DATA {
+                seq: u16::from(at(0) % 8),
+                x: f32::from(at(2)),
+                target_system: FC.0,
+                target_component: FC.1,
+                mission_type: t,
+                ..Default::default()
+            }),
+            GROUND,
+        ),
+        // An honest autopilot's next step of the bridge's upload: the next item it lacks, or
+        // its ACCEPTED once it has them all.
+        8 => {
+            let (t, n, given) = watch.wire.as_ref()?;
+            return to_fc(match given.iter().position(Option::is_none) {
+                Some(seq) => MavMessage::MISSION_REQUEST_INT(MISSION_REQUEST_INT_DATA {
+                    seq: seq as u16,
+                    target_system: BRIDGE.0,
+                    target_component: BRIDGE.1,
+                    mission_type: *t,
+                    ..Default::default()
+                }),
+                None => MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+                    target_system: BRIDGE.0,
+                    target_component: BRIDGE.1,
+                    mavtype: ACCEPTED,
+                    mission_type: *t,
+                    opaque_id: u32::from(*n > 0) * u32::from(at(0)),
+                    ..Default::default()
+                }),
+            });
+        }
+        // An honest ground's answer to the router's latest request.
+        9 => {
+            let (t, seq) = watch.router_asked?;
+            (
+                MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+                    seq,
+                    x: i32::from(at(0)) + i32::from(seq),
+                    target_system: FC.0,
+                    target_component: FC.1,
+                    mission_type: t,
+                    ..Default::default()
+                }),
+                GROUND,
+            )
+        }
+        _ => return None,
+    })
+}
+
+fn ack_result(b: u8) -> MavMissionResult {
+    match b % 4 {
+        0 => MavMissionResult::MAV_MISSION_ERROR,
+        1 => MavMissionResult::MAV_MISSION_NO_SPACE,
+        2 => MavMissionResult::MAV_MISSION_INVALID_SEQUENCE,
+        _ => MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
+    }
+}
+
 pub fn run(data: &[u8]) {
     let start = Instant::ZERO;
     let scheduler = SchedulerConfig::for_radio(RATE, BURST);
@@ -98,6 +474,8 @@ pub fn run(data: &[u8]) {
         (Budget { start, sent: 0 }, Budget { start, sent: 0 });
     let mut check_bridge = signing(9).signer();
     let mut check_router = signing(9).signer();
+    let mut watch = MissionWatch::default();
+    let mut senders: HashMap<(u8, u8), Sender> = HashMap::new();
     let mut now = start;
     // Input: records of [op, advance_ms, len, bytes...].
     let mut rest = data;
@@ -106,15 +484,41 @@ pub fn run(data: &[u8]) {
         let (bytes, next) = tail.split_at(n);
         rest = next;
         now += Duration::from_millis(u64::from(*advance) * 4);
-        match op % 6 {
-            0 => bridge.handle_fc_bytes(now, bytes),
-            1 => {
-                let _ = router.handle_gcs_bytes(now, bytes);
+        if *op >= 0xF0 {
+            if let Some((msg, from)) = structured(*op, bytes, &watch) {
+                let sender = senders
+                    .entry(from)
+                    .or_insert_with(|| Sender::new(from.0, from.1, MavlinkVersion::V2));
+                let frame = sender.frame(&msg);
+                if from == FC {
+                    watch.fc_bytes(frame.as_bytes());
+                    bridge.handle_fc_bytes(now, frame.as_bytes());
+                } else {
+                    watch.ground_bytes(frame.as_bytes());
+                    let _ = router.handle_gcs_bytes(now, frame.as_bytes());
+                }
             }
-            2 => bridge.handle_radio_bytes(now, bytes),
-            3 => router.handle_radio_bytes(now, bytes),
-            4 => bridge.handle_fc_idle(now),
-            _ => router.handle_radio_idle(now),
+        } else {
+            match op % 6 {
+                0 => {
+                    watch.fc_bytes(bytes);
+                    bridge.handle_fc_bytes(now, bytes);
+                }
+                1 => {
+                    watch.ground_bytes(bytes);
+                    let _ = router.handle_gcs_bytes(now, bytes);
+                }
+                2 => bridge.handle_radio_bytes(now, bytes),
+                3 => router.handle_radio_bytes(now, bytes),
+                4 => {
+                    // The bridge drops a partial frame its reader holds: so does ours.
+                    if watch.fc_in.flush_partial() {
+                        watch.fc_bytes(&[]);
+                    }
+                    bridge.handle_fc_idle(now);
+                }
+                _ => router.handle_radio_idle(now),
+            }
         }
         bridge.handle_timeout(now);
         router.handle_timeout(now);
@@ -128,7 +532,11 @@ pub fn run(data: &[u8]) {
             assert_signed(&mut check_router, frame.as_bytes(), now, "router");
             bridge.handle_radio_bytes(now, frame.as_bytes());
         }
-        while bridge.poll_fc_transmit(now).is_some() {}
-        while router.poll_gcs_transmit().is_some() {}
+        while let Some(f) = bridge.poll_fc_transmit(now) {
+            watch.fc_got(&f);
+        }
+        while let Some(f) = router.poll_gcs_transmit() {
+            watch.ground_got(&f);
+        }
     }
 }

@@ -3,7 +3,7 @@
 use crate::time::Duration;
 use std::collections::VecDeque;
 
-use mavlink::{MavlinkVersion, Message as _};
+use mavlink::{MavHeader, MavlinkVersion, Message as _};
 use tracing::{debug, info};
 
 use super::config::BridgeConfig;
@@ -12,7 +12,10 @@ use super::gcs_heartbeat::GcsHeartbeat;
 use super::param_answers::ParamAnswers;
 use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict, link_loss};
 use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
-use crate::dialect::{MavCmd, MavMessage, MavResult, MavType, RADIO_STATUS_DATA};
+use crate::dialect::{
+    MISSION_ACK_DATA, MavCmd, MavMessage, MavMissionResult, MavMissionType, MavResult, MavType,
+    RADIO_STATUS_DATA,
+};
 use crate::filter::{
     FilterStats, RadioFilter, Unlisted, Verdict, request_data_stream_requests,
     set_message_interval_requests,
@@ -22,7 +25,7 @@ use crate::quality::LinkQuality;
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats};
 use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
-use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, StreamId, ids, to_v1};
+use crate::wire::{FrameReader, OwnedFrame, ReaderStats, Sender, StreamId, encode, ids, to_v1};
 use std::collections::BTreeMap;
 
 /// Counters of one bridge, for the status line and tests.
@@ -278,6 +281,9 @@ impl Bridge {
             }
             None => {}
         }
+        // What its link can carry: MAVLink 1 has no `mission_type`.
+        self.mission
+            .set_fc_mavlink1(self.watch.version() == Some(MavlinkVersion::V1));
         if let Some(msg) = &msg {
             if self.addressed_to_us(msg) {
                 if let MavMessage::COMMAND_ACK(ack) = msg
@@ -503,6 +509,8 @@ impl Bridge {
                 system: frame.system_id(),
                 component: frame.component_id(),
             });
+            // The router numbers its mission transfers afresh.
+            self.mission.router_restarted();
         }
         let id = frame.message_id();
         match id {
@@ -515,6 +523,7 @@ impl Bridge {
             | ids::MISSION_COUNT
             | ids::MISSION_ITEM_INT
             | ids::MAVLORA_MISSION_ITEMS
+            | ids::MISSION_WRITE_PARTIAL_LIST
             | ids::MISSION_ACK => {
                 let Ok(msg) = frame.decode::<MavMessage>() else {
                     self.forward_to_fc(frame);
@@ -556,7 +565,67 @@ impl Bridge {
             }
             _ => {}
         }
+        if self.watch.version() == Some(MavlinkVersion::V1) && self.refused_untyped(&frame, now) {
+            return;
+        }
         self.forward_to_fc(frame);
+    }
+
+    /// A ground station's mission operation on fences or rally points for a MAVLink 1
+    /// flight controller: converted to MAVLink 1 it would lose its `mission_type` and act on
+    /// the mission (a fence `MISSION_CLEAR_ALL` deletes the flight plan). Refused as the
+    /// protocol says, `MAV_MISSION_UNSUPPORTED` from the vehicle, an ack dropped; whether it
+    /// was.
+    fn refused_untyped(&mut self, frame: &OwnedFrame, now: Instant) -> bool {
+        if !matches!(
+            frame.message_id(),
+            ids::MISSION_CLEAR_ALL
+                | ids::MISSION_COUNT
+                | ids::MISSION_WRITE_PARTIAL_LIST
+                | ids::MISSION_REQUEST_LIST
+                | ids::MISSION_REQUEST_PARTIAL_LIST
+                | ids::MISSION_REQUEST
+                | ids::MISSION_REQUEST_INT
+                | ids::MISSION_ITEM
+                | ids::MISSION_ITEM_INT
+                | ids::MISSION_ACK
+        ) {
+            return false;
+        }
+        let Ok(msg) = frame.decode::<MavMessage>() else {
+            return false;
+        };
+        let Some(t) = mission_type(&msg) else {
+            return false;
+        };
+        if t == MavMissionType::MAV_MISSION_TYPE_MISSION {
+            return false;
+        }
+        self.mission.count_unsupported();
+        info!(
+            ?t,
+            msgid = frame.message_id(),
+            "a MAVLink 1 flight controller cannot tell fences and rally points from the mission: refused"
+        );
+        if matches!(msg, MavMessage::MISSION_ACK(_)) {
+            return true;
+        }
+        let (sys, comp) = self.watch.fc().unwrap_or((self.radio_sender.system(), 1));
+        let refusal = MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+            target_system: frame.system_id(),
+            target_component: frame.component_id(),
+            mavtype: MavMissionResult::MAV_MISSION_UNSUPPORTED,
+            mission_type: t,
+            ..Default::default()
+        });
+        let header = MavHeader {
+            system_id: sys.into(),
+            component_id: comp,
+            sequence: 0,
+        };
+        let ack = encode(MavlinkVersion::V2, header, &refusal);
+        self.scheduler.push(ack, Class::Priority, now);
+        true
     }
 
     /// Queues a radio frame for the flight controller, in MAVLink 1 if that is what it
@@ -674,4 +743,23 @@ impl Bridge {
         .flatten()
         .min()
     }
+}
+
+/// The `mission_type` of a mission-protocol message (`None`: not one, or none carried).
+// MISSION_ITEM and MISSION_REQUEST are deprecated but older ground stations still send them.
+#[allow(deprecated)]
+fn mission_type(msg: &MavMessage) -> Option<MavMissionType> {
+    Some(match msg {
+        MavMessage::MISSION_CLEAR_ALL(m) => m.mission_type,
+        MavMessage::MISSION_COUNT(m) => m.mission_type,
+        MavMessage::MISSION_WRITE_PARTIAL_LIST(m) => m.mission_type,
+        MavMessage::MISSION_REQUEST_LIST(m) => m.mission_type,
+        MavMessage::MISSION_REQUEST_PARTIAL_LIST(m) => m.mission_type,
+        MavMessage::MISSION_REQUEST(m) => m.mission_type,
+        MavMessage::MISSION_REQUEST_INT(m) => m.mission_type,
+        MavMessage::MISSION_ITEM(m) => m.mission_type,
+        MavMessage::MISSION_ITEM_INT(m) => m.mission_type,
+        MavMessage::MISSION_ACK(m) => m.mission_type,
+        _ => return None,
+    })
 }

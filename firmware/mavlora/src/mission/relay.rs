@@ -13,22 +13,34 @@
 //!   nothing arrived for one retransmission timeout, or at the router's poll.
 //! - All items in: their CRC must match the transfer id (no item of another plan mixed in),
 //!   else all are requested again. Then the wire leg runs.
-//! - The router's status poll (the same `MISSION_COUNT` again, or a `MAVLORA_MISSION_ITEMS`
-//!   without items, which also opens a transfer the bridge never saw) comes behind everything
-//!   the router sent before it: every missing item is requested, however recently asked (the
-//!   request or its answer was lost), "all here, the autopilot is busy" is
-//!   `MISSION_REQUEST_INT{seq = count}`, a finished transfer repeats its
-//!   `MISSION_ACK{opaque_id}`. A late item frame of a transfer that is over never reopens it
-//!   (its count does: a restarted router numbers transfers from the start again).
+//! - The router's status poll (a `MAVLORA_MISSION_ITEMS` without items, which also opens a
+//!   transfer the bridge never saw) comes behind everything the router sent before it: every
+//!   missing item is requested, however recently asked (the request or its answer was lost),
+//!   "all here, the autopilot is busy" is `MISSION_REQUEST_INT{seq = count}`, a finished
+//!   transfer repeats its `MISSION_ACK{opaque_id}`. A late item frame of a transfer that is
+//!   over never reopens it. A count always opens its transfer, even one that finished here:
+//!   it is never answered from memory (the autopilot may not hold that plan any more, and a
+//!   restarted router may number a new upload as an old one); a router restart (its uptime
+//!   going back, [`MissionRelay::router_restarted`]) also forgets the finished transfer.
 //! - `MISSION_ACK{error, opaque_id}` from the router: the ground cancelled.
+//! - A ground's own partial write (`MISSION_WRITE_PARTIAL_LIST`) and its items pass through
+//!   to the autopilot.
 //!
 //! Wire leg: `MISSION_COUNT` to the autopilot, items on its requests (its 250 ms repeats are
 //! harmless on a wire), its `MISSION_ACK` goes to the router with the transfer id. An
-//! autopilot reboot mid-upload restarts the wire leg from `MISSION_COUNT`.
+//! ACCEPTED answers the upload only once the autopilot asked for every item since our count
+//! (an autopilot storing the previous plan slowly acks it after our next count went out);
+//! an error ends it at any point. Every request and ack the autopilot addresses to us is
+//! ours: one that answers no upload in progress is dropped, never passed to the radio. An
+//! autopilot reboot mid-upload restarts the wire leg from `MISSION_COUNT`. A MAVLink 1
+//! autopilot gets missions only: fence and rally plans are refused with
+//! `MAV_MISSION_UNSUPPORTED` ([`MissionRelay::set_fc_mavlink1`]), as MAVLink 1 frames cannot
+//! carry `mission_type` and it would take them for its mission.
 
 use crate::time::Duration;
 use std::collections::{BTreeMap, VecDeque};
 
+use mavlink::Message as _;
 use tracing::{debug, info, warn};
 
 use super::pack;
@@ -131,6 +143,15 @@ pub struct MissionStats {
     pub failed: u64,
     /// Transfers the ground cancelled.
     pub cancelled: u64,
+    /// Transfers refused with `MAV_MISSION_UNSUPPORTED`: a fence or rally plan for a
+    /// MAVLink 1 flight controller, which cannot tell it from a mission.
+    pub unsupported: u64,
+    /// Acks from the flight controller that could not answer the upload in progress (before
+    /// it asked for every item: an ack of an earlier upload or operation), not taken.
+    pub wire_early_acks: u64,
+    /// Requests and acks the flight controller addressed to us outside any upload of that
+    /// type (late answers, the answer to our cancel), dropped.
+    pub wire_stray: u64,
 }
 
 #[derive(Debug)]
@@ -174,6 +195,9 @@ enum Wire {
         items: Vec<MISSION_ITEM_INT_DATA>,
         /// Last step sent: `None` for MISSION_COUNT, else the item seq.
         last: Option<u16>,
+        /// Items the flight controller asked for (and got) since our latest count: its
+        /// ACCEPTED answers this upload only once it has asked for every one.
+        given: Vec<bool>,
         at: Instant,
         attempts: u32,
     },
@@ -198,8 +222,17 @@ pub struct MissionRelay {
     orphans: BTreeMap<u16, MISSION_ITEM_INT_DATA>,
     /// Transfer ids seen lately (a frame of one that is not current is stale: never reopened).
     recent: VecDeque<u32>,
+    /// A partial write from the radio in progress (its source, type, latest frame): its items
+    /// are the autopilot's, not ours.
+    partial: Option<((u8, u8), MavMissionType, Instant)>,
+    /// The flight controller speaks MAVLink 1: `mission_type` does not reach it.
+    fc_mavlink1: bool,
     stats: MissionStats,
 }
+
+/// A partial write with no item for this long is over (ArduPilot gives an upload up after
+/// 8 s without an item).
+const PARTIAL_WRITE_IDLE: Duration = Duration::from_secs(10);
 
 /// Orphan items kept at most.
 const MAX_ORPHANS: usize = 1024;
@@ -216,6 +249,8 @@ impl MissionRelay {
             to_fc: VecDeque::new(),
             orphans: BTreeMap::new(),
             recent: VecDeque::new(),
+            partial: None,
+            fc_mavlink1: false,
             stats: MissionStats::default(),
         }
     }
@@ -230,6 +265,54 @@ impl MissionRelay {
         &self.rtt
     }
 
+    /// Whether the flight controller speaks MAVLink 1 (its heartbeat's version). MAVLink 1
+    /// frames have no `mission_type`: a fence or rally upload would reach it as a mission, so
+    /// such transfers are refused with `MAV_MISSION_UNSUPPORTED`.
+    pub fn set_fc_mavlink1(&mut self, mavlink1: bool) {
+        self.fc_mavlink1 = mavlink1;
+    }
+
+    /// A ground station's fence or rally operation was refused for a MAVLink 1 autopilot
+    /// (see [`set_fc_mavlink1`](Self::set_fc_mavlink1)), outside a transfer: counted with the
+    /// transfers refused.
+    pub fn count_unsupported(&mut self) {
+        self.stats.unsupported += 1;
+    }
+
+    /// Whether the flight controller's link carries plans of type `t`.
+    fn carries(&self, t: MavMissionType) -> bool {
+        !self.fc_mavlink1 || t == MavMissionType::MAV_MISSION_TYPE_MISSION
+    }
+
+    /// The router restarted (its uptime went back): it numbers transfers from its seed again
+    /// and knows none of ours. A finished transfer is forgotten (the same id is a new upload
+    /// now, never answered from memory), one still being received is dropped (nobody will
+    /// finish it); an upload to the autopilot under way finishes (a half-written plan is
+    /// worse than a plan nobody was told about).
+    pub fn router_restarted(&mut self) {
+        if matches!(self.radio, Radio::Done { .. } | Radio::Receiving { .. }) {
+            info!("the router restarted: its earlier transfers are forgotten");
+            self.radio = Radio::Idle;
+        }
+        self.recent.clear();
+        self.orphans.clear();
+    }
+
+    /// Whether an item from `from` of type `t` belongs to a partial write in progress.
+    fn partial_item(&mut self, now: Instant, from: (u8, u8), t: MavMissionType) -> bool {
+        match &mut self.partial {
+            Some((source, mission_type, at))
+                if *source == from
+                    && *mission_type == t
+                    && now.saturating_duration_since(*at) < PARTIAL_WRITE_IDLE =>
+            {
+                *at = now;
+                true
+            }
+            _ => false,
+        }
+    }
+
     /// A message from the radio sent by `from` (system, component), addressed to this
     /// vehicle. Returns whether the relay took it (else the caller forwards it to the flight
     /// controller).
@@ -240,8 +323,16 @@ impl MissionRelay {
                 true
             }
             MavMessage::MISSION_ITEM_INT(item) => {
+                if self.partial_item(now, from, item.mission_type) {
+                    return false;
+                }
                 self.radio_item(now, item);
                 true
+            }
+            MavMessage::MISSION_WRITE_PARTIAL_LIST(w) => {
+                // The ground's partial write: the autopilot's business, and so are its items.
+                self.partial = Some((from, w.mission_type, now));
+                false
             }
             MavMessage::MAVLORA_MISSION_ITEMS(p) => {
                 self.radio_packed(now, from, p);
@@ -300,11 +391,10 @@ impl MissionRelay {
     }
 
     fn radio_count(&mut self, now: Instant, from: (u8, u8), c: &MISSION_COUNT_DATA) {
-        if self.answer_poll(now, c.opaque_id) {
-            return;
-        }
-        // A count always opens its transfer, even one already seen: a restarted router
-        // numbers its transfers from the start again.
+        // A count always opens its transfer, even one already seen, never answered from
+        // memory: a restarted router may number a new upload of the same plan as one that
+        // finished here, and the autopilot may no longer hold it (a clear-all since). The
+        // router's polls are item frames without items.
         self.recent.retain(|id| *id != c.opaque_id);
         if !self.open(now, from, c.count, c.mission_type, c.opaque_id) {
             return;
@@ -345,6 +435,25 @@ impl MissionRelay {
         }
         self.stats.transfers += 1;
         self.abort_wire();
+        if !self.carries(mission_type) {
+            // A MAVLink 1 autopilot would get the fence or rally points as mission items
+            // (MAVLink 1 has no `mission_type`) and replace its mission with them.
+            warn!(
+                ?mission_type,
+                "the flight controller speaks MAVLink 1: only missions, refused"
+            );
+            self.stats.unsupported += 1;
+            self.stats.failed += 1;
+            let result = MavMissionResult::MAV_MISSION_UNSUPPORTED;
+            self.to_radio.push_back(ack(from, result, mission_type, id));
+            self.radio = Radio::Done {
+                router: from,
+                id,
+                mission_type,
+                result,
+            };
+            return false;
+        }
         let mut slots = vec![None; usize::from(count)];
         let mut horizon = 0;
         for (seq, item) in std::mem::take(&mut self.orphans) {
@@ -591,9 +700,16 @@ impl MissionRelay {
             mission_type,
             count,
         };
+        if !self.carries(mission_type) {
+            // The autopilot turned out to speak MAVLink 1 while the plan came in.
+            self.stats.unsupported += 1;
+            self.finish(MavMissionResult::MAV_MISSION_UNSUPPORTED);
+            return;
+        }
         self.to_fc.push_back(count_msg(count, mission_type));
         self.wire = Wire::Sending {
             mission_type,
+            given: vec![false; items.len()],
             items,
             last: None,
             at: now,
@@ -645,6 +761,7 @@ impl MissionRelay {
             mission_type,
             items,
             last,
+            given,
             at,
             attempts,
         } = &mut self.wire
@@ -652,6 +769,7 @@ impl MissionRelay {
             info!("flight controller rebooted mid-upload, starting the upload again");
             self.stats.wire_restarts += 1;
             *last = None;
+            given.iter_mut().for_each(|g| *g = false);
             *at = now;
             *attempts = 1;
             let count = count_msg(items.len() as u16, *mission_type);
@@ -660,14 +778,36 @@ impl MissionRelay {
     }
 
     /// A mission message the flight controller addressed to the bridge. Returns whether the
-    /// relay took it.
+    /// relay took it: every request and ack addressed to us answers our own uploads, and one
+    /// that answers none in progress (a late ack, the answer to our cancel) is nobody else's
+    /// business (on the radio it would reach a ground station as the answer to its upload).
     // MISSION_REQUEST is deprecated but older autopilots and tools still send it.
     #[allow(deprecated)]
     pub fn handle_fc(&mut self, now: Instant, msg: &MavMessage) -> bool {
+        let ours = matches!(
+            msg,
+            MavMessage::MISSION_ACK(_)
+                | MavMessage::MISSION_REQUEST(_)
+                | MavMessage::MISSION_REQUEST_INT(_)
+        );
+        if ours && !self.wire_step(now, msg) {
+            self.stats.wire_stray += 1;
+            debug!(
+                msgid = msg.message_id(),
+                "the autopilot's answer to no upload of ours, dropped"
+            );
+        }
+        ours
+    }
+
+    /// One step of the wire upload; whether it belonged to it.
+    #[allow(deprecated)]
+    fn wire_step(&mut self, now: Instant, msg: &MavMessage) -> bool {
         let Wire::Sending {
             mission_type,
             items,
             last,
+            given,
             at,
             attempts,
         } = &mut self.wire
@@ -678,6 +818,22 @@ impl MissionRelay {
             MavMessage::MISSION_REQUEST_INT(r) if r.mission_type == *mission_type => r.seq,
             MavMessage::MISSION_REQUEST(r) if r.mission_type == *mission_type => r.seq,
             MavMessage::MISSION_ACK(a) if a.mission_type == *mission_type => {
+                // ACCEPTED answers this upload only once the autopilot asked for every item
+                // (the last one last): before that it is an earlier upload's answer (an
+                // autopilot that stores slowly acks plan A after our count for plan B went
+                // out). An empty plan's ACCEPTED answers the count at once, and carries no
+                // plan id (PX4 puts the stored plan's CRC in a non-empty upload's ack).
+                let accepted = a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED;
+                let complete = if items.is_empty() {
+                    a.opaque_id == 0
+                } else {
+                    given.iter().all(|g| *g) && *last == Some(items.len() as u16 - 1)
+                };
+                if accepted && !complete {
+                    self.stats.wire_early_acks += 1;
+                    debug!("an ACCEPTED before the autopilot asked for every item: not ours");
+                    return true;
+                }
                 let result = a.mavtype;
                 self.wire = Wire::Idle;
                 self.finish(result);
@@ -688,6 +844,7 @@ impl MissionRelay {
         let Some(item) = items.get(usize::from(seq)) else {
             return true;
         };
+        given[usize::from(seq)] = true;
         // Answer every request, repeats included: on the wire they cost nothing.
         self.to_fc
             .push_back(MavMessage::MISSION_ITEM_INT(item.clone()));
@@ -778,6 +935,7 @@ impl MissionRelay {
             mission_type,
             items,
             last,
+            given,
             at,
             attempts,
         } = &mut self.wire
@@ -791,7 +949,10 @@ impl MissionRelay {
             *attempts += 1;
             *at = now;
             let again = match last {
-                None => Some(count_msg(items.len() as u16, *mission_type)),
+                None => {
+                    given.iter_mut().for_each(|g| *g = false);
+                    Some(count_msg(items.len() as u16, *mission_type))
+                }
                 Some(seq) => items
                     .get(usize::from(*seq))
                     .cloned()

@@ -216,8 +216,11 @@ fn router_cancel_stops_the_wire_leg_and_tells_the_autopilot() {
     assert!(r.handle_radio(ms(20), ROUTER, &cancel));
     assert!(matches!(&fc_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
         if a.mavtype == MavMissionResult::MAV_MISSION_OPERATION_CANCELLED));
-    // the autopilot's further requests are no longer answered
-    assert!(!r.handle_fc(ms(30), &fc_request(1)));
+    // the autopilot's further requests are no longer answered, nor passed on: they were
+    // addressed to us
+    assert!(r.handle_fc(ms(30), &fc_request(1)));
+    assert!(fc_out(&mut r).is_empty() && radio_out(&mut r).is_empty());
+    assert_eq!(r.stats().wire_stray, 1);
     assert_eq!(r.poll_timeout(), None);
     // an ack without a transfer id (a ground's download ACK) is for the autopilot
     assert!(!r.handle_radio(
@@ -230,9 +233,9 @@ fn router_cancel_stops_the_wire_leg_and_tells_the_autopilot() {
 #[test]
 fn poll_is_answered_by_state_missing_busy_or_the_same_ack() {
     let items = plan(&[1, 2]);
-    let count = count_for(&items, 1);
+    let count = packed_poll(&items, 1);
     let mut r = MissionRelay::new(MissionConfig::default());
-    r.handle_radio(ms(0), ROUTER, &count);
+    r.handle_radio(ms(0), ROUTER, &count_for(&items, 1));
     r.handle_radio(
         ms(10),
         ROUTER,
@@ -335,7 +338,7 @@ fn after_a_poll_every_missing_item_is_asked_for_at_once_one_request_per_run() {
     assert_eq!(requested(&gap), (10..50).collect::<Vec<u16>>());
     // 2 s later, nothing else arrived; the router polls: the tail too, and the first run
     // again (its request or its answer was lost: the poll came after both would have)
-    r.handle_radio(ms(2000), ROUTER, &count_for(&items, 1));
+    r.handle_radio(ms(2000), ROUTER, &packed_poll(&items, 1));
     let asked = radio_out(&mut r);
     assert_eq!(asked.len(), 2, "{asked:?}");
     assert_eq!(
@@ -492,4 +495,147 @@ fn the_first_timeout_follows_the_radios_budget() {
     assert_eq!(ms(MissionConfig::for_rate(546)), 1_125); // LoRa SF7 at 80 %
     assert_eq!(ms(MissionConfig::for_rate(100)), 1_500); // slower: the default
     assert_eq!(MissionConfig::for_rate(0), MissionConfig::default());
+}
+
+/// Regression: a count whose transfer id matched the finished transfer was answered from
+/// memory (the same ACCEPTED again) and never reached the autopilot. A restarted router
+/// numbers the same plan the same way, and the autopilot may have cleared it since: a count
+/// is always a new upload.
+#[test]
+fn a_count_for_a_finished_transfer_is_uploaded_again_never_answered_from_memory() {
+    let items = plan(&[1, 2, 3]);
+    let mut r = MissionRelay::new(MissionConfig::default());
+    r.handle_radio(ms(0), ROUTER, &count_for(&items, 1));
+    for f in packed(&items, 1) {
+        r.handle_radio(ms(10), ROUTER, &f);
+    }
+    wire_upload(&mut r, 3, ms(20));
+    radio_out(&mut r);
+    // the same count again
+    r.handle_radio(ms(5000), ROUTER, &count_for(&items, 1));
+    assert!(
+        radio_out(&mut r).is_empty(),
+        "no ack from memory: {:?}",
+        r.stats()
+    );
+    for f in packed(&items, 1) {
+        r.handle_radio(ms(5010), ROUTER, &f);
+    }
+    let got = wire_upload(&mut r, 3, ms(5020));
+    assert!(super::super::plan::same_plan(&got, &items));
+    assert_eq!(r.stats().completed, 2);
+}
+
+/// A restarted router numbers its transfers from its seed again and knows none of ours: a
+/// finished transfer is forgotten, so a poll or frames of the same id (their count lost)
+/// open a new upload instead of repeating the old ack.
+#[test]
+fn after_a_router_restart_the_finished_transfer_is_forgotten() {
+    let items = plan(&[4, 5]);
+    let mut r = MissionRelay::new(MissionConfig::default());
+    for f in packed(&items, 1) {
+        r.handle_radio(ms(0), ROUTER, &f);
+    }
+    wire_upload(&mut r, 2, ms(10));
+    radio_out(&mut r);
+    r.router_restarted();
+    // the count is lost; the stream's frames and its poll arrive
+    for f in packed(&items, 1) {
+        r.handle_radio(ms(3000), ROUTER, &f);
+    }
+    r.handle_radio(ms(3000), ROUTER, &packed_poll(&items, 1));
+    assert!(
+        !radio_out(&mut r)
+            .iter()
+            .any(|m| matches!(m, MavMessage::MISSION_ACK(_))),
+        "no ack from memory"
+    );
+    let got = wire_upload(&mut r, 2, ms(3100));
+    assert!(super::super::plan::same_plan(&got, &items));
+}
+
+/// Regression: the wire leg ended on any MISSION_ACK of its type, even before the autopilot
+/// asked for the last item. An ACCEPTED before then answers an earlier upload; an error
+/// ends this one.
+#[test]
+fn only_an_accepted_after_every_item_answers_the_upload() {
+    let items = plan(&[7, 8, 9]);
+    let id = transfer_id(1, plan_hash(MISSION, &items));
+    let mut r = MissionRelay::new(MissionConfig::default());
+    for f in packed(&items, 1) {
+        r.handle_radio(ms(0), ROUTER, &f);
+    }
+    assert!(matches!(
+        &fc_out(&mut r)[..],
+        [MavMessage::MISSION_COUNT(_)]
+    ));
+    // the previous plan's late ACCEPTED (PX4 names it), and ArduPilot's (no id)
+    for opaque_id in [0xABCD, 0] {
+        let late = MavMessage::MISSION_ACK(MISSION_ACK_DATA {
+            target_system: 1,
+            target_component: 191,
+            mavtype: MavMissionResult::MAV_MISSION_ACCEPTED,
+            opaque_id,
+            ..Default::default()
+        });
+        assert!(r.handle_fc(ms(10), &late));
+    }
+    assert!(radio_out(&mut r).is_empty(), "not this upload's answer");
+    assert_eq!(r.stats().wire_early_acks, 2);
+    for seq in 0..2 {
+        r.handle_fc(ms(20), &fc_request(seq));
+    }
+    r.handle_fc(ms(30), &fc_ack(MavMissionResult::MAV_MISSION_ACCEPTED));
+    assert!(radio_out(&mut r).is_empty(), "item 2 was never asked for");
+    r.handle_fc(ms(40), &fc_request(2));
+    r.handle_fc(ms(50), &fc_ack(MavMissionResult::MAV_MISSION_ACCEPTED));
+    assert!(
+        matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
+        if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED && a.opaque_id == id)
+    );
+    // an error ends an upload at any point
+    let other = plan(&[1, 2]);
+    for f in packed(&other, 2) {
+        r.handle_radio(ms(100), ROUTER, &f);
+    }
+    fc_out(&mut r);
+    r.handle_fc(ms(110), &fc_ack(MavMissionResult::MAV_MISSION_NO_SPACE));
+    assert!(
+        matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
+        if a.mavtype == MavMissionResult::MAV_MISSION_NO_SPACE)
+    );
+}
+
+/// Regression: a MAVLink 1 autopilot got a fence upload as a mission (MAVLink 1 has no
+/// `mission_type`) and replaced its flight plan with it. Refused, nothing sent to it.
+#[test]
+fn a_mavlink1_autopilot_gets_missions_only() {
+    let fence = MavMissionType::MAV_MISSION_TYPE_FENCE;
+    let mut r = MissionRelay::new(MissionConfig::default());
+    r.set_fc_mavlink1(true);
+    let id = transfer_id(1, plan_hash(fence, &[]));
+    let count = MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+        count: 0,
+        target_system: 1,
+        mission_type: fence,
+        opaque_id: id,
+        ..Default::default()
+    });
+    r.handle_radio(ms(0), ROUTER, &count);
+    assert!(fc_out(&mut r).is_empty());
+    assert!(
+        matches!(&radio_out(&mut r)[..], [MavMessage::MISSION_ACK(a)]
+        if a.mavtype == MavMissionResult::MAV_MISSION_UNSUPPORTED && a.opaque_id == id
+            && a.mission_type == fence)
+    );
+    // a mission goes
+    let items = plan(&[1]);
+    r.handle_radio(ms(10), ROUTER, &count_for(&items, 2));
+    r.handle_radio(
+        ms(10),
+        ROUTER,
+        &MavMessage::MISSION_ITEM_INT(items[0].clone()),
+    );
+    wire_upload(&mut r, 1, ms(20));
+    assert_eq!(r.stats().unsupported, 1);
 }

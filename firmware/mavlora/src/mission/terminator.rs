@@ -2,14 +2,29 @@
 //! locally and streams the plan over the radio.
 //!
 //! Ground leg (standard protocol, answered as the vehicle): a `MISSION_COUNT` from the ground
-//! opens a transfer (always a new one: a second count, even with the same number, starts
-//! from item 0); the router requests every item at once over the local link. With the plan
-//! in, it keeps the ground waiting the standard way: it re-requests the last item every
-//! [`TerminatorConfig::keepalive`] (below any ground station's timeout; PX4 itself re-requests
-//! after 250 ms), which re-sends it and restarts the ground's timer. The ground is told
-//! what the vehicle answered, never anything the router made up: ACCEPTED only for the
-//! bridge's ack naming this transfer (its id carries the plan's CRC, which the bridge
-//! checked). A `MISSION_ACK` with an error from the ground cancels the transfer.
+//! opens a transfer (a count from the same ground again starts it over from item 0, except a
+//! repeat before any item came, which is our lost request; a count from another ground while
+//! one uploads is refused with `MAV_MISSION_DENIED`, as autopilots refuse a second partner);
+//! the router requests every item over the local link. With the plan in, the ground waits for
+//! the vehicle's answer on its own timeouts: the router does not on its own request an item
+//! it already has, since a ground station may count each repeated request against its
+//! retries (MAVSDK does, and then gives up without a word while the vehicle takes the plan;
+//! it sends nothing while it waits). A ground that resends its last item when its timer
+//! fires (the protocol's retry; QGroundControl, pymavlink scripts, SDKs with 0.5 s × 3) has
+//! shown its period: from then on it is asked for that item again at 4/5 of it
+//! ([`KEEPALIVE_SHARE`]), so its timer never fires again while the radio leg works, and it
+//! spent one retry of its own. The ground is told what the vehicle answered, never anything
+//! the router made up: ACCEPTED only for the bridge's ack naming this transfer (its id
+//! carries the plan's CRC, which the bridge checked), and no other `MISSION_ACK` of the
+//! vehicle reaches a ground while it uploads that type (an autopilot's ack to something
+//! else, `opaque_id` 0 as ArduPilot's always are, would read as the upload's answer). A
+//! `MISSION_ACK` with an error from the ground cancels the transfer. Legacy `MISSION_ITEM`
+//! answers are refused with `MAV_MISSION_UNSUPPORTED`: converting float coordinates is
+//! autopilot-specific, and the vehicle must get exactly the plan the ground meant.
+//!
+//! Partial writes (`MISSION_WRITE_PARTIAL_LIST`) and `MISSION_CLEAR_ALL` are the autopilot's
+//! business: they pass through, and so do the items of a partial write and the vehicle's
+//! requests and acks for them (see [`MissionTerminator::from_vehicle`]).
 //!
 //! Radio leg: `MISSION_COUNT{opaque_id = transfer id}` and every item, one behind the other
 //! (no round trip per item), packed several to a frame ([`super::pack`]) unless
@@ -17,12 +32,12 @@
 //! radio; the bridge asks for the lost ones by range. A status poll goes right behind the
 //! stream (and behind each batch of repairs): the radio keeps order, so when the poll arrives
 //! every frame before it has arrived or is lost, and the bridge answers with what it misses,
-//! "busy" or its ack (see [`super::relay`]). The poll is an item frame without items when
-//! packing (the bridge knows it for a poll even if it never saw the transfer), else the count
-//! again. While the bridge stays silent the poll is repeated at a timeout that follows the
-//! round trip measured from polls to their answers (RFC 6298; Karn's rule: only a poll
-//! answered while it was the only one out, by a request that did not cross our latest
-//! frames, is a sample), doubling after [`POLLS_BEFORE_BACKOFF`] unanswered polls (up to
+//! "busy" or its ack (see [`super::relay`]). The poll is an item frame without items, packed
+//! or not (the bridge knows it for a poll even if it never saw the transfer; a count always
+//! starts a transfer there). While the bridge stays silent the poll is repeated at a timeout
+//! that follows the round trip measured from polls to their answers (RFC 6298; Karn's rule:
+//! only a poll answered while it was the only one out, by a request that did not cross our
+//! latest frames, is a sample), doubling after [`POLLS_BEFORE_BACKOFF`] unanswered polls (up to
 //! [`TerminatorConfig::poll_max`]); before any is measured the timeout is the time two of
 //! the largest stream frames take at the paced rate plus [`super::MARGIN`], within
 //! [`TerminatorConfig::poll_min`] and [`TerminatorConfig::poll_initial`]. A request for an
@@ -49,9 +64,6 @@ use crate::wire::encode;
 /// Router-side mission timeouts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TerminatorConfig {
-    /// The last item is requested from the ground again this often while the vehicle has
-    /// not answered: keeps ground stations with 0.5 s timeouts waiting.
-    pub keepalive: Duration,
     /// An item request to the ground (a local link) is repeated after this long...
     pub ground_timeout: Duration,
     /// ...this many times in all before the ground counts as gone.
@@ -85,7 +97,6 @@ pub struct TerminatorConfig {
 impl Default for TerminatorConfig {
     fn default() -> Self {
         Self {
-            keepalive: Duration::from_millis(250),
             ground_timeout: Duration::from_millis(500),
             ground_attempts: 5,
             poll_initial: Duration::from_millis(1500),
@@ -101,6 +112,12 @@ impl Default for TerminatorConfig {
         }
     }
 }
+
+/// A ground that resends its last item on its own timeout is asked for it again at this
+/// share (numerator, denominator) of the period it showed: just before its timer fires again.
+pub const KEEPALIVE_SHARE: (u32, u32) = (4, 5);
+const KEEPALIVE_MIN: Duration = Duration::from_millis(100);
+const KEEPALIVE_MAX: Duration = Duration::from_secs(10);
 
 /// Unanswered polls after which the poll timeout starts doubling: a fade that swallows a
 /// poll or its answer is not congestion, the next poll should follow one round trip later (a
@@ -128,7 +145,13 @@ pub struct TerminatorStats {
     pub polls: u64,
     /// Round trips measured from polls to their answers.
     pub poll_rtt_samples: u64,
-    /// Keep-alive re-requests of the last item sent to the ground.
+    /// Uploads refused: a `MISSION_COUNT` from another ground while one uploads
+    /// (`MAV_MISSION_DENIED`), legacy `MISSION_ITEM` answers (`MAV_MISSION_UNSUPPORTED`).
+    pub refused: u64,
+    /// The vehicle's own `MISSION_ACK`s held back from a ground while it uploads that type
+    /// (only the bridge's ack naming the transfer answers an upload).
+    pub vehicle_acks_held: u64,
+    /// The last item requested again from a ground that resends it on its own timeout.
     pub keepalives: u64,
     /// Acks from the radio for an older transfer, dropped.
     pub stale_acks: u64,
@@ -152,7 +175,6 @@ enum State {
         mission_type: MavMissionType,
         items: Vec<MISSION_ITEM_INT_DATA>,
         id: u32,
-        keepalive_at: Instant,
         /// When the last of our frames left, or the bridge last spoke.
         quiet_since: Instant,
         /// Polls sent since the bridge last spoke.
@@ -165,6 +187,13 @@ enum State {
         heard: Instant,
         /// Whether the first stream has left (polls do not count as news from the bridge).
         streamed: bool,
+        /// When the ground last sent its last item.
+        ground_sent: Instant,
+        /// The ground's own retry period, once it resent its last item unasked: from then
+        /// on it is asked for it again at 4/5 of that period (see [`KEEPALIVE_SHARE`]).
+        keepalive: Option<Duration>,
+        /// When we last asked for the last item again.
+        asked_again: Option<Instant>,
     },
     Done {
         ground: (u8, u8),
@@ -201,8 +230,29 @@ pub struct MissionTerminator {
     min_rtt: Duration,
     /// Round trip to the bridge, measured from polls; kept across transfers.
     rtt: RttEstimator,
+    /// Operations of the ground's that pass through to the autopilot (clear-alls, partial
+    /// writes, downloads), latest last: the vehicle's acks answer these.
+    ops: VecDeque<PassThrough>,
     stats: TerminatorStats,
 }
+
+/// A ground's operation passed through to the autopilot, which answers it.
+#[derive(Debug, Clone, Copy)]
+struct PassThrough {
+    ground: (u8, u8),
+    mission_type: MavMissionType,
+    /// A partial write: the ground's items are the autopilot's.
+    partial: bool,
+    /// Its start or its latest message.
+    at: Instant,
+}
+
+/// An operation with nothing from its ground for this long is over (ArduPilot gives an
+/// upload up after 8 s without an item, PX4 any operation after 5 s).
+const OP_IDLE: Duration = Duration::from_secs(10);
+
+/// Operations remembered at most (a ground has one or two at a time).
+const OPS_KEPT: usize = 8;
 
 impl MissionTerminator {
     /// An idle terminator.
@@ -221,8 +271,18 @@ impl MissionTerminator {
             poll_pending: false,
             min_rtt: Duration::ZERO,
             rtt: RttEstimator::new(config.poll_initial, config.poll_min, config.poll_max),
+            ops: VecDeque::new(),
             stats: TerminatorStats::default(),
         }
+    }
+
+    /// The same terminator numbering its transfers after `generation`. A router started
+    /// again numbers from where its seed says, not from 0: the bridge may still hold the ack
+    /// of a transfer numbered before the restart, and the same plan under the same id would
+    /// read there as that finished transfer (the router seeds it from its signing clock).
+    pub fn with_generation(mut self, generation: u8) -> Self {
+        self.generation = generation;
+        self
     }
 
     /// The round trip to the bridge, as measured from polls.
@@ -258,6 +318,8 @@ impl MissionTerminator {
     /// A message from the ground station `from` (system, component); `autopilot` is the
     /// component that answers for a vehicle addressed as component 0. Returns whether it was
     /// taken (else the caller forwards it).
+    // MISSION_ITEM is deprecated but older ground stations still send it.
+    #[allow(deprecated)]
     pub fn from_ground(
         &mut self,
         now: Instant,
@@ -265,19 +327,107 @@ impl MissionTerminator {
         autopilot: u8,
         msg: &MavMessage,
     ) -> bool {
+        let vehicle = |system: u8, component: u8| {
+            let component = if component == 0 { autopilot } else { component };
+            (system, component)
+        };
         match msg {
             MavMessage::MISSION_COUNT(c) => {
-                let component = if c.target_component == 0 {
-                    autopilot
-                } else {
-                    c.target_component
-                };
-                self.ground_count(now, from, (c.target_system, component), c);
+                let v = vehicle(c.target_system, c.target_component);
+                self.ground_count(now, from, v, c);
                 true
             }
             MavMessage::MISSION_ITEM_INT(item) => self.ground_item(now, from, item),
+            MavMessage::MISSION_ITEM(item) => {
+                self.ground_legacy_item(now, from, item.seq, item.mission_type)
+            }
             MavMessage::MISSION_ACK(a) if a.mavtype != MavMissionResult::MAV_MISSION_ACCEPTED => {
+                self.end_op(from, a.mission_type);
                 self.ground_cancel(from, a.mission_type)
+            }
+            // A download's last word.
+            MavMessage::MISSION_ACK(a) => {
+                self.end_op(from, a.mission_type);
+                false
+            }
+            // The ground moved on from its own upload of that type: the vehicle must not get
+            // it now. The operation itself is the autopilot's.
+            MavMessage::MISSION_CLEAR_ALL(c) => {
+                self.ground_moved_on(from, c.mission_type);
+                self.start_op(now, from, c.mission_type, false);
+                false
+            }
+            MavMessage::MISSION_WRITE_PARTIAL_LIST(w) => {
+                self.ground_moved_on(from, w.mission_type);
+                self.start_op(now, from, w.mission_type, true);
+                false
+            }
+            // Downloads: the autopilot answers them (an error in a `MISSION_ACK`).
+            MavMessage::MISSION_REQUEST_LIST(r) => {
+                self.start_op(now, from, r.mission_type, false);
+                false
+            }
+            MavMessage::MISSION_REQUEST_PARTIAL_LIST(r) => {
+                self.start_op(now, from, r.mission_type, false);
+                false
+            }
+            MavMessage::MISSION_REQUEST_INT(r) => {
+                self.touch_op(now, from, r.mission_type);
+                false
+            }
+            MavMessage::MISSION_REQUEST(r) => {
+                self.touch_op(now, from, r.mission_type);
+                false
+            }
+            _ => false,
+        }
+    }
+
+    /// `ground` started an operation of type `t` the autopilot answers.
+    fn start_op(&mut self, now: Instant, ground: (u8, u8), t: MavMissionType, partial: bool) {
+        self.ops
+            .retain(|o| !(o.ground == ground && o.mission_type == t));
+        if self.ops.len() == OPS_KEPT {
+            self.ops.pop_front();
+        }
+        self.ops.push_back(PassThrough {
+            ground,
+            mission_type: t,
+            partial,
+            at: now,
+        });
+    }
+
+    /// `ground` goes on with its operation of type `t` (a download's next request), or
+    /// starts one (a download whose list request we did not see).
+    fn touch_op(&mut self, now: Instant, ground: (u8, u8), t: MavMissionType) {
+        match self.live_op(now, ground, t) {
+            Some(k) => self.ops[k].at = now,
+            None => self.start_op(now, ground, t, false),
+        }
+    }
+
+    fn end_op(&mut self, ground: (u8, u8), t: MavMissionType) {
+        self.ops
+            .retain(|o| !(o.ground == ground && o.mission_type == t));
+    }
+
+    /// The operation of `ground` of type `t` still going on at `now`.
+    fn live_op(&self, now: Instant, ground: (u8, u8), t: MavMissionType) -> Option<usize> {
+        self.ops.iter().position(|o| {
+            o.ground == ground
+                && o.mission_type == t
+                && now.saturating_duration_since(o.at) < OP_IDLE
+        })
+    }
+
+    /// Whether an item from `ground` of type `t` belongs to a partial write it started
+    /// (recently: an autopilot gives one up after seconds of silence).
+    fn partial_item(&mut self, now: Instant, ground: (u8, u8), t: MavMissionType) -> bool {
+        match self.live_op(now, ground, t) {
+            Some(k) if self.ops[k].partial => {
+                self.ops[k].at = now;
+                true
             }
             _ => false,
         }
@@ -290,28 +440,53 @@ impl MissionTerminator {
         vehicle: (u8, u8),
         c: &MISSION_COUNT_DATA,
     ) {
-        // An empty plan's count repeated while the vehicle has not answered: the same plan
-        // (nothing can be mixed into it), keep the transfer rather than restart it each time.
-        if let State::Relaying {
-            ground: g,
-            mission_type,
-            items,
-            ..
-        } = &self.state
-            && *g == ground
-            && *mission_type == c.mission_type
-            && items.is_empty()
-            && c.count == 0
-        {
-            return;
-        }
-        if matches!(
-            self.state,
-            State::Collecting { .. } | State::Relaying { .. }
-        ) {
+        let busy = match &self.state {
+            State::Collecting {
+                ground: g,
+                mission_type,
+                count,
+                items,
+                ..
+            } => Some((*g, *mission_type, Some((*count, items.is_empty())))),
+            State::Relaying {
+                ground: g,
+                mission_type,
+                items,
+                ..
+            } => Some((*g, *mission_type, (items.is_empty()).then_some((0, true)))),
+            _ => None,
+        };
+        if let Some((g, t, fresh)) = busy {
+            if g != ground {
+                // Another ground station while one uploads: refused, as an autopilot refuses
+                // a second partner; the upload in progress goes on.
+                warn!(
+                    ?ground,
+                    uploading = ?g,
+                    "mission upload refused: another ground station is uploading"
+                );
+                self.stats.refused += 1;
+                let denied = ack(
+                    ground,
+                    MavMissionResult::MAV_MISSION_DENIED,
+                    c.mission_type,
+                    0,
+                );
+                self.to_ground.push_back((vehicle, denied));
+                return;
+            }
+            // The same count again before any item came (or an empty plan's while the
+            // vehicle has not answered): our answer was lost, not a new plan.
+            if t == c.mission_type && fresh == Some((c.count, true)) {
+                if let State::Collecting { .. } = self.state {
+                    self.advance(now);
+                }
+                return;
+            }
             self.stats.restarts += 1;
             self.cancel_radio();
         }
+        self.end_op(ground, c.mission_type);
         info!(count = c.count, mission_type = ?c.mission_type, "mission upload from the ground");
         self.stats.uploads += 1;
         self.state = State::Collecting {
@@ -327,6 +502,11 @@ impl MissionTerminator {
     }
 
     fn ground_item(&mut self, now: Instant, from: (u8, u8), item: &MISSION_ITEM_INT_DATA) -> bool {
+        // An item of a partial write goes to the autopilot, which asked for it (the ground's
+        // own upload of that type, if any, ended when the partial write began).
+        if self.partial_item(now, from, item.mission_type) {
+            return false;
+        }
         match &mut self.state {
             State::Collecting {
                 ground,
@@ -339,18 +519,38 @@ impl MissionTerminator {
                 if item.seq == next {
                     items.push(item.clone());
                     self.advance(now);
-                } else if item.seq + 1 == next {
+                } else if next.checked_sub(1) == Some(item.seq) {
                     // Our request for the next one was lost: ask again now.
                     let again = request(*ground, next, *mission_type);
                     self.to_ground.push_back((*vehicle, again));
                 }
                 true
             }
+            // The ground's own retry of its last item: the vehicle has not answered yet.
             State::Relaying {
                 ground,
                 mission_type,
+                items,
+                ground_sent,
+                keepalive,
+                asked_again,
                 ..
-            } if *ground == from && item.mission_type == *mission_type => true,
+            } if *ground == from && item.mission_type == *mission_type => {
+                if items.len().checked_sub(1) == Some(usize::from(item.seq)) {
+                    // Unasked (not the answer to our request again): the ground's own
+                    // timeout fired, and it retries by resending. That shows its period.
+                    let unasked = asked_again.is_none_or(|at| at < *ground_sent);
+                    if keepalive.is_none() && unasked {
+                        let period = now.saturating_duration_since(*ground_sent);
+                        let ask = (period * KEEPALIVE_SHARE.0 / KEEPALIVE_SHARE.1)
+                            .clamp(KEEPALIVE_MIN, KEEPALIVE_MAX);
+                        debug!(?period, ?ask, "the ground resends on its own timeout");
+                        *keepalive = Some(ask);
+                    }
+                    *ground_sent = now;
+                }
+                true
+            }
             State::Done {
                 ground,
                 vehicle,
@@ -358,32 +558,78 @@ impl MissionTerminator {
                 count,
                 result,
             } if *ground == from && item.mission_type == *mission_type => {
-                if item.seq + 1 == *count {
+                if count.checked_sub(1) == Some(item.seq) {
                     // Our ack was lost: the ground repeats its last item.
                     let again = ack(*ground, *result, *mission_type, 0);
                     self.to_ground.push_back((*vehicle, again));
                 }
                 true
             }
-            // An item nobody asked for from this ground: not the vehicle's business either.
+            // An item nobody asked for is nobody's business.
+            _ => true,
+        }
+    }
+
+    /// A legacy `MISSION_ITEM` (float coordinates) from the ground. In its own upload it is
+    /// refused with `MAV_MISSION_UNSUPPORTED` (how x and y become `MISSION_ITEM_INT`'s
+    /// integers differs between autopilots); in a partial write it is the autopilot's.
+    fn ground_legacy_item(
+        &mut self,
+        now: Instant,
+        from: (u8, u8),
+        seq: u16,
+        t: MavMissionType,
+    ) -> bool {
+        if self.partial_item(now, from, t) {
+            return false;
+        }
+        match &self.state {
+            State::Collecting {
+                ground,
+                vehicle,
+                mission_type,
+                count,
+                ..
+            } if *ground == from && *mission_type == t => {
+                warn!(
+                    seq,
+                    "legacy MISSION_ITEM in a mission upload refused (MISSION_ITEM_INT only)"
+                );
+                self.stats.refused += 1;
+                let (g, v, count) = (*ground, *vehicle, *count);
+                self.to_ground
+                    .push_back((v, ack(g, MavMissionResult::MAV_MISSION_UNSUPPORTED, t, 0)));
+                self.state = State::Done {
+                    ground: g,
+                    vehicle: v,
+                    mission_type: t,
+                    count,
+                    result: MavMissionResult::MAV_MISSION_UNSUPPORTED,
+                };
+                true
+            }
+            State::Done {
+                ground,
+                vehicle,
+                mission_type,
+                result: MavMissionResult::MAV_MISSION_UNSUPPORTED,
+                ..
+            } if *ground == from && *mission_type == t => {
+                let again = ack(*ground, MavMissionResult::MAV_MISSION_UNSUPPORTED, t, 0);
+                self.to_ground.push_back((*vehicle, again));
+                true
+            }
+            State::Relaying {
+                ground,
+                mission_type,
+                ..
+            } if *ground == from && *mission_type == t => true,
             _ => true,
         }
     }
 
     fn ground_cancel(&mut self, from: (u8, u8), mission_type: MavMissionType) -> bool {
-        let ours = match &self.state {
-            State::Collecting {
-                ground,
-                mission_type: t,
-                ..
-            }
-            | State::Relaying {
-                ground,
-                mission_type: t,
-                ..
-            } => *ground == from && *t == mission_type,
-            _ => false,
-        };
+        let ours = self.uploading(from, mission_type);
         if ours {
             info!("the ground cancelled its mission upload");
             self.stats.cancelled += 1;
@@ -391,6 +637,100 @@ impl MissionTerminator {
             self.state = State::Idle;
         }
         ours
+    }
+
+    /// Whether `ground` is uploading a plan of type `t` (collecting or relaying it).
+    fn uploading(&self, ground: (u8, u8), t: MavMissionType) -> bool {
+        match &self.state {
+            State::Collecting {
+                ground: g,
+                mission_type,
+                ..
+            }
+            | State::Relaying {
+                ground: g,
+                mission_type,
+                ..
+            } => *g == ground && *mission_type == t,
+            _ => false,
+        }
+    }
+
+    /// `ground` started another operation on type `t` (or all types): its own upload of that
+    /// type, if any, is over and the vehicle must not get it.
+    fn ground_moved_on(&mut self, ground: (u8, u8), t: MavMissionType) {
+        let current = match &self.state {
+            State::Collecting {
+                ground: g,
+                mission_type,
+                ..
+            }
+            | State::Relaying {
+                ground: g,
+                mission_type,
+                ..
+            } if *g == ground => Some(*mission_type),
+            _ => None,
+        };
+        if let Some(current) = current
+            && (current == t || t == MavMissionType::MAV_MISSION_TYPE_ALL)
+        {
+            info!(
+                ?t,
+                "the ground left its mission upload for another operation"
+            );
+            self.stats.cancelled += 1;
+            self.cancel_radio();
+            self.state = State::Idle;
+        }
+    }
+
+    /// A mission message from the vehicle (its autopilot, not the bridge's radio leg) for
+    /// the ground at `now`: whether to forward it. Requests pass (a partial write's, which
+    /// the ground answers with items for the autopilot). A `MISSION_ACK` passes only as the
+    /// answer to an operation its ground passed through (a clear-all, a partial write, a
+    /// download) and never to a ground uploading that type: only the bridge's ack naming the
+    /// transfer answers an upload, and an autopilot's ack to something else (`opaque_id` 0,
+    /// as ArduPilot's always are) would read as its answer.
+    pub fn from_vehicle(&mut self, now: Instant, msg: &MavMessage) -> bool {
+        let MavMessage::MISSION_ACK(a) = msg else {
+            return true;
+        };
+        let all = MavMissionType::MAV_MISSION_TYPE_ALL;
+        let op = self.ops.iter().position(|o| {
+            a.target_system == o.ground.0
+                && (a.target_component == o.ground.1 || a.target_component == 0)
+                && (a.mission_type == o.mission_type || o.mission_type == all)
+                && now.saturating_duration_since(o.at) < OP_IDLE
+        });
+        let uploading = match &self.state {
+            State::Collecting {
+                ground,
+                mission_type,
+                ..
+            }
+            | State::Relaying {
+                ground,
+                mission_type,
+                ..
+            } => {
+                (a.target_system == ground.0 || a.target_system == 0)
+                    && (a.mission_type == *mission_type || a.mission_type == all)
+            }
+            _ => false,
+        };
+        match op {
+            Some(k) if !uploading => {
+                // The autopilot's answer ends the operation.
+                self.ops.remove(k);
+                true
+            }
+            _ => {
+                debug!(result = ?a.mavtype, "a MISSION_ACK of the vehicle's answering nothing of the ground's, held back");
+                self.stats.vehicle_acks_held += 1;
+                false
+            }
+        }
     }
 
     /// Tells the bridge a transfer in flight is cancelled.
@@ -471,13 +811,15 @@ impl MissionTerminator {
             mission_type,
             items,
             id,
-            keepalive_at: now + self.config.keepalive,
             quiet_since: now,
             polls_unanswered: 0,
             poll_sent: now,
             sent_at: vec![None; count],
             heard: now,
             streamed: false,
+            ground_sent: now,
+            keepalive: None,
+            asked_again: None,
         };
     }
 
@@ -689,11 +1031,10 @@ impl MissionTerminator {
         self.stream.len() + self.in_queue + usize::from(self.poll_pending)
     }
 
-    /// The status poll of the transfer being relayed: an item frame without items when
-    /// packing (the bridge knows it for a poll even if it never saw the count), else the
-    /// count again.
-    // `..Default::default()` on a full literal: the dialect may grow.
-    #[allow(clippy::needless_update)]
+    /// The status poll of the transfer being relayed: an item frame without items, packed or
+    /// not (the bridge knows it for a poll even if it never saw the count). Never the count
+    /// again: a count always starts a transfer at the bridge, which never answers one from
+    /// memory.
     fn poll_message(&self) -> Option<MavMessage> {
         let State::Relaying {
             vehicle,
@@ -705,18 +1046,7 @@ impl MissionTerminator {
         else {
             return None;
         };
-        let count = items.len() as u16;
-        Some(match self.config.pack_bytes {
-            Some(_) if count > 0 => pack::poll(*id, count, *vehicle, *mission_type),
-            _ => MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                count,
-                target_system: vehicle.0,
-                target_component: vehicle.1,
-                mission_type: *mission_type,
-                opaque_id: *id,
-                ..Default::default()
-            }),
-        })
+        Some(pack::poll(*id, items.len() as u16, *vehicle, *mission_type))
     }
 
     /// When something is due.
@@ -732,14 +1062,16 @@ impl MissionTerminator {
         match &self.state {
             State::Collecting { asked_at, .. } => Some(*asked_at + self.config.ground_timeout),
             State::Relaying {
-                keepalive_at,
                 quiet_since,
                 polls_unanswered,
+                ground_sent,
+                keepalive,
                 ..
             } => {
                 let poll =
                     (outstanding == 0).then(|| *quiet_since + self.poll_after(*polls_unanswered));
-                Some(poll.map_or(*keepalive_at, |p| p.min(*keepalive_at)))
+                let ask = keepalive.map(|k| *ground_sent + k);
+                poll.into_iter().chain(ask).min()
             }
             _ => None,
         }
@@ -767,8 +1099,16 @@ impl MissionTerminator {
                 ..
             } if now >= *asked_at + self.config.ground_timeout => {
                 if *asks >= self.config.ground_attempts {
+                    // As an autopilot does when an upload stalls: the ground is told.
                     warn!("the ground stopped sending its items, upload dropped");
                     self.stats.failed += 1;
+                    let cancelled = ack(
+                        *ground,
+                        MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
+                        *mission_type,
+                        0,
+                    );
+                    self.to_ground.push_back((*vehicle, cancelled));
                     self.state = State::Idle;
                     return;
                 }
@@ -783,18 +1123,23 @@ impl MissionTerminator {
                 mission_type,
                 items,
                 id,
-                keepalive_at,
                 quiet_since,
                 heard,
+                ground_sent,
+                keepalive,
+                asked_again,
                 ..
             } => {
-                if now >= *keepalive_at {
-                    *keepalive_at = now + self.config.keepalive;
-                    if let Some(last) = items.len().checked_sub(1) {
-                        self.stats.keepalives += 1;
-                        let again = request(*ground, last as u16, *mission_type);
-                        self.to_ground.push_back((*vehicle, again));
-                    }
+                if let Some(k) = keepalive
+                    && now >= *ground_sent + *k
+                    && let Some(last) = items.len().checked_sub(1)
+                {
+                    self.stats.keepalives += 1;
+                    *asked_again = Some(now);
+                    // Not answered yet: ask again no sooner than one period on.
+                    *ground_sent = now;
+                    let again = request(*ground, last as u16, *mission_type);
+                    self.to_ground.push_back((*vehicle, again));
                 }
                 if outstanding > 0 || now < *quiet_since + poll_after {
                     return;

@@ -4,7 +4,7 @@ use crate::time::Duration;
 use std::collections::{HashMap, VecDeque};
 use std::net::{IpAddr, Ipv4Addr};
 
-use mavlink::{MavHeader, MavlinkVersion};
+use mavlink::{MavHeader, MavlinkVersion, Message};
 
 use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
 use crate::command::ack_tag::untag_ack;
@@ -164,6 +164,18 @@ pub struct Router {
 /// runs) keeps the latest ones only.
 const SENT_NOTICES_KEPT: usize = 32;
 
+/// Where a router's mission transfers start numbering: from its radio signing clock (the
+/// wall clock or the persisted timestamp, in 10 µs units, so it differs from one start to
+/// the next), else from `now`. A restarted router that numbered from 0 again gave the same
+/// plan the same transfer id as before the restart, which the bridge may still hold as
+/// finished and accepted.
+fn first_generation(radio_leg: &RadioLeg, now: Instant) -> u8 {
+    let clock = radio_leg
+        .signing_state(now)
+        .map_or(now.as_micros(), |s| s.timestamp);
+    clock.to_le_bytes().iter().fold(0, |a, b| a ^ b)
+}
+
 /// The source [`Router::handle_gcs_bytes`] stands for: an in-process ground station.
 const IN_PROCESS: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
 
@@ -192,7 +204,8 @@ impl Router {
                 // Pacing counts each frame as long as it is on the radio.
                 frame_extra_bytes: radio_leg.frame_extra() as u32,
                 ..config.mission
-            }),
+            })
+            .with_generation(first_generation(&radio_leg, now)),
             // Never slower than a ground station's own 1.5 s retry: loss on a radio is not
             // congestion, so doubling the timeout past it only adds latency.
             commands: {
@@ -368,7 +381,16 @@ impl Router {
                 }
             } else if matches!(
                 id,
-                ids::MISSION_COUNT | ids::MISSION_ITEM_INT | ids::MISSION_ACK
+                ids::MISSION_COUNT
+                    | ids::MISSION_ITEM_INT
+                    | ids::MISSION_ITEM
+                    | ids::MISSION_ACK
+                    | ids::MISSION_CLEAR_ALL
+                    | ids::MISSION_WRITE_PARTIAL_LIST
+                    | ids::MISSION_REQUEST_LIST
+                    | ids::MISSION_REQUEST_PARTIAL_LIST
+                    | ids::MISSION_REQUEST_INT
+                    | ids::MISSION_REQUEST
             ) && let Ok(msg) = frame.decode::<MavMessage>()
                 && self.mission.from_ground(
                     now,
@@ -446,13 +468,27 @@ impl Router {
                 | ids::MISSION_REQUEST_INT
                 | ids::MISSION_REQUEST_PARTIAL_LIST
                 | ids::MISSION_ACK => {
-                    if let Ok(msg) = frame.decode::<MavMessage>()
-                        && self.mission.from_radio(now, &msg)
-                    {
-                        self.drain_mission(now);
+                    let Ok(msg) = frame.decode::<MavMessage>() else {
+                        // An ack nobody can read answers nothing a ground is waiting on.
+                        if frame.message_id() != ids::MISSION_ACK {
+                            self.push_gcs(now, frame);
+                        }
+                        continue;
+                    };
+                    // The bridge addresses its side of the radio leg to us; the autopilot
+                    // addresses the ground stations (requests of their partial writes, acks
+                    // of their clear-alls: ArduPilot's with `opaque_id` 0, PX4's with one).
+                    let to_us = msg.target_system_id() == Some(self.config.system_id)
+                        && msg.target_component_id() == Some(self.config.component_id);
+                    if to_us {
+                        if self.mission.from_radio(now, &msg) {
+                            self.drain_mission(now);
+                        }
                         continue;
                     }
-                    self.push_gcs(now, frame);
+                    if self.mission.from_vehicle(now, &msg) {
+                        self.push_gcs(now, frame);
+                    }
                 }
                 ids::COMMAND_ACK => {
                     let Ok(MavMessage::COMMAND_ACK(ack)) = frame.decode::<MavMessage>() else {

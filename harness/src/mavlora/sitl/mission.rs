@@ -41,55 +41,6 @@ pub fn same_plan(a: &[PlanItem], b: &[PlanItem], home_first: bool) -> bool {
         })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn item(seq: u16, frame: u8, command: u16, z: f32) -> PlanItem {
-        PlanItem {
-            seq,
-            frame,
-            command,
-            x: -353_632_610 + i32::from(seq),
-            y: 1_491_652_300,
-            z,
-            param1: 0.0,
-            param2: 0.0,
-            param3: 0.0,
-            param4: 0.0,
-            autocontinue: 1,
-        }
-    }
-
-    #[test]
-    fn a_plan_is_compared_as_a_vehicle_stores_it() {
-        let sent = vec![
-            item(0, 0, 16, 584.0),
-            item(1, 6, 22, 20.0),
-            item(2, 2, 20, 0.0),
-        ];
-        // ArduPilot: its own home at 0, the _INT frame as its twin, RTL in frame GLOBAL.
-        let mut held = vec![
-            item(0, 0, 16, 590.0),
-            item(1, 3, 22, 20.004),
-            item(2, 0, 20, 0.0),
-        ];
-        held[0].x += 55;
-        assert!(same_plan(&held, &sent, true));
-        assert!(!same_plan(&held, &sent, false), "PX4 has no home item");
-        let mut moved = held.clone();
-        moved[1].x += 1;
-        assert!(!same_plan(&moved, &sent, true), "a waypoint moved by 1e-7°");
-        let mut higher = held.clone();
-        higher[1].z += 0.5;
-        assert!(!same_plan(&higher, &sent, true));
-        let mut terrain = held.clone();
-        terrain[1].frame = 10;
-        assert!(!same_plan(&terrain, &sent, true), "another altitude frame");
-        assert!(!same_plan(&held[..2], &sent, true), "an item missing");
-    }
-}
-
 fn plan(d: &mut Declarations, t: &Target) -> Script {
     let accepted = d.declare(
         t.spec("mission_accepted", "")
@@ -173,4 +124,53 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
         );
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn item(seq: u16, frame: u8, command: u16, z: f32) -> PlanItem {
+        PlanItem {
+            seq,
+            frame,
+            command,
+            x: -353_632_610 + i32::from(seq),
+            y: 1_491_652_300,
+            z,
+            param1: 0.0,
+            param2: 0.0,
+            param3: 0.0,
+            param4: 0.0,
+            autocontinue: 1,
+        }
+    }
+
+    #[test]
+    fn a_plan_is_compared_as_a_vehicle_stores_it() {
+        let sent = vec![
+            item(0, 0, 16, 584.0),
+            item(1, 6, 22, 20.0),
+            item(2, 2, 20, 0.0),
+        ];
+        // ArduPilot: its own home at 0, the _INT frame as its twin, RTL in frame GLOBAL.
+        let mut held = vec![
+            item(0, 0, 16, 590.0),
+            item(1, 3, 22, 20.004),
+            item(2, 0, 20, 0.0),
+        ];
+        held[0].x += 55;
+        assert!(same_plan(&held, &sent, true));
+        assert!(!same_plan(&held, &sent, false), "PX4 has no home item");
+        let mut moved = held.clone();
+        moved[1].x += 1;
+        assert!(!same_plan(&moved, &sent, true), "a waypoint moved by 1e-7°");
+        let mut higher = held.clone();
+        higher[1].z += 0.5;
+        assert!(!same_plan(&higher, &sent, true));
+        let mut terrain = held.clone();
+        terrain[1].frame = 10;
+        assert!(!same_plan(&terrain, &sent, true), "another altitude frame");
+        assert!(!same_plan(&held[..2], &sent, true), "an item missing");
+    }
 }
