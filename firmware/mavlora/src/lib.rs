@@ -19,14 +19,16 @@
 //!   positions, the status and the bridge's link report packed in one frame a second), with
 //!   their precision.
 //! - [`mission`]: the mission relay with radio round-trip-time timeouts.
+//! - [`param`]: parameter lists packed several values to a frame on the radio
+//!   (`MAVLORA_PARAM_VALUES`, id 13), given back to the ground as the standard `PARAM_VALUE`s.
 //! - [`command`]: the command relay: the router resends commands over the radio on a
 //!   measured round-trip timeout, the bridge answers copies from its ack cache.
 //! - [`signing`]: MAVLink 2 signing of the radio link, replay rejection.
 //! - `io` (feature `cli`): the binaries' serial, UDP and `.tlog` driver — the only code here
 //!   that does IO or reads a clock.
-//! - [`dialect`]: the generated MavLora dialect, `common.xml` plus `MAVLORA_COMPACT` (14,
-//!   compact telemetry), `LINK_QUALITY` (15), `MAVLORA_MISSION_ITEMS` (19, the mission radio
-//!   leg's packed items) and, unused by the engines, `MAVLORA_TELEMETRY` (16),
+//! - [`dialect`]: the generated MavLora dialect, `common.xml` plus `MAVLORA_PARAM_VALUES` (13,
+//!   packed parameter values), `MAVLORA_COMPACT` (14, compact telemetry), `LINK_QUALITY` (15),
+//!   `MAVLORA_MISSION_ITEMS` (19, the mission radio leg's packed items) and, unused by the engines, `MAVLORA_TELEMETRY` (16),
 //!   `MAVLORA_POSITION_BATCH` (17) and `MAVLORA_STATUS` (18).
 //!
 //! # Contract
@@ -46,6 +48,7 @@ pub mod filter;
 #[cfg(feature = "cli")]
 pub mod io;
 pub mod mission;
+pub mod param;
 pub mod quality;
 pub mod router;
 pub mod schedule;

@@ -139,18 +139,20 @@ fn field(status: &HashMap<String, String>, key: &str) -> u64 {
         .unwrap()
 }
 
+/// Value `n` of a long parameter list (its own index: a value of an index still waiting at the
+/// bridge would take that one's place, and the stream would shrink to nothing).
 fn param_value(sender: &mut Sender, n: u32) -> OwnedFrame {
     sender.frame(&MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
         param_value: n as f32,
-        param_count: 1,
-        param_index: 0,
+        param_count: u16::MAX,
+        param_index: (n % u32::from(u16::MAX)) as u16,
         param_id: (*b"MARK\0\0\0\0\0\0\0\0\0\0\0\0").into(),
         param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
     }))
 }
 
-/// Reads `port` until a PARAM_VALUE whose value is at least `min` arrives; `Some(bytes read)`
-/// or `None` once `timeout` passed.
+/// Reads `port` until a parameter value (alone, or packed by the bridge) of at least `min`
+/// arrives; `Some(bytes read)` or `None` once `timeout` passed.
 fn read_until_mark(port: &mut TTYPort, min: u32, timeout: Duration) -> Option<u64> {
     let deadline = Instant::now() + timeout;
     let mut reader = FrameReader::new();
@@ -161,8 +163,10 @@ fn read_until_mark(port: &mut TTYPort, min: u32, timeout: Duration) -> Option<u6
             total += n as u64;
             reader.push(&buf[..n]);
             while let Some(rx) = reader.next_frame() {
-                if let Ok(MavMessage::PARAM_VALUE(p)) = rx.frame.decode::<MavMessage>()
-                    && p.param_value >= min as f32
+                let values = common::param_values(&rx.frame);
+                if values
+                    .iter()
+                    .any(|v| f32::from_le_bytes(v.value) >= min as f32)
                 {
                     return Some(total);
                 }

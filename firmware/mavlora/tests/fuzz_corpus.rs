@@ -10,6 +10,8 @@ mod replay;
 mod engines;
 #[path = "../fuzz/bodies/key.rs"]
 mod key;
+#[path = "../fuzz/bodies/params.rs"]
+mod params;
 #[path = "../fuzz/bodies/profile.rs"]
 mod profile;
 #[path = "../fuzz/bodies/reader.rs"]
@@ -32,6 +34,15 @@ fn key() {
         name: "key",
         body: key::run,
         mutations: 200_000,
+    });
+}
+
+#[test]
+fn params() {
+    check(&Target {
+        name: "params",
+        body: params::run,
+        mutations: 10_000,
     });
 }
 

@@ -16,8 +16,9 @@
 //! Input records `[op, advance, len, bytes...]`: ops below 0xF0 feed the bytes to one of the
 //! four sides (or flush a side's partial frame); ops 0xF0.. are well-formed mission messages
 //! built from the bytes (a ground's count, item, clear-all, partial write, legacy item; the
-//! flight controller's heartbeat, request, ack; an honest autopilot's or ground's next step),
-//! so whole uploads are a few records away from any input.
+//! flight controller's heartbeat, request, ack; an honest autopilot's or ground's next step;
+//! a `PARAM_VALUE` of the flight controller's list, which the bridge packs and the router
+//! expands), so whole uploads and lists are a few records away from any input.
 //!
 //! Inputs of odd length run the bridge with compact telemetry (its frames, made of whatever
 //! the flight controller sent, are expanded by the router), even ones without.
@@ -36,7 +37,7 @@ use mavlora::dialect::{
     HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA, MISSION_COUNT_DATA,
     MISSION_ITEM_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA,
     MISSION_WRITE_PARTIAL_LIST_DATA, MavAutopilot, MavMessage, MavMissionResult, MavMissionType,
-    MavType,
+    MavParamType, MavType, PARAM_VALUE_DATA,
 };
 use mavlora::filter::Profile;
 use mavlora::mission::plan::same_plan;
@@ -443,6 +444,24 @@ fn structured(op: u8, b: &[u8], watch: &MissionWatch) -> Option<(MavMessage, (u8
                 }),
                 GROUND,
             )
+        }
+        // A value of the flight controller's parameter list.
+        11 => {
+            let mut name = [0u8; 16];
+            for (c, &x) in name.iter_mut().zip(b.iter().skip(5)) {
+                *c = x;
+            }
+            return to_fc(MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+                param_value: f32::from_le_bytes([at(2), at(3), at(4), at(1)]),
+                param_count: 900,
+                param_index: u16::from(at(0)),
+                param_id: name.into(),
+                param_type: match at(3) % 3 {
+                    0 => MavParamType::MAV_PARAM_TYPE_REAL32,
+                    1 => MavParamType::MAV_PARAM_TYPE_INT32,
+                    _ => MavParamType::MAV_PARAM_TYPE_UINT8,
+                },
+            }));
         }
         _ => return None,
     })

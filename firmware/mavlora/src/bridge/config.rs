@@ -6,6 +6,7 @@ use crate::command::Redundancy;
 use crate::compact::CompactConfig;
 use crate::filter::Profile;
 use crate::mission::MissionConfig;
+use crate::param::ParamPackConfig;
 use crate::quality::LinkQualityConfig;
 use crate::schedule::SchedulerConfig;
 use crate::signing::SigningConfig;
@@ -46,6 +47,10 @@ pub struct BridgeConfig {
     /// [`AckCache::with_redundancy`](crate::command::AckCache::with_redundancy)); the radio's
     /// timing (default: SiK 64k). `None`: once, and again only for a copy of the command.
     pub command_redundancy: Option<Redundancy>,
+    /// The autopilot's `PARAM_VALUE`s go packed several to a frame (`MAVLORA_PARAM_VALUES`;
+    /// the router must be of the same version); `None`: one `PARAM_VALUE` per frame, as
+    /// before.
+    pub param_pack: Option<ParamPackConfig>,
 }
 
 impl BridgeConfig {
@@ -66,6 +71,7 @@ impl BridgeConfig {
             gcs_heartbeat_period: Duration::from_secs(1),
             gcs_heartbeat_hold: Duration::from_secs(7),
             command_redundancy: Some(Redundancy::SIK_64K),
+            param_pack: Some(ParamPackConfig::for_rate(scheduler.rate_bytes_per_s)),
         }
     }
 }

@@ -12,7 +12,9 @@ mod gcs_heartbeat;
 mod param_answers;
 
 pub use config::BridgeConfig;
-pub use engine::{Bridge, BridgeStats, UNLISTED_IDS_KEPT};
+pub use engine::{
+    Bridge, BridgeStats, PACED_ANSWERS_KEPT, READ_ANSWER_SHARE_DIVISOR, UNLISTED_IDS_KEPT,
+};
 pub use fc_watch::{FcEvent, FcWatch};
 pub use gcs_heartbeat::GcsHeartbeat;
 

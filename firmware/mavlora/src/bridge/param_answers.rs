@@ -25,28 +25,37 @@ enum Key {
     Index(u16),
 }
 
+/// What a `PARAM_VALUE` answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Asked {
+    /// A `PARAM_SET`: its echo.
+    Set,
+    /// A `PARAM_REQUEST_READ`.
+    Read,
+}
+
 /// Questions forwarded to the flight controller, waiting for their `PARAM_VALUE`.
 #[derive(Debug, Default)]
 pub struct ParamAnswers {
-    pending: VecDeque<(Key, Instant)>,
+    pending: VecDeque<(Key, Asked, Instant)>,
 }
 
 impl ParamAnswers {
     /// Notes a question from the radio that is about to reach the flight controller.
     pub fn asked(&mut self, now: Instant, msg: &MavMessage) {
-        let key = match msg {
-            MavMessage::PARAM_SET(s) => Key::Name(*s.param_id),
+        let (key, asked) = match msg {
+            MavMessage::PARAM_SET(s) => (Key::Name(*s.param_id), Asked::Set),
             MavMessage::PARAM_REQUEST_READ(r) => match u16::try_from(r.param_index) {
-                Ok(index) => Key::Index(index),
+                Ok(index) => (Key::Index(index), Asked::Read),
                 // -1: by name.
-                Err(_) => Key::Name(*r.param_id),
+                Err(_) => (Key::Name(*r.param_id), Asked::Read),
             },
             _ => return,
         };
         self.expire(now);
-        self.pending.retain(|(k, _)| *k != key);
+        self.pending.retain(|(k, a, _)| (*k, *a) != (key, asked));
         if self.pending.len() < MAX_PENDING {
-            self.pending.push_back((key, now + HOLD));
+            self.pending.push_back((key, asked, now + HOLD));
         }
     }
 
@@ -55,30 +64,26 @@ impl ParamAnswers {
         !self.pending.is_empty()
     }
 
-    /// Whether `msg`, a `PARAM_VALUE` from the flight controller, answers a question; the
-    /// question is then answered.
-    pub fn answers(&mut self, now: Instant, msg: &MavMessage) -> bool {
+    /// What `msg`, a `PARAM_VALUE` from the flight controller, answers, if it answers a
+    /// question (a set before a read, when it answers both); the question is then answered.
+    pub fn answers(&mut self, now: Instant, msg: &MavMessage) -> Option<Asked> {
         let MavMessage::PARAM_VALUE(v) = msg else {
-            return false;
+            return None;
         };
         self.expire(now);
         let name = Key::Name(*v.param_id);
         let index = Key::Index(v.param_index);
-        match self
+        let matches = |k: &Key| *k == name || *k == index;
+        let at = self
             .pending
             .iter()
-            .position(|(k, _)| *k == name || *k == index)
-        {
-            Some(at) => {
-                self.pending.remove(at);
-                true
-            }
-            None => false,
-        }
+            .position(|(k, a, _)| *a == Asked::Set && matches(k))
+            .or_else(|| self.pending.iter().position(|(k, _, _)| matches(k)))?;
+        self.pending.remove(at).map(|(_, asked, _)| asked)
     }
 
     fn expire(&mut self, now: Instant) {
-        self.pending.retain(|(_, until)| *until > now);
+        self.pending.retain(|(_, _, until)| *until > now);
     }
 }
 
@@ -111,9 +116,16 @@ mod tests {
                 ..Default::default()
             }),
         );
-        assert!(!a.answers(ms(10), &value("RTL_ALT_FINAL", 11)));
-        assert!(a.answers(ms(10), &value("RTL_ALT", 65535)));
-        assert!(!a.answers(ms(20), &value("RTL_ALT", 8)), "answered once");
+        assert_eq!(a.answers(ms(10), &value("RTL_ALT_FINAL", 11)), None);
+        assert_eq!(
+            a.answers(ms(10), &value("RTL_ALT", 65535)),
+            Some(Asked::Set)
+        );
+        assert_eq!(
+            a.answers(ms(20), &value("RTL_ALT", 8)),
+            None,
+            "answered once"
+        );
     }
 
     #[test]
@@ -126,8 +138,8 @@ mod tests {
                 ..Default::default()
             }),
         );
-        assert!(!a.answers(ms(1), &value("X", 811)));
-        assert!(a.answers(ms(1), &value("X", 812)));
+        assert_eq!(a.answers(ms(1), &value("X", 811)), None);
+        assert_eq!(a.answers(ms(1), &value("X", 812)), Some(Asked::Read));
         a.asked(
             ms(0),
             &MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
@@ -135,6 +147,6 @@ mod tests {
                 ..Default::default()
             }),
         );
-        assert!(!a.answers(ms(6_000), &value("Y", 5)), "expired");
+        assert_eq!(a.answers(ms(6_000), &value("Y", 5)), None, "expired");
     }
 }

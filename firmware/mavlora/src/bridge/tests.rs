@@ -242,6 +242,90 @@ fn a_param_set_echo_overtakes_the_parameter_list_in_flight() {
     assert_eq!(b2.stats().param_answers, 0);
 }
 
+/// Issue 21, LoRa SF7 at 10 % bursty loss: a ground reading many values by index (10 in
+/// flight, again every second) had every answer sent ahead of everything else; they wanted
+/// twice the budget and position at the ground fell to 0.03 Hz. Answers to reads go first
+/// within a quarter of the budget, the rest with the list's share; position keeps its rate,
+/// every answer still leaves, and a set's echo still goes first.
+#[test]
+fn many_answers_to_reads_do_not_starve_position_and_a_set_echo_still_goes_first() {
+    use crate::dialect::PARAM_REQUEST_READ_DATA;
+    let mut c = config();
+    c.scheduler = SchedulerConfig::for_radio(250, 600);
+    let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    b.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
+    to_fc(&mut b, ms(0));
+    let value = |name: &str, index: u16, v: f32| {
+        MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+            param_id: name.into(),
+            param_value: v,
+            param_index: index,
+            param_count: 1396,
+            ..Default::default()
+        })
+    };
+    let (mut positions, mut answers, mut echo_at) = (0, 0, None);
+    let mut now = ms(0);
+    let mut index = 0u16;
+    while now < ms(20_000) {
+        // the autopilot's position at 3 Hz
+        if now.as_millis().is_multiple_of(333) {
+            let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+                time_boot_ms: now.as_millis() as u32,
+                ..Default::default()
+            });
+            b.handle_fc_bytes(now, fc.frame(&pos).as_bytes());
+        }
+        // the ground reads 10 values a second, the autopilot answers each
+        if now.as_millis().is_multiple_of(100) {
+            let read = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+                target_system: 1,
+                target_component: 1,
+                param_index: index as i16,
+                ..Default::default()
+            });
+            b.handle_radio_bytes(now, ground.frame(&read).as_bytes());
+            to_fc(&mut b, now);
+            b.handle_fc_bytes(now, fc.frame(&value("READ", index, 1.0)).as_bytes());
+            index += 1;
+        }
+        if now == ms(10_000) {
+            let set = MavMessage::PARAM_SET(PARAM_SET_DATA {
+                target_system: 1,
+                target_component: 1,
+                param_id: "RTL_ALT".into(),
+                param_value: 2500.0,
+                param_type: MavParamType::MAV_PARAM_TYPE_INT32,
+            });
+            b.handle_radio_bytes(now, ground.frame(&set).as_bytes());
+            to_fc(&mut b, now);
+            b.handle_fc_bytes(now, fc.frame(&value("RTL_ALT", 65535, 2500.0)).as_bytes());
+        }
+        for f in to_radio(&mut b, now) {
+            match f.decode::<MavMessage>() {
+                Ok(MavMessage::GLOBAL_POSITION_INT(_)) => positions += 1,
+                Ok(MavMessage::PARAM_VALUE(v)) if v.param_index == 65535 => {
+                    echo_at.get_or_insert(now);
+                }
+                Ok(MavMessage::PARAM_VALUE(_)) => answers += 1,
+                _ => {}
+            }
+        }
+        now += Duration::from_millis(1);
+    }
+    // 20 s at 3 Hz: 60 positions; answers want twice the budget
+    assert!(positions >= 50, "{positions} positions in 20 s");
+    assert!(answers >= 60, "{answers} answers left");
+    let echo = echo_at
+        .expect("echoed")
+        .saturating_duration_since(ms(10_000));
+    assert!(echo <= Duration::from_millis(1000), "echo after {echo:?}");
+    let s = b.stats();
+    assert!(s.param_answers_paced > 0, "{s:?}");
+}
+
 #[test]
 fn radio_traffic_reaches_the_fc_and_link_quality_goes_both_ways() {
     let mut b = Bridge::new(config(), Instant::ZERO).unwrap();

@@ -13,6 +13,7 @@ use crate::compact::Expander;
 use crate::dialect::{MavMessage, RADIO_STATUS_DATA};
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
+use crate::param::{ParamValue, ReadGate, ReadGateStats, pack as param_pack, param_value_frame};
 use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig, Notice};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
@@ -100,6 +101,16 @@ pub struct RouterStats {
     pub compact_undecodable: u64,
     /// Standard messages produced by expansion.
     pub expanded_messages: u64,
+    /// `MAVLORA_PARAM_VALUES` frames given to the ground as their `PARAM_VALUE`s.
+    pub param_frames_expanded: u64,
+    /// `PARAM_VALUE`s they gave.
+    pub param_values_expanded: u64,
+    /// `MAVLORA_PARAM_VALUES` frames refused as malformed (a bridge of another version):
+    /// nothing of them reaches the ground.
+    pub param_frames_undecodable: u64,
+    /// The ground's reads by index: forwarded, and held (the list in flight brings the value,
+    /// or the same read is in flight).
+    pub param_reads: ReadGateStats,
     /// Frames sent to the ground station.
     pub to_gcs_frames: u64,
     /// Bytes sent to the ground station.
@@ -140,6 +151,8 @@ pub struct Router {
     scheduler: LinkScheduler,
     heartbeat_filter: RadioFilter,
     expander: Expander,
+    /// The ground's reads of values a list in flight brings wait here.
+    param_reads: ReadGate,
     mission: MissionTerminator,
     commands: CommandRetransmitter,
     sender: Sender,
@@ -196,6 +209,7 @@ impl Router {
                 .with_frame_extra(radio_leg.frame_extra()),
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
+            param_reads: ReadGate::default(),
             mission: MissionTerminator::new(TerminatorConfig {
                 pace_bytes_per_s: config
                     .mission
@@ -256,6 +270,7 @@ impl Router {
             commands: self.commands.stats(),
             signing: self.radio_leg.stats(),
             compact_undecodable: self.expander.undecodable(),
+            param_reads: self.param_reads.stats(),
             ground_signing: self
                 .ground_signer
                 .as_ref()
@@ -371,8 +386,16 @@ impl Router {
                 self.stats.ground_link_quality_dropped += 1;
                 continue;
             }
-            // Packed mission items exist on the radio leg only (the router's own).
-            if id == ids::MAVLORA_MISSION_ITEMS {
+            // Packed mission items and parameter values exist on the radio leg only (the
+            // router's own, the bridge's).
+            if matches!(id, ids::MAVLORA_MISSION_ITEMS | ids::MAVLORA_PARAM_VALUES) {
+                continue;
+            }
+            // A read of what the list in flight brings, or of a value already asked for, waits.
+            if id == ids::PARAM_REQUEST_READ
+                && let Ok(MavMessage::PARAM_REQUEST_READ(r)) = frame.decode::<MavMessage>()
+                && !self.param_reads.read(now, &r)
+            {
                 continue;
             }
             if id == ids::HEARTBEAT {
@@ -464,6 +487,18 @@ impl Router {
                         self.expand(now, frame.system_id(), frame.component_id(), &msg);
                     }
                 }
+                ids::MAVLORA_PARAM_VALUES => self.expand_params(now, &frame),
+                ids::PARAM_VALUE => {
+                    if let Some(v) = ParamValue::from_payload(frame.payload()) {
+                        self.param_reads.answered(
+                            now,
+                            frame.system_id(),
+                            frame.component_id(),
+                            v.index,
+                        );
+                    }
+                    self.push_gcs(now, frame);
+                }
                 ids::MISSION_REQUEST
                 | ids::MISSION_REQUEST_INT
                 | ids::MISSION_REQUEST_PARTIAL_LIST
@@ -540,6 +575,35 @@ impl Router {
                     &MavMessage::LINK_QUALITY(report),
                 ),
             );
+        }
+    }
+
+    /// A packed parameter frame: its values to the ground as the standard `PARAM_VALUE`s of
+    /// the component that sent them, in that stream's numbering, byte for byte; a malformed
+    /// frame gives nothing and is counted.
+    fn expand_params(&mut self, now: Instant, frame: &OwnedFrame) {
+        let read = match frame.decode::<MavMessage>() {
+            Ok(MavMessage::MAVLORA_PARAM_VALUES(p)) => {
+                param_pack::unpack(&p).map(|v| (p.component, v)).ok()
+            }
+            _ => None,
+        };
+        let Some((component, values)) = read else {
+            self.stats.param_frames_undecodable += 1;
+            let n = self.stats.param_frames_undecodable;
+            if n.is_power_of_two() {
+                tracing::warn!(%now, refused = n, "malformed MAVLORA_PARAM_VALUES refused (a bridge of another version?) (logged at the 1st, 2nd, 4th... one)");
+            }
+            return;
+        };
+        self.stats.param_frames_expanded += 1;
+        let system = frame.system_id();
+        self.param_reads
+            .list_values(now, system, component, &values);
+        for value in &values {
+            self.stats.param_values_expanded += 1;
+            let sequence = self.next_sequence((system, component));
+            self.enqueue_gcs(now, param_value_frame(system, component, sequence, value));
         }
     }
 

@@ -573,3 +573,143 @@ fn link_quality_reaches_the_ground_as_the_vehicle_s_radio_never_as_system_0() {
     assert!(!seen.is_empty(), "the ground gets the router's reports");
     assert!(seen.iter().all(|&ids| ids == (7, 68)), "{seen:?}");
 }
+
+/// Packed parameter values are a new parser of radio bytes: a malformed frame (a bridge of
+/// another version) gives the ground nothing and is counted; a good one gives each value as
+/// the standard `PARAM_VALUE` of the component it names, numbered on in that stream with what
+/// the component sends itself.
+#[test]
+fn packed_parameters_expand_as_the_autopilot_and_malformed_ones_are_refused() {
+    use crate::dialect::{MAVLORA_PARAM_VALUES_DATA, PARAM_VALUE_DATA};
+    use crate::param::{ParamValue, pack};
+    use mavlink::MessageData;
+    let value = |text: &[u8], index: u16| {
+        let mut name = [0u8; 16];
+        name[..text.len()].copy_from_slice(text);
+        ParamValue {
+            value: [0, 0, 0x80, 0x3F],
+            count: 900,
+            index,
+            name,
+            param_type: 9,
+        }
+    };
+    let values = [value(b"BAT1_N_CELLS", 3), value(b"BAT1_R_INTERNAL", 4)];
+    let (n, data) = pack::pack(&values, pack::MAX_DATA);
+    assert_eq!(n, 2);
+    let good = pack::frame(1, &values, &data);
+    let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let mut r = router();
+    let mut bad_frames = Vec::new();
+    for bad in [
+        MAVLORA_PARAM_VALUES_DATA {
+            values: 0,
+            ..good.clone()
+        },
+        MAVLORA_PARAM_VALUES_DATA {
+            values: 3,
+            ..good.clone()
+        },
+        MAVLORA_PARAM_VALUES_DATA {
+            data: [0xFF; pack::MAX_DATA],
+            ..good.clone()
+        },
+    ] {
+        bad_frames.extend_from_slice(
+            bridge
+                .frame(&MavMessage::MAVLORA_PARAM_VALUES(bad))
+                .as_bytes(),
+        );
+    }
+    r.handle_radio_bytes(ms(0), &bad_frames);
+    assert!(
+        gcs_out(&mut r)
+            .iter()
+            .all(|f| f.message_id() != ids::PARAM_VALUE)
+    );
+    assert_eq!(r.stats().param_frames_undecodable, 3);
+
+    let mut radio = bridge
+        .frame(&MavMessage::MAVLORA_PARAM_VALUES(good))
+        .as_bytes()
+        .to_vec();
+    // the autopilot's own answer to a read, raw, after them
+    fc.set_next_sequence(200);
+    radio.extend_from_slice(
+        fc.frame(&MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+            param_id: (*b"BAT1_CAPACITY\0\0\0").into(),
+            param_count: 900,
+            param_index: 2,
+            param_value: 5000.0,
+            param_type: crate::dialect::MavParamType::MAV_PARAM_TYPE_REAL32,
+        }))
+        .as_bytes(),
+    );
+    r.handle_radio_bytes(ms(10), &radio);
+    let out: Vec<_> = gcs_out(&mut r)
+        .into_iter()
+        .filter(|f| f.message_id() == ids::PARAM_VALUE)
+        .collect();
+    assert_eq!(out.len(), 3);
+    for (f, v) in out.iter().zip(&values) {
+        assert_eq!((f.system_id(), f.component_id()), (1, 1));
+        assert_eq!(ParamValue::from_payload(f.payload()), Some(*v));
+        assert!(f.crc_matches(PARAM_VALUE_DATA::EXTRA_CRC));
+    }
+    let seqs: Vec<u8> = out.iter().map(|f| f.sequence()).collect();
+    assert_eq!(seqs, vec![0, 1, 2], "one stream, gap-free");
+    assert!(out[2].crc_matches(PARAM_VALUE_DATA::EXTRA_CRC));
+    let s = r.stats();
+    assert_eq!((s.param_frames_expanded, s.param_values_expanded), (1, 2));
+}
+
+/// A ground station that reads values one by one once its list went quiet for 1 s takes a slow
+/// radio's pause between two packed frames for the list's end: its reads of what the list in
+/// flight brings wait at the router, a read of a value the list lost goes to the radio.
+#[test]
+fn reads_of_what_the_list_in_flight_brings_wait_and_lost_values_are_read() {
+    use crate::dialect::PARAM_REQUEST_READ_DATA;
+    use crate::param::{ParamValue, pack};
+    let value = |index: u16| ParamValue {
+        value: [0; 4],
+        count: 900,
+        index,
+        name: *b"SOME_PARAMETER\0\0",
+        param_type: 9,
+    };
+    let values: Vec<ParamValue> = [0, 1, 2, 5, 6].into_iter().map(value).collect();
+    let (n, data) = pack::pack(&values, pack::MAX_DATA);
+    assert_eq!(n, 5);
+    let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
+    let mut r = router();
+    let f = bridge.frame(&MavMessage::MAVLORA_PARAM_VALUES(pack::frame(
+        1, &values, &data,
+    )));
+    r.handle_radio_bytes(ms(0), f.as_bytes());
+    let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
+    let read = |g: &mut Sender, index: i16| {
+        g.frame(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            target_system: 1,
+            target_component: 1,
+            param_index: index,
+            ..Default::default()
+        }))
+    };
+    for index in [3, 7, 8, 3] {
+        r.handle_gcs_bytes(ms(1200), read(&mut ground, index).as_bytes());
+    }
+    let radio: Vec<u32> = std::iter::from_fn(|| r.poll_radio_transmit(ms(1200), usize::MAX))
+        .map(|f| f.message_id())
+        .collect();
+    assert_eq!(
+        radio
+            .iter()
+            .filter(|&&id| id == ids::PARAM_REQUEST_READ)
+            .count(),
+        1,
+        "only the lost value's read, once: {radio:?}"
+    );
+    let s = r.stats().param_reads;
+    assert_eq!((s.forwarded, s.held_ahead, s.held_repeat), (1, 2, 1));
+}

@@ -8,8 +8,9 @@ pub enum Class {
     /// Commands, acks, mission and parameter requests: sent first, in order, never replaced.
     /// Losing or delaying one stalls a protocol (the paper's mission-upload problem).
     Priority,
-    /// `PARAM_VALUE`: a parameter stream is ~1000 frames at once (a ground station loading
-    /// parameters, an ArduPilot at boot). It gets its own bounded queue and a guaranteed
+    /// `PARAM_VALUE` (and the bridge's `MAVLORA_PARAM_VALUES`, several of them in a frame): a
+    /// parameter stream is ~1000 values at once (a ground station loading parameters, an
+    /// ArduPilot at boot). It gets its own bounded queue and a guaranteed
     /// share of the budget, so it is paced instead of pushing commands out of a full queue
     /// or starving position for minutes.
     Param,
@@ -81,13 +82,14 @@ pub fn replaceable(message_id: u32) -> bool {
 
 impl Class {
     /// Default class of a message id: [`Class::Priority`] for command, mission, parameter
-    /// request and status-text messages, [`Class::Param`] for `PARAM_VALUE`,
+    /// request and status-text messages, [`Class::Param`] for `PARAM_VALUE` and
+    /// `MAVLORA_PARAM_VALUES`,
     /// [`Class::Periodic`] for everything else (the bridge demotes what its profile does not
     /// name to [`Class::Unlisted`]).
     pub fn of(message_id: u32) -> Self {
         if PRIORITY.contains(&message_id) {
             Self::Priority
-        } else if message_id == ids::PARAM_VALUE {
+        } else if matches!(message_id, ids::PARAM_VALUE | ids::MAVLORA_PARAM_VALUES) {
             Self::Param
         } else {
             Self::Periodic
@@ -125,6 +127,7 @@ mod tests {
         assert_eq!(Class::of(ids::COMMAND_LONG), Class::Priority);
         assert_eq!(Class::of(ids::MISSION_ITEM_INT), Class::Priority);
         assert_eq!(Class::of(ids::PARAM_VALUE), Class::Param);
+        assert_eq!(Class::of(ids::MAVLORA_PARAM_VALUES), Class::Param);
         assert!(Class::Param.is_protocol() && !Class::Unlisted.is_protocol());
     }
 }

@@ -115,3 +115,21 @@ impl FcFixture {
         FcFixture { guard, port, out }
     }
 }
+
+/// The parameter values a frame on the bridge's radio carries: a `PARAM_VALUE`'s one, or the
+/// values of the bridge's packed `MAVLORA_PARAM_VALUES`; none for anything else.
+pub fn param_values(frame: &mavlora::wire::OwnedFrame) -> Vec<mavlora::param::ParamValue> {
+    use mavlora::wire::ids;
+    match frame.message_id() {
+        ids::PARAM_VALUE => mavlora::param::ParamValue::from_payload(frame.payload())
+            .into_iter()
+            .collect(),
+        ids::MAVLORA_PARAM_VALUES => match frame.decode::<mavlora::dialect::MavMessage>() {
+            Ok(mavlora::dialect::MavMessage::MAVLORA_PARAM_VALUES(p)) => {
+                mavlora::param::pack::unpack(&p).unwrap_or_default()
+            }
+            _ => Vec::new(),
+        },
+        _ => Vec::new(),
+    }
+}
