@@ -13,7 +13,9 @@ use mavlora::dialect::{
     MISSION_COUNT_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA, MISSION_REQUEST_LIST_DATA,
     MavAutopilot, MavCmd, MavFrame, MavMessage, MavMissionResult, MavMissionType, MavType,
 };
-use mavlora::wire::{FrameReader, OwnedFrame, Sender};
+use mavlora::wire::{FrameReader, OwnedFrame, Sender, ids};
+
+use crate::gcs_params::{GcsParams, ParamDownload, ParamSet};
 
 /// A mission download in progress.
 #[derive(Debug)]
@@ -133,6 +135,7 @@ pub struct GcsMock {
     /// with a new (`custom_mode`, armed) arrived.
     pub modes: Vec<(Instant, u32, bool)>,
     commands: Option<Commands>,
+    params: GcsParams,
 }
 
 impl GcsMock {
@@ -156,7 +159,40 @@ impl GcsMock {
             positions: Vec::new(),
             modes: Vec::new(),
             commands: None,
+            params: GcsParams::default(),
         }
+    }
+
+    /// Starts downloading the vehicle's parameters at `now`, as QGroundControl does (see
+    /// [`crate::gcs_params`]).
+    pub fn download_params(&mut self, now: Instant) {
+        for msg in self.params.start(now) {
+            self.send(&msg);
+        }
+    }
+
+    /// Sends a `PARAM_SET` of `name` to `value` (its payload bytes: PX4's integers byte-wise)
+    /// at `now`; sent again after 1 s until its echo comes, 5 sends at most.
+    pub fn set_param(
+        &mut self,
+        now: Instant,
+        name: &str,
+        value: [u8; 4],
+        param_type: mavlora::dialect::MavParamType,
+    ) {
+        for msg in self.params.set(now, name, value, param_type) {
+            self.send(&msg);
+        }
+    }
+
+    /// The parameter download, once started.
+    pub fn param_download(&self) -> Option<&ParamDownload> {
+        self.params.download.as_ref()
+    }
+
+    /// Every `PARAM_SET` sent, with its echo.
+    pub fn param_sets(&self) -> &[ParamSet] {
+        &self.params.sets
     }
 
     /// The same ground station with the mission protocol's per-step `timeout` and `retries`
@@ -451,6 +487,10 @@ impl GcsMock {
         self.reader.push(bytes);
         while let Some(rx) = self.reader.next_frame() {
             *self.received.entry(rx.frame.message_id()).or_default() += 1;
+            if rx.frame.message_id() == ids::PARAM_VALUE {
+                let from = (rx.frame.system_id(), rx.frame.component_id());
+                self.params.value(now, from, rx.frame.payload());
+            }
             let Ok(msg) = rx.frame.decode::<MavMessage>() else {
                 continue;
             };
@@ -523,6 +563,7 @@ impl GcsMock {
             .or(self.download.as_ref().map(|d| d.at))
             .map(|at| at + self.timeout);
         let t = retry.map_or(self.next_heartbeat, |r| r.min(self.next_heartbeat));
+        let t = self.params.poll_timeout().map_or(t, |p| p.min(t));
         Some(self.commands_timeout().map_or(t, |c| c.min(t)))
     }
 
@@ -538,6 +579,9 @@ impl GcsMock {
             }));
         }
         self.commands_tick(now);
+        for msg in self.params.handle_timeout(now) {
+            self.send(&msg);
+        }
         if let Some(d) = &mut self.download
             && now >= d.at + self.timeout
         {

@@ -19,14 +19,14 @@ use mavlink::MavlinkVersion;
 use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
     MISSION_CURRENT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag,
-    MavParamType, MavResult, MavState, MavSysStatusSensorExtended, MavType, PARAM_VALUE_DATA,
-    SYS_STATUS_DATA, VFR_HUD_DATA,
+    MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 use mavlora::{Duration, Instant};
 
 use super::Autopilot;
 use super::kinematics::{Flight, Kinematics};
+use super::params::{ParamServer, ParamTable, SetEcho, param_value_frame};
 use crate::rng::SplitMix64;
 
 /// `MAV_DATA_STREAM` groups ArduPilot streams by (ids as in common.xml).
@@ -118,6 +118,10 @@ pub const ARDUPILOT_STREAMS: &[ApStream] = &[
     st(Group::Extra3, 147, 36, 154),        // BATTERY_STATUS
 ];
 
+/// `PARAM_VALUE`s a second ArduCopter 4.6.3 SITL streams its list at on a 57600-baud serial
+/// port (`data/ardupilot-copter-4.6.3.tsv`: 1,396 in 5.2 s).
+pub const ARDUPILOT_PARAM_RATE: f64 = 270.0;
+
 /// How the simulated ArduPilot behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArduPilotConfig {
@@ -128,7 +132,8 @@ pub struct ArduPilotConfig {
     /// Whether `REQUEST_DATA_STREAM` changes the rates (false: it is ignored, as by an
     /// autopilot whose `SRx_*` parameters are fixed, or that a second GCS keeps resetting).
     pub obey_stream_requests: bool,
-    /// Parameters it holds (ArduCopter has ~1000).
+    /// Parameters it holds (ArduCopter has ~1000): made-up ones, `SIM_PARAM_0000`...; a real
+    /// list instead with [`ArduPilotFc::with_params`].
     pub params: u16,
     /// Whether it streams all parameters right after boot, unasked (the burst a ground
     /// station's parameter load causes, at the start of a recorded flight).
@@ -178,8 +183,8 @@ pub struct ArduPilotFc {
     reader: FrameReader,
     groups: Vec<GroupState>,
     next_heartbeat: Instant,
-    /// Next parameter index to send and when, while a parameter stream runs.
-    param_stream: Option<(u16, Instant)>,
+    /// Its parameters and their protocol.
+    params: ParamServer,
     out: VecDeque<OwnedFrame>,
     rng: SplitMix64,
     booted: Instant,
@@ -204,7 +209,17 @@ impl ArduPilotFc {
                 })
                 .collect(),
             next_heartbeat: now,
-            param_stream: (config.params_at_boot && config.params > 0).then_some((0, now)),
+            params: {
+                let mut p = ParamServer::new(
+                    ParamTable::synthetic(config.params),
+                    config.param_hz,
+                    SetEcho::NoIndex,
+                );
+                if config.params_at_boot {
+                    p.start_list(now);
+                }
+                p
+            },
             out: VecDeque::new(),
             rng: SplitMix64::new(seed),
             booted: now,
@@ -212,6 +227,24 @@ impl ArduPilotFc {
             stats: ArduPilotStats::default(),
             config,
         }
+    }
+
+    /// The same autopilot holding `table` (e.g. [`ParamTable::arducopter`]) instead of
+    /// made-up parameters, streaming it at `rate` values a second (ArduCopter 4.6 SITL on a
+    /// 57600-baud serial port: [`ARDUPILOT_PARAM_RATE`]; at boot too if its configuration
+    /// says so).
+    pub fn with_params(mut self, table: ParamTable, rate: f64) -> Self {
+        let streaming = self.params.streaming();
+        self.params = ParamServer::new(table, rate, SetEcho::NoIndex);
+        if streaming {
+            self.params.start_list(self.booted);
+        }
+        self
+    }
+
+    /// Its parameters now.
+    pub fn params(&self) -> &ParamTable {
+        self.params.table()
     }
 
     /// The same autopilot flying `flight` from its boot.
@@ -235,7 +268,7 @@ impl ArduPilotFc {
 
     /// Whether a parameter stream is running.
     pub fn streaming_params(&self) -> bool {
-        self.param_stream.is_some()
+        self.params.streaming()
     }
 
     /// Position and velocity at `now`.
@@ -279,29 +312,15 @@ impl ArduPilotFc {
                     ..Default::default()
                 }));
             }
-            MavMessage::PARAM_REQUEST_LIST(r) if r.target_system == 1 => {
-                if self.config.params > 0 {
-                    self.param_stream = Some((0, now));
-                }
-            }
-            MavMessage::PARAM_REQUEST_READ(r) if r.target_system == 1 => {
-                if let Ok(index) = u16::try_from(r.param_index)
-                    && index < self.config.params
-                {
-                    self.send_param(index);
-                }
-            }
-            MavMessage::PARAM_SET(p) if p.target_system == 1 => {
-                // echoed as the new value (ArduPilot's answer to a set)
-                let name = p.param_id;
-                let index = param_index(name.into()).unwrap_or(0);
-                self.send(&MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
-                    param_value: p.param_value,
-                    param_count: self.config.params,
-                    param_index: index,
-                    param_id: name,
-                    param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
-                }));
+            MavMessage::PARAM_REQUEST_LIST(_)
+            | MavMessage::PARAM_REQUEST_READ(_)
+            | MavMessage::PARAM_SET(_) => {
+                let (sender, version) = (&mut self.sender, self.config.version);
+                let frames = self.params.handle(now, 1, &msg, |p| {
+                    param_value_frame(version, 1, 1, sender.take_sequence(), p)
+                });
+                self.stats.params_sent += frames.len() as u64;
+                self.out.extend(frames);
             }
             _ => {
                 let _ = from;
@@ -312,17 +331,6 @@ impl ArduPilotFc {
     fn send(&mut self, msg: &MavMessage) {
         let frame = self.sender.frame(msg);
         self.out.push_back(frame);
-    }
-
-    fn send_param(&mut self, index: u16) {
-        self.stats.params_sent += 1;
-        self.send(&MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
-            param_value: f32::from(index) * 0.5,
-            param_count: self.config.params,
-            param_index: index,
-            param_id: param_name(index).into(),
-            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
-        }));
     }
 
     fn group_due(&mut self, i: usize, now: Instant) {
@@ -410,18 +418,6 @@ impl ArduPilotFc {
     }
 }
 
-fn param_name(index: u16) -> [u8; 16] {
-    let mut id = [0u8; 16];
-    let name = format!("SIM_PARAM_{index:04}");
-    id[..name.len()].copy_from_slice(name.as_bytes());
-    id
-}
-
-fn param_index(name: [u8; 16]) -> Option<u16> {
-    let text = std::str::from_utf8(&name).ok()?.trim_end_matches('\0');
-    text.strip_prefix("SIM_PARAM_")?.parse().ok()
-}
-
 impl Autopilot for ArduPilotFc {
     fn handle_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.reader.push(bytes);
@@ -455,16 +451,12 @@ impl Autopilot for ArduPilotFc {
             self.groups[i].next = (g.next + interval).max(now);
             self.group_due(i, now);
         }
-        while let Some((index, due)) = self.param_stream
-            && now >= due
-        {
-            self.send_param(index);
-            let next = index + 1;
-            self.param_stream = (next < self.config.params).then(|| {
-                let gap = Duration::from_secs_f64(1.0 / self.config.param_hz);
-                (next, due + gap)
-            });
-        }
+        let (sender, version) = (&mut self.sender, self.config.version);
+        let frames = self.params.handle_timeout(now, |p| {
+            param_value_frame(version, 1, 1, sender.take_sequence(), p)
+        });
+        self.stats.params_sent += frames.len() as u64;
+        self.out.extend(frames);
     }
 
     fn poll_timeout(&self) -> Option<Instant> {
@@ -474,7 +466,7 @@ impl Autopilot for ArduPilotFc {
         let groups = self.groups.iter().filter(|g| g.hz > 0.0).map(|g| g.next);
         groups
             .chain(
-                [Some(self.next_heartbeat), self.param_stream.map(|p| p.1)]
+                [Some(self.next_heartbeat), self.params.poll_timeout()]
                     .into_iter()
                     .flatten(),
             )

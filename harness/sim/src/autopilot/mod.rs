@@ -6,14 +6,17 @@
 mod ardupilot;
 mod kinematics;
 mod mission;
+mod params;
 mod px4;
 
 pub use ardupilot::{
-    ARDUPILOT_STREAMS, ApStream, ArduPilotConfig, ArduPilotFc, ArduPilotStats, Group,
+    ARDUPILOT_PARAM_RATE, ARDUPILOT_STREAMS, ApStream, ArduPilotConfig, ArduPilotFc,
+    ArduPilotStats, Group,
 };
 pub use kinematics::{Flight, Kinematics, Route};
 pub use mission::{MissionStore, MissionStoreStats};
-pub use px4::{Executed, PX4_CONFIG, PX4_NORMAL, Px4Fc, Px4Stats, StreamSpec};
+pub use params::{ParamEntry, ParamServer, ParamTable, SetEcho, param_value_frame};
+pub use px4::{Executed, PX4_CONFIG, PX4_NORMAL, PX4_PARAM_RATE, Px4Fc, Px4Stats, StreamSpec};
 
 use mavlora::Instant;
 use mavlora::dialect::{MISSION_ITEM_INT_DATA, MavMissionType};

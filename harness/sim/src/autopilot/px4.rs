@@ -9,6 +9,7 @@ use mavlink::MavlinkVersion;
 
 use super::kinematics::{Flight, Kinematics};
 use super::mission::MissionStore;
+use super::params::{ParamServer, ParamTable, SetEcho, param_value_frame};
 use crate::rng::SplitMix64;
 use mavlora::Instant;
 use mavlora::dialect::{
@@ -136,7 +137,13 @@ pub struct Px4Fc {
     mode: (u32, bool),
     /// Each change of mode as its HEARTBEATs showed it: when the first with it went out.
     modes_sent: Vec<(Instant, u32, bool)>,
+    /// Its parameters (none unless [`with_params`](Px4Fc::with_params)).
+    params: ParamServer,
 }
+
+/// `PARAM_VALUE`s a second PX4 1.16 SITL streams its list at on a 57600-baud serial port
+/// (`data/px4-1.16.0-sih.tsv`: 904 in 6.0 s).
+pub const PX4_PARAM_RATE: f64 = 150.0;
 
 /// A command the simulated PX4 executed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -177,7 +184,21 @@ impl Px4Fc {
             // AUTO.MISSION, armed
             mode: (0x0404_0000, true),
             modes_sent: Vec::new(),
+            params: ParamServer::new(ParamTable::synthetic(0), PX4_PARAM_RATE, SetEcho::Index),
         }
+    }
+
+    /// The same flight controller holding `table` (e.g. [`ParamTable::px4`]), streaming it
+    /// at `rate` values a second on `PARAM_REQUEST_LIST` (PX4: [`PX4_PARAM_RATE`]) and
+    /// echoing a set with the parameter's index, as PX4 does.
+    pub fn with_params(mut self, table: ParamTable, rate: f64) -> Self {
+        self.params = ParamServer::new(table, rate, SetEcho::Index);
+        self
+    }
+
+    /// Its parameters now.
+    pub fn params(&self) -> &ParamTable {
+        self.params.table()
     }
 
     /// Changes the mode its HEARTBEATs report from now on (as a pilot's switch or a failsafe
@@ -325,6 +346,15 @@ impl Px4Fc {
                     self.send(&reply);
                 }
             }
+            MavMessage::PARAM_REQUEST_LIST(_)
+            | MavMessage::PARAM_REQUEST_READ(_)
+            | MavMessage::PARAM_SET(_) => {
+                let sender = &mut self.sender;
+                let frames = self.params.handle(now, 1, &msg, |p| {
+                    param_value_frame(MavlinkVersion::V2, 1, 1, sender.take_sequence(), p)
+                });
+                self.out.extend(frames);
+            }
             _ => {}
         }
     }
@@ -341,7 +371,10 @@ impl Px4Fc {
             return Some(Instant::ZERO);
         }
         let streams = self.streams.iter().filter(|s| s.hz > 0.0).map(|s| s.next);
-        streams.chain(self.missions.poll_timeout()).min()
+        streams
+            .chain(self.missions.poll_timeout())
+            .chain(self.params.poll_timeout())
+            .min()
     }
 
     /// Emits what is due at `now`.
@@ -361,6 +394,11 @@ impl Px4Fc {
         while let Some(msg) = self.missions.poll_message() {
             self.send(&msg);
         }
+        let sender = &mut self.sender;
+        let frames = self.params.handle_timeout(now, |p| {
+            param_value_frame(MavlinkVersion::V2, 1, 1, sender.take_sequence(), p)
+        });
+        self.out.extend(frames);
     }
 
     /// The next frame the flight controller writes.
