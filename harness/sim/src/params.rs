@@ -16,6 +16,7 @@ use harness_radio::Direction;
 use mavlora::bridge::BridgeConfig;
 use mavlora::dialect::MavParamType;
 use mavlora::filter::Profile;
+use mavlora::param::ReadGateStats;
 use mavlora::quality::LinkQualityConfig;
 use mavlora::router::RouterConfig;
 use mavlora::signing::{SigningConfig, SigningKey};
@@ -133,9 +134,10 @@ pub struct ParamsFigures {
     pub radio_dropped_bytes: u64,
     /// Packed frames the bridge made.
     pub packed_frames: u64,
-    /// The ground's reads by index the router held: because the list in flight brought their
-    /// value, and because the same read was in flight.
-    pub reads_held: (u64, u64),
+    /// What the router did with the ground's reads by index (forwarded, held because the
+    /// list in flight brings the value, because the same read was in flight, because the
+    /// value had just been given to the ground).
+    pub reads: ReadGateStats,
 }
 
 impl ParamsRun {
@@ -263,7 +265,7 @@ impl ParamsRun {
                 .map_or(0, |s| s.bytes_dropped)
                 - dropped_before,
             packed_frames,
-            reads_held: (reads.held_ahead, reads.held_repeat),
+            reads,
         }
     }
 }

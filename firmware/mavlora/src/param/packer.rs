@@ -123,11 +123,13 @@ impl ParamPacker {
         self.backlog.len()
     }
 
-    /// Takes `value` from (`system`, `component`) at `now`, if it can be packed
-    /// ([`ParamValue::packable`]); whether it was taken (a full backlog takes it and drops it,
-    /// counted). A value of an index already waiting takes its place.
+    /// Takes `value` from (`system`, `component`) at `now`, if it is a list's (its index
+    /// below its count: ArduPilot tells of a parameter that changed by itself with index
+    /// 65535, and that is no place in a list) and can be packed ([`ParamValue::packable`]);
+    /// whether it was taken (a full backlog takes it and drops it, counted). A value of an
+    /// index already waiting takes its place.
     pub fn push(&mut self, now: Instant, system: u8, component: u8, value: ParamValue) -> bool {
-        if !value.packable() {
+        if !value.packable() || value.index >= value.count {
             return false;
         }
         self.stats.values += 1;
@@ -353,6 +355,23 @@ mod tests {
         // and once sent, the same index is taken again
         p.push(ms(600), 1, 1, value("P4", 4));
         assert_eq!(p.waiting(), 1);
+    }
+
+    /// Real ArduCopter tells of its calibrations at boot with index 65535 while a list streams:
+    /// packed, such a value cut the list's frames short and, at the router, made the list
+    /// look complete (its progress 65535), so every read by index went to the radio.
+    #[test]
+    fn a_value_told_with_index_65535_is_no_part_of_the_list() {
+        let mut p = ParamPacker::new(ParamPackConfig::for_rate(3000));
+        assert!(p.push(ms(0), 1, 1, value("A", 0)));
+        let told = ParamValue {
+            index: u16::MAX,
+            ..value("INS_GYROFFS_X", 0)
+        };
+        assert!(!p.push(ms(0), 1, 1, told), "goes as it came");
+        assert!(p.push(ms(0), 1, 1, value("B", 1)));
+        let (_, f) = p.poll(ms(100)).expect("due");
+        assert_eq!(f.values, 2);
     }
 
     #[test]

@@ -11,6 +11,9 @@
 //! drops a ground's retries of a command in flight:
 //! - a read of an index above the highest the list has brought, while the list is in flight
 //!   (a packed frame of that component came within [`LIST_QUIET`]): the list brings it;
+//! - a read of a value it gave the ground less than [`DELIVERED_GRACE`] ago: the ground asked
+//!   before it had read it (its reads and the router's values cross on the local link; with
+//!   the real ArduCopter on LoRa SF7 a third of the answers were such copies);
 //! - a read of an index it forwarded less than a retransmission timeout ago (RFC 6298, from
 //!   the round trips of reads to their answers, [`REPEAT_HOLD_MIN`]..=[`REPEAT_HOLD_MAX`]),
 //!   whose answer has not come: on SiK the answer comes in ~0.3 s and every repeat of the
@@ -27,14 +30,23 @@ use crate::dialect::PARAM_REQUEST_READ_DATA;
 use crate::mission::RttEstimator;
 use crate::time::{Duration, Instant};
 
-/// A list counts as in flight while its packed frames come at most this far apart (LoRa SF7:
-/// one about every 0.7 s).
-pub const LIST_QUIET: Duration = Duration::from_secs(3);
+/// A list counts as in flight while its packed frames come at most this far apart: on LoRa SF7
+/// one comes about every 0.7 s, but a fade, or what goes ahead of parameters (real
+/// ArduCopter's boot messages, `STATUSTEXT`s that go first, held a list back for 20 s), pauses
+/// it for seconds; reads let through then fetch, one by one at 50 bytes, what the list brings
+/// at ~11. Only reads of what the list has not reached wait: a value it lost is read at once.
+pub const LIST_QUIET: Duration = Duration::from_secs(10);
 
 /// A read forwarded is not forwarded again for at least this long unless its answer came...
 pub const REPEAT_HOLD_MIN: Duration = Duration::from_millis(500);
 /// ...and at most this long (before a round trip is measured: 1.5 s).
 pub const REPEAT_HOLD_MAX: Duration = Duration::from_secs(3);
+
+/// A value given to the ground this recently is on its way to it: a read of it crossed it.
+pub const DELIVERED_GRACE: Duration = Duration::from_secs(1);
+
+/// Values remembered as given to the ground (a LoRa frame holds ~10).
+const MAX_DELIVERED: usize = 512;
 
 /// Lists followed at once (one per component of a vehicle that sends one).
 const MAX_LISTS: usize = 16;
@@ -59,6 +71,8 @@ pub struct ReadGateStats {
     pub held_ahead: u64,
     /// Reads held because the same read is in flight.
     pub held_repeat: u64,
+    /// Reads held because the router gave the ground that value a moment before.
+    pub held_delivered: u64,
 }
 
 /// A read forwarded and not answered yet.
@@ -80,6 +94,8 @@ pub struct ReadGate {
     reads: VecDeque<Read>,
     /// Indices read recently, to tell a repeat (Karn's rule).
     recent: VecDeque<(u8, u8, u16, Instant)>,
+    /// Values given to the ground lately: (system, component, index, when).
+    delivered: VecDeque<(u8, u8, u16, Instant)>,
     rtt: RttEstimator,
     stats: ReadGateStats,
 }
@@ -90,6 +106,7 @@ impl Default for ReadGate {
             lists: VecDeque::new(),
             reads: VecDeque::new(),
             recent: VecDeque::new(),
+            delivered: VecDeque::new(),
             rtt: RttEstimator::new(
                 Duration::from_millis(1500),
                 REPEAT_HOLD_MIN,
@@ -111,13 +128,17 @@ impl ReadGate {
     }
 
     /// A packed frame of a list from (`system`, `component`) with `values` came at `now`.
+    /// Values without a place in the list (an index at or above the count: ArduPilot's 65535
+    /// for a parameter that changed by itself) do not move its progress.
     pub fn list_values(&mut self, now: Instant, system: u8, component: u8, values: &[ParamValue]) {
-        let (Some(first), Some(last)) = (values.first(), values.last()) else {
-            return;
-        };
         for v in values {
             self.answered(now, system, component, v.index);
         }
+        let mut listed = values.iter().filter(|v| v.index < v.count);
+        let Some(first) = listed.next() else {
+            return;
+        };
+        let last = listed.next_back().unwrap_or(first);
         let at = self
             .lists
             .iter()
@@ -157,6 +178,10 @@ impl ReadGate {
     /// The value of `index` from (`system`, `component`) came at `now` (an answer, or the
     /// list's).
     pub fn answered(&mut self, now: Instant, system: u8, component: u8, index: u16) {
+        if self.delivered.len() == MAX_DELIVERED {
+            self.delivered.pop_front();
+        }
+        self.delivered.push_back((system, component, index, now));
         let Some(at) = self.reads.iter().position(|r| {
             r.index == index && r.system == system && (r.component == component || r.component == 0)
         }) else {
@@ -176,6 +201,16 @@ impl ReadGate {
             return true;
         };
         let target = (r.target_system, r.target_component);
+        self.delivered
+            .retain(|&(_, _, _, at)| now < at + DELIVERED_GRACE);
+        if self
+            .delivered
+            .iter()
+            .any(|&(s, c, i, _)| i == index && targets(s, c, target))
+        {
+            self.stats.held_delivered += 1;
+            return false;
+        }
         let ahead = self.lists.iter().any(|l| {
             targets(l.system, l.component, target)
                 && now < l.last + LIST_QUIET
@@ -260,15 +295,39 @@ mod tests {
         // by name: always
         assert!(g.read(ms(1600), &read(-1)));
         // the list went quiet: 7 is read
-        assert!(g.read(ms(3500), &read(7)));
+        assert!(!g.read(ms(10_000), &read(7)));
+        assert!(g.read(ms(10_500), &read(7)));
         assert_eq!(
             g.stats(),
             ReadGateStats {
                 forwarded: 4,
-                held_ahead: 1,
-                held_repeat: 0
+                held_ahead: 2,
+                held_repeat: 0,
+                held_delivered: 0,
             }
         );
+    }
+
+    #[test]
+    fn a_read_crossing_the_value_it_asks_for_is_not_sent() {
+        let mut g = ReadGate::default();
+        g.list_values(ms(0), 1, 1, &[value(0), value(1), value(2)]);
+        // the ground asked for 2 before it read it
+        assert!(!g.read(ms(50), &read(2)));
+        assert_eq!(g.stats().held_delivered, 1);
+        // a second later it would not have: it lost it
+        assert!(g.read(ms(1100), &read(2)));
+    }
+
+    #[test]
+    fn a_value_without_a_place_in_the_list_does_not_move_its_progress() {
+        let mut g = ReadGate::default();
+        let told = ParamValue {
+            index: u16::MAX,
+            ..value(0)
+        };
+        g.list_values(ms(0), 1, 1, &[value(0), value(1), told]);
+        assert!(!g.read(ms(500), &read(2)), "the list brings it");
     }
 
     #[test]
@@ -283,8 +342,9 @@ mod tests {
         assert!(!g.read(ms(1000), &read(9)), "a repeat while in flight");
         assert!(g.read(ms(1500), &read(9)), "its answer was lost");
         g.answered(ms(1600), 1, 1, 9);
-        assert!(g.read(ms(1700), &read(9)), "asked again after the answer");
-        assert_eq!(g.stats().held_repeat, 1);
+        assert!(!g.read(ms(1700), &read(9)), "crossed its answer");
+        assert!(g.read(ms(2700), &read(9)), "asked again after the answer");
+        assert_eq!((g.stats().held_repeat, g.stats().held_delivered), (1, 1));
     }
 
     #[test]

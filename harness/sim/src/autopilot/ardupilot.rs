@@ -122,6 +122,20 @@ pub const ARDUPILOT_STREAMS: &[ApStream] = &[
 /// port (`data/ardupilot-copter-4.6.3.tsv`: 1,396 in 5.2 s).
 pub const ARDUPILOT_PARAM_RATE: f64 = 270.0;
 
+/// Parameters ArduCopter 4.6.3 SITL told of unasked after boot, with index 65535 (its
+/// calibrations at boot: `router.tlog` of the rig's `sitl` suite).
+pub const BOOT_NOTIFIED: &[&str] = &[
+    "INS_ACC2_ID",
+    "INS_GYR3_ID",
+    "EK3_SRC1_POSXY",
+    "INS_GYROFFS_X",
+    "INS_GYROFFS_Y",
+    "INS_GYROFFS_Z",
+    "BARO1_GND_PRESS",
+    "BARO2_GND_PRESS",
+    "INS_GYR2OFFS_X",
+];
+
 /// How the simulated ArduPilot behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArduPilotConfig {
@@ -185,6 +199,8 @@ pub struct ArduPilotFc {
     next_heartbeat: Instant,
     /// Its parameters and their protocol.
     params: ParamServer,
+    /// Parameters it will tell about unasked (index 65535), and when.
+    notifications: VecDeque<(Instant, usize)>,
     out: VecDeque<OwnedFrame>,
     rng: SplitMix64,
     booted: Instant,
@@ -220,6 +236,7 @@ impl ArduPilotFc {
                 }
                 p
             },
+            notifications: VecDeque::new(),
             out: VecDeque::new(),
             rng: SplitMix64::new(seed),
             booted: now,
@@ -233,8 +250,26 @@ impl ArduPilotFc {
     /// made-up parameters, streaming it at `rate` values a second (ArduCopter 4.6 SITL on a
     /// 57600-baud serial port: [`ARDUPILOT_PARAM_RATE`]; at boot too if its configuration
     /// says so).
+    ///
+    /// Like ArduCopter 4.6.3 SITL, it also tells of parameters its calibrations change at boot
+    /// (gyro and barometer offsets, sensor ids, EKF sources: [`BOOT_NOTIFIED`]), unasked, with
+    /// index 65535: one every 1.5 s for the first 45 s (the SITL sent 18 in its first 17 s).
     pub fn with_params(mut self, table: ParamTable, rate: f64) -> Self {
         let streaming = self.params.streaming();
+        let notified: Vec<usize> = BOOT_NOTIFIED
+            .iter()
+            .filter_map(|name| {
+                let mut n = [0u8; 16];
+                n[..name.len()].copy_from_slice(name.as_bytes());
+                table.find(&n)
+            })
+            .collect();
+        self.notifications = (0..30)
+            .filter_map(|k| {
+                let at = self.booted + Duration::from_millis(900 + 1500 * k as u64);
+                notified.get(k % notified.len().max(1)).map(|&i| (at, i))
+            })
+            .collect();
         self.params = ParamServer::new(table, rate, SetEcho::NoIndex);
         if streaming {
             self.params.start_list(self.booted);
@@ -457,6 +492,18 @@ impl Autopilot for ArduPilotFc {
         });
         self.stats.params_sent += frames.len() as u64;
         self.out.extend(frames);
+        while let Some(&(at, index)) = self.notifications.front()
+            && now >= at
+        {
+            self.notifications.pop_front();
+            let sender = &mut self.sender;
+            if let Some(f) = self.params.notify(index, |p| {
+                param_value_frame(version, 1, 1, sender.take_sequence(), p)
+            }) {
+                self.stats.params_sent += 1;
+                self.out.push_back(f);
+            }
+        }
     }
 
     fn poll_timeout(&self) -> Option<Instant> {
@@ -466,9 +513,13 @@ impl Autopilot for ArduPilotFc {
         let groups = self.groups.iter().filter(|g| g.hz > 0.0).map(|g| g.next);
         groups
             .chain(
-                [Some(self.next_heartbeat), self.params.poll_timeout()]
-                    .into_iter()
-                    .flatten(),
+                [
+                    Some(self.next_heartbeat),
+                    self.params.poll_timeout(),
+                    self.notifications.front().map(|n| n.0),
+                ]
+                .into_iter()
+                .flatten(),
             )
             .min()
     }

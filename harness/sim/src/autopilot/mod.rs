@@ -11,7 +11,7 @@ mod px4;
 
 pub use ardupilot::{
     ARDUPILOT_PARAM_RATE, ARDUPILOT_STREAMS, ApStream, ArduPilotConfig, ArduPilotFc,
-    ArduPilotStats, Group,
+    ArduPilotStats, BOOT_NOTIFIED, Group,
 };
 pub use kinematics::{Flight, Kinematics, Route};
 pub use mission::{MissionStore, MissionStoreStats};

@@ -239,6 +239,19 @@ impl ParamServer {
         Some(i)
     }
 
+    /// Parameter `index` changed by itself (a calibration at boot): the autopilot tells every
+    /// link with index 65535, as ArduPilot does, unasked.
+    pub fn notify(
+        &mut self,
+        index: usize,
+        frame: impl FnOnce(&[u8; 25]) -> OwnedFrame,
+    ) -> Option<OwnedFrame> {
+        (index < self.table.len()).then(|| {
+            self.sent += 1;
+            frame(&self.table.payload(index, u16::MAX))
+        })
+    }
+
     /// The list's values due at `now`, as frames built by `frame`.
     pub fn handle_timeout(
         &mut self,
