@@ -118,8 +118,11 @@ fn px4_sitl_talks_on_its_telemetry_port() {
         return;
     };
     let spec = AutopilotSpec::Px4Sitl(Px4Sitl::new(root));
-    let out = tempfile::tempdir().unwrap();
-    let mut ap = spec.start("px4", out.path()).unwrap();
+    // A relative output folder, as `rig run --out target/rig-report` gives: the SITL runs in
+    // a folder of its own, where a relative path leads nowhere (PX4 exited 255).
+    let out = tempfile::tempdir_in(".").unwrap();
+    let relative = Path::new(".").join(out.path().file_name().unwrap());
+    let mut ap = spec.start("px4", &relative).unwrap();
     let mut fc = serialport::new(ap.fc_port(), 57_600)
         .timeout(Duration::from_millis(200))
         .open_native()
@@ -131,4 +134,62 @@ fn px4_sitl_talks_on_its_telemetry_port() {
     );
     ap.check_running().unwrap();
     ap.stop(Duration::from_secs(5));
+}
+
+/// The "a SITL that dies mid-phase is an error naming it, with its log": a whole
+/// session (bridge, radio, router, ground station, truth) behind a real ArduPilot, whose
+/// SITL is killed while the ground station listens.
+#[test]
+fn a_sitl_that_dies_mid_session_ends_it_with_an_error_naming_it_and_its_log() {
+    use harness::mavlora::rigfile::NamedRadio;
+    use harness::mavlora::session::SessionDefaults;
+    use harness::mavlora::sitl::session::SitlSession;
+    use harness::mavlora::sitl::{Target, options};
+
+    let Some(dir) = shared("ARDUPILOT_SITL", "ardupilot-sitl") else {
+        return;
+    };
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let defaults = SessionDefaults::for_repo(repo).expect("mavlora-bridge and -router built");
+    let mut sitl = ArdupilotSitl::new(dir.join("arducopter"));
+    sitl.defaults = Some(dir.join("copter.parm"));
+    let target = Target {
+        autopilot: "copter".into(),
+        spec: AutopilotSpec::ArdupilotSitl(sitl),
+        radio: NamedRadio {
+            name: "sik-64k".into(),
+            setup: harness_radio::RadioSetup::builtin("sik-64k").unwrap(),
+        },
+    };
+    let out = tempfile::tempdir().unwrap();
+    let args = ["--scenario", "telemetry", "--listen", "60"]
+        .map(String::from)
+        .to_vec();
+    let session = SitlSession::start(options(
+        &defaults,
+        &target,
+        out.path(),
+        args,
+        Duration::from_secs(90),
+    ))
+    .unwrap();
+    let files = session.files();
+    let sitl_log = out.path().join("copter-sitl.log");
+    assert!(files.contains(&sitl_log), "{files:?}");
+    let pid = rustix::process::Pid::from_raw(session.autopilot_pid().unwrap() as i32).unwrap();
+    rustix::process::kill_process(pid, rustix::process::Signal::KILL).unwrap();
+    let started = Instant::now();
+    let err = session
+        .finish()
+        .err()
+        .expect("a dead SITL is an error")
+        .to_string();
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "noticed after {:?}",
+        started.elapsed()
+    );
+    assert!(err.contains("copter died"), "{err}");
+    assert!(err.contains(&sitl_log.display().to_string()), "{err}");
+    assert!(sitl_log.exists());
 }

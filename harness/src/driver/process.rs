@@ -80,21 +80,11 @@ impl Process {
     pub fn spawn(name: &str, mut command: Command, log: &Path) -> Result<Process> {
         let stderr =
             File::create(log).with_context(|| format!("cannot create {}", log.display()))?;
-        let program = command.get_program().to_string_lossy().into_owned();
-        detach_and_tie(&mut command);
-        let child = command
+        command
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(stderr)
-            .spawn()
-            .with_context(|| format!("cannot start {name} ({program})"))?;
-        tracing::debug!(name, pid = child.id(), "started");
-        running().push(child.id() as i32);
-        Ok(Process {
-            name: name.to_string(),
-            child,
-            log: log.to_path_buf(),
-        })
+            .stderr(stderr);
+        Self::start(name, command, log)
     }
 
     /// Starts `command` with stdout and stderr both to `log` and stdin closed: a program that
@@ -105,12 +95,16 @@ impl Process {
         let err = out
             .try_clone()
             .with_context(|| format!("cannot reopen {}", log.display()))?;
+        command.stdin(Stdio::null()).stdout(out).stderr(err);
+        Self::start(name, command, log)
+    }
+
+    /// Spawns `command`, its standard streams already set, in a process group of its own
+    /// tied to the rig, and registers it for [`kill_all`].
+    fn start(name: &str, mut command: Command, log: &Path) -> Result<Process> {
         let program = command.get_program().to_string_lossy().into_owned();
         detach_and_tie(&mut command);
         let child = command
-            .stdin(Stdio::null())
-            .stdout(out)
-            .stderr(err)
             .spawn()
             .with_context(|| format!("cannot start {name} ({program})"))?;
         tracing::debug!(name, pid = child.id(), "started");

@@ -135,6 +135,12 @@ impl AutopilotSpec {
     /// running, its telemetry port ready for the bridge to open. `name` is its rig-file name.
     pub fn start(&self, name: &str, dir: &Path) -> Result<Autopilot, AutopilotError> {
         self.available()?;
+        // A SITL runs in a folder of its own: every path it is given must not depend on
+        // where the rig runs (`rig run --out target/rig-report`).
+        let dir = &std::path::absolute(dir).map_err(|e| AutopilotError::Start {
+            name: name.to_string(),
+            source: anyhow::anyhow!("cannot make {} absolute: {e}", dir.display()),
+        })?;
         match self {
             AutopilotSpec::ArdupilotSitl(a) => a.start(name, dir),
             AutopilotSpec::Px4Sitl(p) => p.start(name, dir),

@@ -216,9 +216,21 @@ pub fn run(ctx: &mut PhaseContext, options: SitlOptions) -> Result<SitlReport> {
             .since(session.started)
             .as_secs_f64()
     ));
-    let report = session.finish()?;
-    keep_evidence(ctx, &name, &report);
-    Ok(report)
+    let files = session.files();
+    match session.finish() {
+        Ok(report) => {
+            keep_evidence(ctx, &name, &report);
+            Ok(report)
+        }
+        Err(e) => {
+            // What there is, so the reader sees why (a dead SITL's last words among it).
+            for file in files.into_iter().filter(|f| f.exists()) {
+                let stem = file.file_name().unwrap_or_default().to_string_lossy();
+                ctx.attach(format!("{name}/{stem}"), file.clone(), "text/plain");
+            }
+            Err(e)
+        }
+    }
 }
 
 /// Attaches the session's files and logs what the autopilot is and how the ground station

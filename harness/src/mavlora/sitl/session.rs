@@ -244,6 +244,28 @@ impl SitlSession {
         self.ground.lines()
     }
 
+    /// The logs and status files the session writes, for the evidence whatever its end
+    /// (a SITL that died is shown with its log).
+    pub fn files(&self) -> Vec<PathBuf> {
+        let mut files = vec![self.ground.log_path().to_path_buf()];
+        if let Some(t) = &self.truth {
+            files.push(t.log_path().to_path_buf());
+        }
+        if let Some(link) = &self.link {
+            files.push(link.bridge.log_path().to_path_buf());
+            files.push(link.router.log_path().to_path_buf());
+            files.push(link.bridge_spawn.status_path(&self.out_dir));
+            files.push(link.router_spawn.status_path(&self.out_dir));
+        }
+        files.extend(self.autopilot.log_path().map(PathBuf::from));
+        files
+    }
+
+    /// The autopilot's process id, if the rig started it (a test kills it mid-phase).
+    pub fn autopilot_pid(&self) -> Option<u32> {
+        self.autopilot.pid()
+    }
+
     /// Waits for the ground station to finish its scenario (checking that the SITL lives),
     /// then stops everything and collects the evidence.
     pub fn finish(mut self) -> Result<SitlReport> {

@@ -26,8 +26,9 @@ pub const SCENARIO: Scenario = Scenario {
 };
 
 /// Seconds after the ground station's first heartbeat before the window opens: stream
-/// set-up, the autopilot's parameter burst at boot.
-pub const WARMUP_S: f64 = 8.0;
+/// set-up and the autopilot's boot (ArduPilot reports its GPS, EKF origin and the stream
+/// rates it was asked for until ~20 s after start): steady telemetry is what follows.
+pub const WARMUP_S: f64 = 20.0;
 pub const WINDOW_S: f64 = 30.0;
 /// 10 % of LoRa SF7's 683.6 B/s (the EU 433 MHz duty-cycle rule).
 pub const DOWN_BYTES_MAX: f64 = 68.36;
