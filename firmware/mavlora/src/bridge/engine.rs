@@ -18,7 +18,7 @@ use crate::dialect::{
 };
 use crate::filter::{
     FilterStats, RadioFilter, Unlisted, Verdict, request_data_stream_requests,
-    set_message_interval_requests,
+    set_message_interval_requests, state_interval_requests,
 };
 use crate::mission::{MissionRelay, MissionStats};
 use crate::param::{ParamPackStats, ParamPacker, ParamValue};
@@ -479,7 +479,8 @@ impl Bridge {
             self.start_data_streams(now);
             return;
         }
-        let pending = set_message_interval_requests(&self.config.profile, sys, comp);
+        let mut pending = set_message_interval_requests(&self.config.profile, sys, comp);
+        pending.extend(self.state_requests(sys, comp));
         self.config_state = ConfigState {
             expected_acks: pending.len() as u64,
             acknowledged: true,
@@ -500,8 +501,10 @@ impl Bridge {
             "configuring the flight controller with REQUEST_DATA_STREAM"
         );
         self.stats.data_stream_fallbacks += 1;
+        let mut pending = request_data_stream_requests(&self.config.profile, sys, comp);
+        pending.extend(self.state_requests(sys, comp));
         self.config_state = ConfigState {
-            pending: request_data_stream_requests(&self.config.profile, sys, comp),
+            pending,
             acknowledged: false,
             expected_acks: 0,
             acks: 0,
@@ -509,6 +512,14 @@ impl Bridge {
             next_retry: Some(now),
         };
         self.config_tick(now);
+    }
+
+    /// Compact mode: the mode and arming faster than the autopilot's 1 Hz HEARTBEAT (the
+    /// compact status reports a change at once, but only once the bridge has seen it).
+    fn state_requests(&self, sys: u8, comp: u8) -> Vec<MavMessage> {
+        self.compactor.as_ref().map_or_else(Vec::new, |c| {
+            state_interval_requests(c.config().state_hz, sys, comp)
+        })
     }
 
     fn config_ack(&mut self, result: MavResult, now: Instant) {

@@ -818,3 +818,48 @@ fn with_signing_on_the_local_radios_unsigned_status_still_reaches_the_link_repor
         "the refused command, not the radio's status"
     );
 }
+
+/// Compact mode asks the autopilot for its mode and arming at `state_hz` on either way of
+/// configuring it (ArduPilot's groups, PX4's intervals): a 1 Hz HEARTBEAT let the ground see a
+/// change up to 1 s after the vehicle's own link did (real ArduPilot and PX4, the sitl suite).
+#[test]
+fn compact_mode_asks_for_heartbeat_and_current_mode_at_state_hz() {
+    let wanted = [(0.0, 200_000.0), (436.0, 200_000.0)];
+    for (profile, streams) in [
+        ("[data_streams]\nall = 0\nposition = 3\n", 2),
+        ("[messages.33]\nstream_hz = 3\n", 0),
+    ] {
+        let mut c = config();
+        c.profile = Profile::parse(profile, "p").unwrap();
+        c.compact = Some(CompactConfig::default());
+        let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        b.handle_fc_bytes(ms(100), fc_heartbeat(&mut fc).as_bytes());
+        let msgs = to_fc(&mut b, ms(100));
+        assert_eq!(data_streams(&msgs).len(), streams, "{profile}");
+        let asked = intervals(&msgs);
+        assert!(
+            wanted.iter().all(|w| asked.contains(w)),
+            "{profile}: {asked:?}"
+        );
+    }
+    // not in compact mode, or state_hz = 0: the autopilot's own rates
+    for compact in [
+        None,
+        Some(CompactConfig {
+            state_hz: 0.0,
+            ..CompactConfig::default()
+        }),
+    ] {
+        let mut c = config();
+        c.compact = compact;
+        let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        b.handle_fc_bytes(ms(100), fc_heartbeat(&mut fc).as_bytes());
+        let asked = intervals(&to_fc(&mut b, ms(100)));
+        assert!(
+            asked.iter().all(|(id, _)| *id != 0.0 && *id != 436.0),
+            "{asked:?}"
+        );
+    }
+}

@@ -4,9 +4,9 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::dialect::{
-    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, LINK_QUALITY_DATA,
-    MISSION_CURRENT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavSysStatusSensor,
-    MavType, MissionState, SYS_STATUS_DATA, VFR_HUD_DATA,
+    CURRENT_MODE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
+    LINK_QUALITY_DATA, MISSION_CURRENT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState,
+    MavSysStatusSensor, MavType, MissionState, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use crate::time::Instant;
 
@@ -207,6 +207,85 @@ fn a_lost_frame_does_not_delay_a_mode_change_past_half_a_second() {
     // and no heartbeat after it shows the old mode
     assert!(!got.iter().any(|(t, m)| *t > shown
         && matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode != 0x0003_0000)));
+}
+
+/// PX4 on the bridge's link: HEARTBEAT at 1 Hz (PX4 keeps it there) and CURRENT_MODE at 5 Hz
+/// (as the bridge asks); LOITER until `change`, then MISSION, whose HEARTBEAT also carries
+/// AUTO's flag in base_mode when `auto_flag`.
+fn px4_with_current_mode(change: Instant, auto_flag: bool) -> impl FnMut(&mut Compactor, Instant) {
+    let mode = move |now: Instant| {
+        if now >= change {
+            0x0404_0000
+        } else {
+            0x0304_0000
+        }
+    };
+    let mut next = [Instant::ZERO; 3];
+    move |c, now| {
+        if now >= next[0] {
+            let mut hb = heartbeat(mode(now), true);
+            if let MavMessage::HEARTBEAT(h) = &mut hb
+                && auto_flag
+                && now >= change
+            {
+                h.base_mode |= MavModeFlag::MAV_MODE_FLAG_AUTO_ENABLED;
+            }
+            c.observe(&hb, now);
+            next[0] += Duration::from_secs(1);
+        }
+        if now >= next[1] {
+            let current = CURRENT_MODE_DATA {
+                custom_mode: mode(now),
+                intended_custom_mode: mode(now),
+                ..Default::default()
+            };
+            assert!(
+                c.observe(&MavMessage::CURRENT_MODE(current), now),
+                "kept off the radio"
+            );
+            next[1] += Duration::from_millis(200);
+        }
+        if now >= next[2] {
+            c.observe(&position(60_000 + now.as_micros() as u32 / 1000), now);
+            next[2] += Duration::from_micros(333_333);
+        }
+    }
+}
+
+#[test]
+fn a_mode_change_reaches_the_ground_from_current_mode_before_the_next_heartbeat() {
+    // Regression (the sitl suite, real PX4 1.16): PX4 heartbeats at 1 Hz, so a change of mode
+    // reached the bridge up to 1 s late and the ground 0.7-1 s after the vehicle's own link
+    // showed it, or never (a LOITER of 0.56 s between TAKEOFF and MISSION). CURRENT_MODE at
+    // 5 Hz brings it within 0.2 s; the HEARTBEAT's new flags after it are not a second change.
+    let change = Instant::from_millis(8_100);
+    let run = |auto_flag: bool| {
+        let mut c = Compactor::new(CompactConfig::default());
+        let mut e = Expander::new();
+        let got = fly(
+            &mut c,
+            &mut e,
+            Instant::from_secs(16),
+            px4_with_current_mode(change, auto_flag),
+            |_, _| true,
+        );
+        (got, c.stats().statuses)
+    };
+    let (got, statuses) = run(true);
+    let shown = got
+        .iter()
+        .find(|(_, m)| matches!(m, MavMessage::HEARTBEAT(h) if h.custom_mode == 0x0404_0000))
+        .expect("new mode at the ground")
+        .0;
+    assert!(
+        shown >= change && shown - change <= Duration::from_millis(200),
+        "new mode at the ground {shown:?}, the vehicle changed at {change:?}"
+    );
+    let (_, statuses_without_flags) = run(false);
+    assert_eq!(
+        statuses, statuses_without_flags,
+        "the HEARTBEAT's flags after CURRENT_MODE's change sent the status again"
+    );
 }
 
 #[test]

@@ -12,4 +12,6 @@ pub use profile::{
     DATA_STREAMS, MAX_RATE_HZ, MIN_RATE_HZ, MessageRule, Profile, ProfileError, RadioRule,
     Unlisted,
 };
-pub use stream_rate::{request_data_stream_requests, set_message_interval_requests};
+pub use stream_rate::{
+    request_data_stream_requests, set_message_interval_requests, state_interval_requests,
+};

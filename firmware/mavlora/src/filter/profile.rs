@@ -21,6 +21,7 @@
 //! batch_period_ms = 1000    # a batch that is not full leaves this long after its first sample
 //! status_period_ms = 10000  # the vehicle's status rides along at least this often
 //! coalesce_ms = 0           # hold frames so they share one radio packet (--coalesce-ms wins)
+//! state_hz = 5              # HEARTBEAT and CURRENT_MODE asked of the autopilot; 0: not asked
 //! ```
 
 // MAV_DATA_STREAM / REQUEST_DATA_STREAM are deprecated upstream in favour of
@@ -224,6 +225,7 @@ struct CompactFile {
     batch_period_ms: Option<Spanned<i64>>,
     status_period_ms: Option<Spanned<i64>>,
     coalesce_ms: Option<Spanned<i64>>,
+    state_hz: Option<Spanned<f64>>,
 }
 
 /// Ranges of the `[compact]` keys.
@@ -232,6 +234,8 @@ pub const COMPACT_SAMPLE_HZ: std::ops::RangeInclusive<f64> = 0.1..=50.0;
 pub const COMPACT_BATCH_PERIOD_MS: std::ops::RangeInclusive<i64> = 50..=60_000;
 /// See [`COMPACT_SAMPLE_HZ`].
 pub const COMPACT_STATUS_PERIOD_MS: std::ops::RangeInclusive<i64> = 500..=600_000;
+/// See [`COMPACT_SAMPLE_HZ`]; 0 leaves the autopilot's own rates.
+pub const COMPACT_STATE_HZ: std::ops::RangeInclusive<f64> = 0.0..=50.0;
 /// See [`COMPACT_SAMPLE_HZ`].
 pub const COMPACT_COALESCE_MS: std::ops::RangeInclusive<i64> = 0..=60_000;
 
@@ -476,6 +480,20 @@ fn compact_config(
     if let Some(d) = ms("coalesce_ms", &file.coalesce_ms, COMPACT_COALESCE_MS)? {
         c.coalesce = d;
     }
+    if let Some(hz) = &file.state_hz {
+        if !COMPACT_STATE_HZ.contains(hz.get_ref()) {
+            return Err(invalid(
+                "state_hz",
+                hz,
+                format!(
+                    "{}..={} Hz",
+                    COMPACT_STATE_HZ.start(),
+                    COMPACT_STATE_HZ.end()
+                ),
+            ));
+        }
+        c.state_hz = *hz.get_ref();
+    }
     Ok(c)
 }
 
@@ -595,7 +613,7 @@ radio = 0.5
     fn compact_table_sets_the_batching_and_checks_every_key() {
         let p = Profile::parse(
             "[compact]\nsample_hz = 4\nbatch_samples = 2\nbatch_period_ms = 700\n\
-             status_period_ms = 5000\ncoalesce_ms = 250\n",
+             status_period_ms = 5000\ncoalesce_ms = 250\nstate_hz = 2\n",
             "p.toml",
         )
         .unwrap();
@@ -607,6 +625,7 @@ radio = 0.5
                 batch_period: Duration::from_millis(700),
                 status_period: Duration::from_secs(5),
                 coalesce: Duration::from_millis(250),
+                state_hz: 2.0,
             })
         );
         // keys left out keep the defaults; no table, no settings
@@ -638,6 +657,8 @@ radio = 0.5
             ("status_period_ms = 99", 2),
             ("coalesce_ms = -1", 2),
             ("coalesce_ms = 60001", 2),
+            ("state_hz = -1", 2),
+            ("state_hz = 51", 2),
         ] {
             let err = Profile::parse(&format!("[compact]\n{line}\n"), "p.toml").unwrap_err();
             assert!(

@@ -10,6 +10,43 @@ use crate::dialect::{COMMAND_LONG_DATA, MavCmd, MavMessage, REQUEST_DATA_STREAM_
 
 use super::profile::Profile;
 
+/// `MAV_CMD_SET_MESSAGE_INTERVAL` for the autopilot's mode and arming at `hz`: `HEARTBEAT`
+/// (ArduPilot takes it; PX4 refuses it and keeps 1 Hz) and `CURRENT_MODE` (PX4 takes it;
+/// ArduPilot 4.6 refuses it). Each autopilot answers both; a refusal costs nothing. None for
+/// 0 Hz (the autopilot's own rates: a HEARTBEAT is never stopped).
+pub fn state_interval_requests(
+    hz: f64,
+    target_system: u8,
+    target_component: u8,
+) -> Vec<MavMessage> {
+    use crate::wire::ids;
+    if hz <= 0.0 {
+        return Vec::new();
+    }
+    [ids::HEARTBEAT, ids::CURRENT_MODE]
+        .into_iter()
+        .map(|id| interval_request(id, hz, target_system, target_component))
+        .collect()
+}
+
+fn interval_request(id: u32, hz: f64, target_system: u8, target_component: u8) -> MavMessage {
+    let interval_us = if hz == 0.0 {
+        -1.0
+    } else {
+        (1e6 / hz).round() as f32
+    };
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system,
+        target_component,
+        command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+        confirmation: 0,
+        param1: id as f32,
+        param2: interval_us,
+        // param3..6 unused; param7 = 0: send to the address that asked (the bridge)
+        ..COMMAND_LONG_DATA::default()
+    })
+}
+
 /// One `COMMAND_LONG` / `MAV_CMD_SET_MESSAGE_INTERVAL` per message with a `stream_hz`, in
 /// message id order: interval 1e6/hz µs, or -1 (stop the stream) for 0 Hz.
 ///
@@ -23,23 +60,7 @@ pub fn set_message_interval_requests(
     profile
         .rules()
         .filter_map(|(id, rule)| rule.stream_hz.map(|hz| (id, hz)))
-        .map(|(id, hz)| {
-            let interval_us = if hz == 0.0 {
-                -1.0
-            } else {
-                (1e6 / hz).round() as f32
-            };
-            MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-                target_system,
-                target_component,
-                command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-                confirmation: 0,
-                param1: id as f32,
-                param2: interval_us,
-                // param3..6 unused; param7 = 0: send to the address that asked (the bridge)
-                ..COMMAND_LONG_DATA::default()
-            })
-        })
+        .map(|(id, hz)| interval_request(id, hz, target_system, target_component))
         .collect()
 }
 

@@ -31,23 +31,38 @@ const TAKEOFF_ALT_M: f64 = 10.0;
 const FLIGHT_TIMEOUT_S: f64 = 300.0;
 
 /// How late each of the vehicle's (mode, armed) changes showed at the ground: for each truth
-/// change, the first ground state equal to it at or after it; `None` where the ground never
-/// showed it.
-pub fn state_lags(truth: &[State], ground: &[State]) -> Vec<Option<f64>> {
+/// change, the state it changed to and the first ground state equal to it after the truth
+/// connection last saw the state before (the vehicle changed between then and `t`, and its
+/// link to the bridge may report it first); `None` where the ground never showed it. The lag
+/// counts from `t`, the first sight on the truth connection, and is at least 0.
+pub fn state_lags(truth: &[State], ground: &[State]) -> Vec<(State, Option<f64>)> {
     truth
         .windows(2)
         .filter(|w| (w[0].custom_mode, w[0].armed) != (w[1].custom_mode, w[1].armed))
         .map(|w| {
             let change = w[1];
-            ground
+            // The last sight of the state before: the ground may show the change from then on.
+            let earliest = change.since.unwrap_or(w[0].t).as_secs_f64();
+            let lag = ground
                 .iter()
                 .find(|g| {
-                    g.t.as_secs_f64() >= change.t.as_secs_f64() - 0.05
+                    g.t.as_secs_f64() > earliest
                         && (g.custom_mode, g.armed) == (change.custom_mode, change.armed)
                 })
-                .map(|g| (g.t.as_secs_f64() - change.t.as_secs_f64()).max(0.0))
+                .map(|g| (g.t.as_secs_f64() - change.t.as_secs_f64()).max(0.0));
+            (change, lag)
         })
         .collect()
+}
+
+/// How long, at most, the truth connection took to see a change: the time between its last
+/// sight of the state before and its first of the new one (its HEARTBEAT period where the
+/// autopilot streams nothing faster). The lags above are exact to within this.
+pub fn truth_resolution(truth: &[State]) -> Option<f64> {
+    truth
+        .iter()
+        .filter_map(|s| s.since.map(|since| s.t.as_secs_f64() - since.as_secs_f64()))
+        .reduce(f64::max)
 }
 
 fn plan(d: &mut Declarations, t: &Target) -> Script {
@@ -78,6 +93,11 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
             )
             .at_most(0.5),
     );
+    let resolution = d.declare(t.spec("truth_state_resolution_s", "s").describe(
+        "longest time the truth connection took to see a (mode, armed) change (between its \
+             last sight of the old state and its first of the new): the lags are exact to \
+             within it",
+    ));
     let states_missed = d.declare(
         t.spec("states_missed", "")
             .describe("(mode, armed) changes of the vehicle the ground station never showed")
@@ -106,6 +126,17 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
             .collect();
         ctx.log(format!("steps: {}", steps.join(", ")));
         ctx.record(completed, f64::from(u8::from(report.ground_summary.ok)));
+        if !report.ground_summary.ok {
+            // Shown with the failure: why the flight stopped, without opening the evidence.
+            ctx.annotate(
+                completed,
+                &format!(
+                    "steps reached: [{}]; the ground station: {}",
+                    steps.join(", "),
+                    report.ground_summary.failed
+                ),
+            );
+        }
         let mut latencies = Vec::new();
         let mut lost = 0u32;
         for e in report.ground_events() {
@@ -151,7 +182,25 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
             })
             .collect();
         let lags = state_lags(&truth, &ground);
-        let seen: Vec<f64> = lags.iter().flatten().copied().collect();
+        for (change, _) in lags.iter().filter(|(_, lag)| lag.is_none()) {
+            let until = truth.iter().find(|s| s.t > change.t).map_or_else(
+                || "the end".to_string(),
+                |next| {
+                    format!(
+                        "{:.3} s later",
+                        next.t.as_secs_f64() - change.t.as_secs_f64()
+                    )
+                },
+            );
+            ctx.log(format!(
+                "never at the ground: custom_mode {:#x} armed {} (the vehicle's at {:.3} s, \
+                 until {until})",
+                change.custom_mode,
+                change.armed,
+                change.t.as_secs_f64(),
+            ));
+        }
+        let seen: Vec<f64> = lags.iter().filter_map(|(_, lag)| *lag).collect();
         ctx.log(format!(
             "{} mode/armed changes on the vehicle; at the ground after {:?} s",
             lags.len(),
@@ -161,10 +210,13 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
         ));
         ctx.record(
             states_missed,
-            lags.iter().filter(|l| l.is_none()).count() as f64,
+            lags.iter().filter(|(_, lag)| lag.is_none()).count() as f64,
         );
         if let Some(max) = seen.iter().copied().reduce(f64::max) {
             ctx.record(state_lag, max);
+        }
+        if let Some(r) = truth_resolution(&truth) {
+            ctx.record(resolution, r);
         }
         // The position age over the whole flight, for the report's figure.
         let positions: Vec<_> = report
@@ -195,7 +247,13 @@ mod tests {
             base_mode: 0,
             armed,
             system_status: 3,
+            since: None,
         }
+    }
+
+    fn seen_since(mut state: State, since: f64) -> State {
+        state.since = Some(Mono::from_secs_f64(since));
+        state
     }
 
     #[test]
@@ -209,8 +267,28 @@ mod tests {
         let ground = [s(1.3, 0, false), s(2.4, 4, false), s(3.2, 4, true)];
         let lags = state_lags(&truth, &ground);
         assert_eq!(lags.len(), 3);
-        assert!((lags[0].unwrap() - 0.4).abs() < 1e-9);
-        assert!((lags[1].unwrap() - 0.2).abs() < 1e-9);
-        assert_eq!(lags[2], None, "RTL never shown at the ground");
+        assert!((lags[0].1.unwrap() - 0.4).abs() < 1e-9);
+        assert!((lags[1].1.unwrap() - 0.2).abs() < 1e-9);
+        assert_eq!(lags[2].1, None, "RTL never shown at the ground");
+        assert_eq!(lags[2].0.custom_mode, 6);
+    }
+
+    #[test]
+    fn a_change_the_ground_shows_before_the_truth_sees_it_counts_when_after_the_old_state() {
+        // PX4 heartbeats each of its links at 1 Hz, out of phase: the bridge's link may show
+        // RTL 0.7 s before the truth link does (seen in the rig: reported as never shown).
+        let truth = [
+            s(1.0, 4, true),
+            seen_since(s(10.0, 6, true), 9.0),
+            seen_since(s(20.0, 6, false), 19.0),
+        ];
+        let ground = [s(1.2, 4, true), s(9.3, 6, true), s(18.5, 6, false)];
+        let lags = state_lags(&truth, &ground);
+        assert_eq!(lags[0].1, Some(0.0), "shown 0.7 s before the truth saw it");
+        assert_eq!(
+            lags[1].1, None,
+            "disarmed at the ground before the vehicle last armed"
+        );
+        assert_eq!(truth_resolution(&truth), Some(1.0));
     }
 }

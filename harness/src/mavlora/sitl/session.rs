@@ -247,9 +247,13 @@ impl SitlSession {
     /// The logs and status files the session writes, for the evidence whatever its end
     /// (a SITL that died is shown with its log).
     pub fn files(&self) -> Vec<PathBuf> {
-        let mut files = vec![self.ground.log_path().to_path_buf()];
+        let mut files = vec![
+            self.ground.log_path().to_path_buf(),
+            self.ground.transcript_path(),
+        ];
         if let Some(t) = &self.truth {
             files.push(t.log_path().to_path_buf());
+            files.push(t.transcript_path());
         }
         if let Some(link) = &self.link {
             files.push(link.bridge.log_path().to_path_buf());
@@ -299,7 +303,10 @@ impl SitlSession {
         }
         let grace = Duration::from_secs(5);
         let dir = self.out_dir.clone();
-        let mut files = vec![self.ground.log_path().to_path_buf()];
+        let mut files = vec![
+            self.ground.log_path().to_path_buf(),
+            self.ground.transcript_path(),
+        ];
         let (mut bridge_status, mut router_status) = (None, None);
         if let Some(link) = self.link.as_mut() {
             for p in [&mut link.bridge, &mut link.router] {
@@ -321,6 +328,7 @@ impl SitlSession {
             truth_lines = truth.lines().into_iter().map(|l| l.event).collect();
             truth_summary = truth.summary(Duration::ZERO).ok();
             files.push(truth.log_path().to_path_buf());
+            files.push(truth.transcript_path());
         }
         self.autopilot.stop(grace);
         files.extend(self.autopilot.log_path().map(PathBuf::from));
