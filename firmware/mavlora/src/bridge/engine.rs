@@ -517,8 +517,9 @@ impl Bridge {
     /// Compact mode: the mode and arming faster than the autopilot's 1 Hz HEARTBEAT (the
     /// compact status reports a change at once, but only once the bridge has seen it).
     fn state_requests(&self, sys: u8, comp: u8) -> Vec<MavMessage> {
+        let autopilot = self.watch.autopilot();
         self.compactor.as_ref().map_or_else(Vec::new, |c| {
-            state_interval_requests(c.config().state_hz, sys, comp)
+            state_interval_requests(c.config().state_hz, autopilot, sys, comp)
         })
     }
 

@@ -34,6 +34,7 @@ pub struct FcWatch {
     silence: Duration,
     fc: Option<(u8, u8)>,
     version: Option<MavlinkVersion>,
+    autopilot: Option<MavAutopilot>,
     last_heartbeat: Option<Instant>,
     last_boot_ms: Option<u32>,
 }
@@ -48,6 +49,7 @@ impl FcWatch {
             silence,
             fc: None,
             version: None,
+            autopilot: None,
             last_heartbeat: None,
             last_boot_ms: None,
         }
@@ -62,6 +64,11 @@ impl FcWatch {
     /// gets MAVLink 1 frames and `REQUEST_DATA_STREAM` instead of `SET_MESSAGE_INTERVAL`.
     pub fn version(&self) -> Option<MavlinkVersion> {
         self.version
+    }
+
+    /// The autopilot its last heartbeat named (ArduPilot and PX4 take different requests).
+    pub fn autopilot(&self) -> Option<MavAutopilot> {
+        self.autopilot
     }
 
     /// Whether `frame` comes from the flight controller's autopilot component.
@@ -96,6 +103,7 @@ impl FcWatch {
             };
             self.fc = Some(me);
             self.version = Some(frame.version());
+            self.autopilot = Some(hb.autopilot);
             self.last_heartbeat = Some(now);
             if event.is_some() {
                 self.last_boot_ms = None;

@@ -822,26 +822,53 @@ fn with_signing_on_the_local_radios_unsigned_status_still_reaches_the_link_repor
 /// Compact mode asks the autopilot for its mode and arming at `state_hz` on either way of
 /// configuring it (ArduPilot's groups, PX4's intervals): a 1 Hz HEARTBEAT let the ground see a
 /// change up to 1 s after the vehicle's own link did (real ArduPilot and PX4, the sitl suite).
+/// ArduPilot gets HEARTBEAT only (it answers CURRENT_MODE with a STATUSTEXT that would take
+/// the radio), PX4 CURRENT_MODE only (it refuses a HEARTBEAT interval), others both.
 #[test]
-fn compact_mode_asks_for_heartbeat_and_current_mode_at_state_hz() {
-    let wanted = [(0.0, 200_000.0), (436.0, 200_000.0)];
-    for (profile, streams) in [
-        ("[data_streams]\nall = 0\nposition = 3\n", 2),
-        ("[messages.33]\nstream_hz = 3\n", 0),
+fn compact_mode_asks_for_heartbeat_or_current_mode_at_state_hz() {
+    let heartbeat = (0.0, 200_000.0);
+    let current_mode = (436.0, 200_000.0);
+    for (autopilot, wanted, unwanted) in [
+        (
+            MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            vec![heartbeat],
+            Some(current_mode),
+        ),
+        (
+            MavAutopilot::MAV_AUTOPILOT_PX4,
+            vec![current_mode],
+            Some(heartbeat),
+        ),
+        (
+            MavAutopilot::MAV_AUTOPILOT_GENERIC,
+            vec![heartbeat, current_mode],
+            None,
+        ),
     ] {
-        let mut c = config();
-        c.profile = Profile::parse(profile, "p").unwrap();
-        c.compact = Some(CompactConfig::default());
-        let mut b = Bridge::new(c, Instant::ZERO).unwrap();
-        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-        b.handle_fc_bytes(ms(100), fc_heartbeat(&mut fc).as_bytes());
-        let msgs = to_fc(&mut b, ms(100));
-        assert_eq!(data_streams(&msgs).len(), streams, "{profile}");
-        let asked = intervals(&msgs);
-        assert!(
-            wanted.iter().all(|w| asked.contains(w)),
-            "{profile}: {asked:?}"
-        );
+        for (profile, streams) in [
+            ("[data_streams]\nall = 0\nposition = 3\n", 2),
+            ("[messages.33]\nstream_hz = 3\n", 0),
+        ] {
+            let mut c = config();
+            c.profile = Profile::parse(profile, "p").unwrap();
+            c.compact = Some(CompactConfig::default());
+            let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+            let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+            let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                mavtype: MavType::MAV_TYPE_QUADROTOR,
+                autopilot,
+                ..HEARTBEAT_DATA::default()
+            });
+            b.handle_fc_bytes(ms(100), fc.frame(&hb).as_bytes());
+            let msgs = to_fc(&mut b, ms(100));
+            assert_eq!(data_streams(&msgs).len(), streams, "{profile}");
+            let asked = intervals(&msgs);
+            assert!(
+                wanted.iter().all(|w| asked.contains(w))
+                    && unwanted.is_none_or(|u| !asked.contains(&u)),
+                "{autopilot:?}, {profile}: {asked:?}"
+            );
+        }
     }
     // not in compact mode, or state_hz = 0: the autopilot's own rates
     for compact in [

@@ -6,16 +6,20 @@
 // SET_MESSAGE_INTERVAL; they are used here on purpose, for MAVLink 1 autopilots.
 #![allow(deprecated)]
 
-use crate::dialect::{COMMAND_LONG_DATA, MavCmd, MavMessage, REQUEST_DATA_STREAM_DATA};
+use crate::dialect::{
+    COMMAND_LONG_DATA, MavAutopilot, MavCmd, MavMessage, REQUEST_DATA_STREAM_DATA,
+};
 
 use super::profile::Profile;
 
-/// `MAV_CMD_SET_MESSAGE_INTERVAL` for the autopilot's mode and arming at `hz`: `HEARTBEAT`
-/// (ArduPilot takes it; PX4 refuses it and keeps 1 Hz) and `CURRENT_MODE` (PX4 takes it;
-/// ArduPilot 4.6 refuses it). Each autopilot answers both; a refusal costs nothing. None for
-/// 0 Hz (the autopilot's own rates: a HEARTBEAT is never stopped).
+/// `MAV_CMD_SET_MESSAGE_INTERVAL` for the autopilot's mode and arming at `hz`: `HEARTBEAT` of
+/// ArduPilot (it takes it), `CURRENT_MODE` of PX4 (it refuses a HEARTBEAT interval and keeps
+/// 1 Hz), both of any other. Not CURRENT_MODE of ArduPilot 4.6: it refuses it with a
+/// STATUSTEXT ("No ap_message for mavlink id (436)") that would cost the radio ~50 bytes per
+/// try. None for 0 Hz (the autopilot's own rates: a HEARTBEAT is never stopped).
 pub fn state_interval_requests(
     hz: f64,
+    autopilot: Option<MavAutopilot>,
     target_system: u8,
     target_component: u8,
 ) -> Vec<MavMessage> {
@@ -23,9 +27,14 @@ pub fn state_interval_requests(
     if hz <= 0.0 {
         return Vec::new();
     }
-    [ids::HEARTBEAT, ids::CURRENT_MODE]
-        .into_iter()
-        .map(|id| interval_request(id, hz, target_system, target_component))
+    let wanted: &[u32] = match autopilot {
+        Some(MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA) => &[ids::HEARTBEAT],
+        Some(MavAutopilot::MAV_AUTOPILOT_PX4) => &[ids::CURRENT_MODE],
+        _ => &[ids::HEARTBEAT, ids::CURRENT_MODE],
+    };
+    wanted
+        .iter()
+        .map(|&id| interval_request(id, hz, target_system, target_component))
         .collect()
 }
 
