@@ -22,8 +22,8 @@
 //! [mavlora.sitl]                      # the "sitl" suite: real autopilots behind the bridge
 //! autopilots = ["arducopter", "px4"]  # [autopilots] names; each scenario runs with each
 //! telemetry = ["sik-64k", "lora-sf7", "sik-bursty"]   # radios of each scenario
-//! params = ["sik-64k"]
-//! mission = ["sik-bursty"]
+//! params = ["sik-64k", { radio = "lora-sf7", autopilots = ["px4"] }]  # an entry may name
+//! mission = ["sik-bursty"]            # which of the autopilots fly it (default: all of them)
 //! flight = ["sik-64k"]
 //! ```
 
@@ -106,13 +106,30 @@ pub struct SitlPlan {
     /// `[autopilots]` entries, by rig-file name, in file order.
     pub autopilots: Vec<(String, AutopilotSpec)>,
     /// Steady telemetry: rates, bytes, position freshness.
-    pub telemetry: Vec<NamedRadio>,
+    pub telemetry: Vec<SitlRun>,
     /// Parameter download as a ground station does it, with a PARAM_SET in flight.
-    pub params: Vec<NamedRadio>,
+    pub params: Vec<SitlRun>,
     /// Mission, fence and rally upload and download.
-    pub mission: Vec<NamedRadio>,
+    pub mission: Vec<SitlRun>,
     /// A whole flight: GUIDED, arm, takeoff, AUTO, RTL, landed.
-    pub flight: Vec<NamedRadio>,
+    pub flight: Vec<SitlRun>,
+}
+
+/// One radio a `sitl` scenario runs over, and which of the suite's autopilots fly it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SitlRun {
+    pub radio: NamedRadio,
+    /// `None`: every autopilot of `[mavlora.sitl] autopilots`.
+    pub autopilots: Option<Vec<String>>,
+}
+
+impl SitlRun {
+    /// Whether `autopilot` flies this run.
+    pub fn flown_by(&self, autopilot: &str) -> bool {
+        self.autopilots
+            .as_ref()
+            .is_none_or(|a| a.iter().any(|n| n == autopilot))
+    }
 }
 
 /// Which radio each scenario uses. Defaults follow the paper's radios and loss, and the
@@ -159,10 +176,25 @@ pub(crate) struct RawMavlora {
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawSitl {
     pub autopilots: Option<Vec<String>>,
-    pub telemetry: Option<Vec<String>>,
-    pub params: Option<Vec<String>>,
-    pub mission: Option<Vec<String>>,
-    pub flight: Option<Vec<String>>,
+    pub telemetry: Option<Vec<RawSitlRun>>,
+    pub params: Option<Vec<RawSitlRun>>,
+    pub mission: Option<Vec<RawSitlRun>>,
+    pub flight: Option<Vec<RawSitlRun>>,
+}
+
+/// A radio's name, or `{ radio = "...", autopilots = [...] }`.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub(crate) enum RawSitlRun {
+    Radio(String),
+    Only(RawSitlOnly),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawSitlOnly {
+    radio: String,
+    autopilots: Vec<String>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -320,20 +352,39 @@ impl Checker<'_> {
             };
             chosen.push((name.clone(), spec.clone()));
         }
-        let many = |key: &str, given: Option<Vec<String>>, default: &[&str]| {
-            let names: Vec<String> =
-                given.unwrap_or_else(|| default.iter().map(|s| s.to_string()).collect());
-            names
-                .iter()
-                .map(|n| self.radio_at(&["mavlora", "sitl", key], n, radios))
+        let many = |key: &str, given: Option<Vec<RawSitlRun>>| {
+            let given = given.unwrap_or_else(|| vec![RawSitlRun::Radio("sik-64k".into())]);
+            given
+                .into_iter()
+                .map(|run| {
+                    let at = ["mavlora", "sitl", key];
+                    let (radio, only) = match run {
+                        RawSitlRun::Radio(r) => (r, None),
+                        RawSitlRun::Only(o) => (o.radio, Some(o.autopilots)),
+                    };
+                    if let Some(stranger) = only.iter().flatten().find(|a| !names.contains(a)) {
+                        return Err(self.invalid(
+                            &at,
+                            format!(
+                                "\"{stranger}\" (in the entry of radio \"{radio}\") is not one \
+                                 of the suite's autopilots: {}",
+                                names.join(", ")
+                            ),
+                        ));
+                    }
+                    Ok(SitlRun {
+                        radio: self.radio_at(&at, &radio, radios)?,
+                        autopilots: only,
+                    })
+                })
                 .collect::<Result<Vec<_>, _>>()
         };
         Ok(SitlPlan {
             autopilots: chosen,
-            telemetry: many("telemetry", raw.telemetry, &["sik-64k"])?,
-            params: many("params", raw.params, &["sik-64k"])?,
-            mission: many("mission", raw.mission, &["sik-64k"])?,
-            flight: many("flight", raw.flight, &["sik-64k"])?,
+            telemetry: many("telemetry", raw.telemetry)?,
+            params: many("params", raw.params)?,
+            mission: many("mission", raw.mission)?,
+            flight: many("flight", raw.flight)?,
         })
     }
 
@@ -545,8 +596,44 @@ c2 = "sik-bursty"
         };
         assert_eq!(a.program, PathBuf::from("/r/sitl/arducopter"));
         assert_eq!((a.fc_mavlink, a.fc_baud), (1, 57_600));
-        assert_eq!(m.sitl.mission[0].name, "sik-bursty");
-        assert_eq!(m.sitl.telemetry[0].name, "sik-64k");
+        assert_eq!(m.sitl.mission[0].radio.name, "sik-bursty");
+        assert_eq!(m.sitl.telemetry[0].radio.name, "sik-64k");
+        assert!(m.sitl.mission[0].flown_by("copter"));
+
+        // an entry may say which autopilots fly it; only the suite's
+        let m = load(&with(
+            "autopilots = [\"copter\"]\nparams = [\"sik-64k\", { radio = \"sik-bursty\", \
+             autopilots = [\"copter\"] }]",
+        ))
+        .unwrap()
+        .devices
+        .mavlora
+        .unwrap();
+        let runs: Vec<_> = m
+            .sitl
+            .params
+            .iter()
+            .map(|r| (r.radio.name.as_str(), r.autopilots.clone()))
+            .collect();
+        assert_eq!(
+            runs,
+            [
+                ("sik-64k", None),
+                ("sik-bursty", Some(vec!["copter".to_string()]))
+            ]
+        );
+        assert!(!m.sitl.params[1].flown_by("px4") && m.sitl.params[1].flown_by("copter"));
+        let err = load(&with(
+            "autopilots = [\"copter\"]\nparams = [{ radio = \"sik-64k\", autopilots = [\"px4\"] }]",
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("mavlora.sitl.params")
+                && err.contains("\"px4\"")
+                && err.contains("copter"),
+            "{err}"
+        );
 
         let err = load(&with("autopilots = [\"coptr\"]"))
             .unwrap_err()

@@ -502,11 +502,15 @@ impl Bridge {
         );
         self.stats.data_stream_fallbacks += 1;
         let mut pending = request_data_stream_requests(&self.config.profile, sys, comp);
-        pending.extend(self.state_requests(sys, comp));
+        let state = self.state_requests(sys, comp);
+        // REQUEST_DATA_STREAM is not acked; the state requests are, and their acks are ours
+        // (not the ground's: they would take the radio).
+        let expected_acks = state.len() as u64;
+        pending.extend(state);
         self.config_state = ConfigState {
             pending,
             acknowledged: false,
-            expected_acks: 0,
+            expected_acks,
             acks: 0,
             attempts: 0,
             next_retry: Some(now),

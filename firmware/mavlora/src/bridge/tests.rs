@@ -868,6 +868,16 @@ fn compact_mode_asks_for_heartbeat_or_current_mode_at_state_hz() {
                     && unwanted.is_none_or(|u| !asked.contains(&u)),
                 "{autopilot:?}, {profile}: {asked:?}"
             );
+            // Their acks are the bridge's, whichever way it configured (REQUEST_DATA_STREAM
+            // has none): none reaches the radio (the simulated ArduPilot's leaked 4 a second).
+            for _ in 0..asked.len() {
+                b.handle_fc_bytes(ms(150), fc.frame(&ack()).as_bytes());
+            }
+            let radio = to_radio(&mut b, ms(200));
+            assert!(
+                radio.iter().all(|f| f.message_id() != ids::COMMAND_ACK),
+                "{autopilot:?}, {profile}: an ack of the bridge's own request went to the radio"
+            );
         }
     }
     // not in compact mode, or state_hz = 0: the autopilot's own rates

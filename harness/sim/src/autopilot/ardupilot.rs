@@ -19,7 +19,8 @@ use mavlink::MavlinkVersion;
 use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
     MISSION_CURRENT_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag,
-    MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
+    MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA, SYSTEM_TIME_DATA,
+    VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 use mavlora::{Duration, Instant};
@@ -407,6 +408,12 @@ impl ArduPilotFc {
                 fix_type: GpsFixType::GPS_FIX_TYPE_3D_FIX,
                 satellites_visible: 12,
                 ..Default::default()
+            }),
+            // Its clock, as ArduPilot sends it: a random time_boot_ms went back every few
+            // frames and the bridge took each for a reboot (and configured it again).
+            2 => MavMessage::SYSTEM_TIME(SYSTEM_TIME_DATA {
+                time_unix_usec: 1_700_000_000_000_000 + t.as_micros(),
+                time_boot_ms: ms,
             }),
             30 => MavMessage::ATTITUDE(ATTITUDE_DATA {
                 time_boot_ms: ms,

@@ -31,7 +31,7 @@ use anyhow::Result;
 use self::session::{SitlOptions, SitlReport, SitlSession};
 use crate::driver::autopilot::AutopilotSpec;
 use crate::mavlora::fixture::sitl::GroundEvent;
-use crate::mavlora::rigfile::NamedRadio;
+use crate::mavlora::rigfile::{NamedRadio, SitlRun};
 use crate::mavlora::session::SessionDefaults;
 use crate::measurement::{Declarations, Dimension, PTY, Spec};
 use crate::record::{PhaseRecord, now_rfc3339};
@@ -53,7 +53,7 @@ pub struct Scenario {
     /// Declares its measurements for an autopilot and radio, and returns the script.
     pub plan: fn(&mut Declarations, &Target) -> Script,
     /// Which of `[mavlora.sitl]`'s radio lists it runs over.
-    pub radios: fn(&crate::mavlora::rigfile::SitlPlan) -> &[NamedRadio],
+    pub radios: fn(&crate::mavlora::rigfile::SitlPlan) -> &[SitlRun],
 }
 
 /// What one phase flies: an autopilot over a radio.
@@ -143,7 +143,11 @@ pub fn phases(
     let mut phases = Vec::new();
     for scenario in scenarios() {
         for (autopilot, spec) in &plan.autopilots {
-            for radio in (scenario.radios)(plan) {
+            for run in (scenario.radios)(plan) {
+                if !run.flown_by(autopilot) {
+                    continue;
+                }
+                let radio = &run.radio;
                 let target = Target {
                     autopilot: autopilot.clone(),
                     spec: spec.clone(),
