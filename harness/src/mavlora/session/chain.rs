@@ -602,6 +602,7 @@ impl RouterSpawn {
         command
             .args(["--radio", radio_port])
             .args(["--rate", &options.rate.to_string()])
+            .args(["--burst", &options.burst.to_string()])
             .args(["--udp", &format!("127.0.0.1:{}", self.send_to)])
             .args([
                 "--udp-bind",
@@ -661,6 +662,7 @@ impl BridgeSpawn {
             .arg("--profile")
             .arg(&options.bridge_profile)
             .args(["--rate", &options.rate.to_string()])
+            .args(["--burst", &options.burst.to_string()])
             .args(["--status-interval", "2"])
             .arg("--key")
             .arg(&self.key)
