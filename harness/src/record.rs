@@ -317,9 +317,17 @@ impl Attachment {
         name: impl Into<String>,
         media_type: impl Into<String>,
     ) -> io::Result<Self> {
-        let path = file
-            .strip_prefix(out_dir)
-            .map_err(|_| {
+        // The folder may be given relative to the working directory (`rig run --out
+        // target/rig-report`) and the file absolute (a SITL's log): compare both absolute.
+        let inside = |file: &Path, dir: &Path| file.strip_prefix(dir).ok().map(Path::to_path_buf);
+        let path = inside(file, out_dir)
+            .or_else(|| {
+                inside(
+                    &std::path::absolute(file).ok()?,
+                    &std::path::absolute(out_dir).ok()?,
+                )
+            })
+            .ok_or_else(|| {
                 io::Error::new(
                     io::ErrorKind::InvalidInput,
                     format!(
@@ -328,8 +336,7 @@ impl Attachment {
                         out_dir.display()
                     ),
                 )
-            })?
-            .to_path_buf();
+            })?;
         Ok(Attachment {
             name: name.into(),
             sha256: sha256_file(file)?,
@@ -640,6 +647,16 @@ pub(crate) mod tests {
         let outside =
             Attachment::from_file(&dir.path().join("sub"), Path::new("/etc/hosts"), "x", "y");
         assert_eq!(outside.unwrap_err().kind(), io::ErrorKind::InvalidInput);
+        // CI's `rig run --out target/rig-report`: a relative folder, a file made absolute (a
+        // SITL's log). The SITL phases' logs were refused as outside the folder.
+        let cwd = std::env::current_dir().unwrap();
+        let relative = tempfile::tempdir_in(&cwd).unwrap();
+        let folder = relative.path().strip_prefix(&cwd).unwrap();
+        assert!(folder.is_relative());
+        let log = relative.path().join("px4-sitl.log");
+        fs::write(&log, b"log").unwrap();
+        let a = Attachment::from_file(folder, &log, "log", "text/plain").unwrap();
+        assert_eq!(a.path, Path::new("px4-sitl.log"));
         let rig = RigIdentity::of_file("r", &file).unwrap();
         assert_eq!(rig.sha256, sha256_bytes(b"abc"));
     }
