@@ -251,18 +251,7 @@ impl FreshnessRun {
             })
             .collect();
         ages.sort_by(f64::total_cmp);
-        // Arrivals that brought a newer position than the ground had, and the waits between.
-        let mut newest: Option<u32> = None;
-        let mut last_new = from;
-        let mut max_gap = Duration::ZERO;
-        for (t, ms) in &positions {
-            if newest.is_none_or(|n| *ms > n) {
-                newest = Some(*ms);
-                max_gap = max_gap.max(t.saturating_duration_since(last_new));
-                last_new = *t;
-            }
-        }
-        max_gap = max_gap.max(until.saturating_duration_since(last_new));
+        let max_gap = longest_wait_for_news(&positions, from, until);
         Freshness {
             down_bytes_per_s: sent.total_bytes() as f64 / span,
             down_by_id: sent
@@ -350,7 +339,28 @@ pub fn quantile(sorted: &[f64], q: f64) -> f64 {
 }
 
 /// The radio key both ends hold (any key: what is measured is its bytes).
-fn signing(link_id: u8) -> SigningConfig {
+/// The longest the ground waited, from `from` to `until`, for a position newer than the newest
+/// it had: `positions` are (arrival, the vehicle's `time_boot_ms`) in arrival order.
+pub(crate) fn longest_wait_for_news(
+    positions: &[(Instant, u32)],
+    from: Instant,
+    until: Instant,
+) -> Duration {
+    let mut newest: Option<u32> = None;
+    let mut last_new = from;
+    let mut max_gap = Duration::ZERO;
+    for (t, ms) in positions {
+        if newest.is_none_or(|n| *ms > n) {
+            newest = Some(*ms);
+            max_gap = max_gap.max(t.saturating_duration_since(last_new));
+            last_new = *t;
+        }
+    }
+    max_gap.max(until.saturating_duration_since(last_new))
+}
+
+/// The test key both ends of a simulated link sign with.
+pub(crate) fn signing(link_id: u8) -> SigningConfig {
     SigningConfig {
         key: SigningKey([7; 32]),
         link_id,

@@ -19,7 +19,6 @@ use mavlora::filter::Profile;
 use mavlora::param::ReadGateStats;
 use mavlora::quality::LinkQualityConfig;
 use mavlora::router::RouterConfig;
-use mavlora::signing::{SigningConfig, SigningKey};
 use mavlora::wire::ids;
 use mavlora::{Duration, Instant};
 
@@ -27,7 +26,7 @@ use crate::autopilot::{
     ARDUPILOT_PARAM_RATE, ArduPilotConfig, ArduPilotFc, Autopilot, Flight, PX4_NORMAL,
     PX4_PARAM_RATE, ParamTable, Px4Fc, Route,
 };
-use crate::freshness::FreshnessRadio;
+use crate::freshness::{FreshnessRadio, longest_wait_for_news, signing};
 use crate::scheduler_for;
 use crate::world::World;
 
@@ -239,17 +238,7 @@ impl ParamsRun {
             .filter(|(t, _)| *t >= start && *t <= end)
             .collect();
         let span = end.saturating_duration_since(start).as_secs_f64().max(1e-9);
-        let mut newest = None;
-        let mut last_new = start;
-        let mut gap = Duration::ZERO;
-        for (t, ms) in &positions {
-            if newest.is_none_or(|n| *ms > n) {
-                newest = Some(*ms);
-                gap = gap.max(t.saturating_duration_since(last_new));
-                last_new = *t;
-            }
-        }
-        gap = gap.max(end.saturating_duration_since(last_new));
+        let gap = longest_wait_for_news(&positions, start, end);
         ParamsFigures {
             count: after.len(),
             seconds: d.seconds(),
@@ -267,15 +256,5 @@ impl ParamsRun {
             packed_frames,
             reads,
         }
-    }
-}
-
-/// The radio key both ends hold (any key: what is measured is its bytes).
-fn signing(link_id: u8) -> SigningConfig {
-    SigningConfig {
-        key: SigningKey([7; 32]),
-        link_id,
-        epoch: 3_000_000_000,
-        state: Default::default(),
     }
 }

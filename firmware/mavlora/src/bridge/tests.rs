@@ -73,6 +73,17 @@ fn intervals(msgs: &[MavMessage]) -> Vec<(f32, f32)> {
         .collect()
 }
 
+/// One of ArduCopter's 1,396 parameters.
+fn param_value(name: &str, index: u16, v: f32) -> MavMessage {
+    MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+        param_id: name.into(),
+        param_value: v,
+        param_index: index,
+        param_count: 1396,
+        ..Default::default()
+    })
+}
+
 fn ack() -> MavMessage {
     MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
@@ -189,18 +200,12 @@ fn a_param_set_echo_overtakes_the_parameter_list_in_flight() {
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
     b.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
     to_fc(&mut b, ms(0));
-    let value = |name: &str, index: u16, v: f32| {
-        MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
-            param_id: name.into(),
-            param_value: v,
-            param_index: index,
-            param_count: 1396,
-            ..Default::default()
-        })
-    };
     // A list in flight: 200 values queued at 1000 B/s (~10 s of them).
     for i in 0..200u16 {
-        b.handle_fc_bytes(ms(10), fc.frame(&value("LIST_PARAM", i, 0.0)).as_bytes());
+        b.handle_fc_bytes(
+            ms(10),
+            fc.frame(&param_value("LIST_PARAM", i, 0.0)).as_bytes(),
+        );
     }
     let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
     let set = MavMessage::PARAM_SET(PARAM_SET_DATA {
@@ -218,7 +223,7 @@ fn a_param_set_echo_overtakes_the_parameter_list_in_flight() {
     // ArduPilot's echo: index 65535.
     b.handle_fc_bytes(
         ms(30),
-        fc.frame(&value("RTL_ALT", 65535, 2500.0)).as_bytes(),
+        fc.frame(&param_value("RTL_ALT", 65535, 2500.0)).as_bytes(),
     );
     let mut echoed_at = None;
     let mut now = ms(30);
@@ -238,7 +243,7 @@ fn a_param_set_echo_overtakes_the_parameter_list_in_flight() {
     let mut b2 = Bridge::new(config(), Instant::ZERO).unwrap();
     b2.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
     b2.handle_radio_bytes(ms(1), ground.frame(&set).as_bytes());
-    b2.handle_fc_bytes(ms(2), fc.frame(&value("OTHER", 3, 1.0)).as_bytes());
+    b2.handle_fc_bytes(ms(2), fc.frame(&param_value("OTHER", 3, 1.0)).as_bytes());
     assert_eq!(b2.stats().param_answers, 0);
 }
 
@@ -257,15 +262,6 @@ fn many_answers_to_reads_do_not_starve_position_and_a_set_echo_still_goes_first(
     let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
     b.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
     to_fc(&mut b, ms(0));
-    let value = |name: &str, index: u16, v: f32| {
-        MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
-            param_id: name.into(),
-            param_value: v,
-            param_index: index,
-            param_count: 1396,
-            ..Default::default()
-        })
-    };
     let (mut positions, mut answers, mut echo_at) = (0, 0, None);
     let mut now = ms(0);
     let mut index = 0u16;
@@ -288,7 +284,7 @@ fn many_answers_to_reads_do_not_starve_position_and_a_set_echo_still_goes_first(
             });
             b.handle_radio_bytes(now, ground.frame(&read).as_bytes());
             to_fc(&mut b, now);
-            b.handle_fc_bytes(now, fc.frame(&value("READ", index, 1.0)).as_bytes());
+            b.handle_fc_bytes(now, fc.frame(&param_value("READ", index, 1.0)).as_bytes());
             index += 1;
         }
         if now == ms(10_000) {
@@ -301,7 +297,10 @@ fn many_answers_to_reads_do_not_starve_position_and_a_set_echo_still_goes_first(
             });
             b.handle_radio_bytes(now, ground.frame(&set).as_bytes());
             to_fc(&mut b, now);
-            b.handle_fc_bytes(now, fc.frame(&value("RTL_ALT", 65535, 2500.0)).as_bytes());
+            b.handle_fc_bytes(
+                now,
+                fc.frame(&param_value("RTL_ALT", 65535, 2500.0)).as_bytes(),
+            );
         }
         for f in to_radio(&mut b, now) {
             match f.decode::<MavMessage>() {

@@ -439,19 +439,22 @@ fn compact_config(
             )),
         }
     };
-    if let Some(hz) = &file.sample_hz {
-        if !COMPACT_SAMPLE_HZ.contains(hz.get_ref()) {
-            return Err(invalid(
-                "sample_hz",
-                hz,
-                format!(
-                    "{}..={} Hz",
-                    COMPACT_SAMPLE_HZ.start(),
-                    COMPACT_SAMPLE_HZ.end()
-                ),
-            ));
+    let hz = |key: &'static str,
+              v: &Option<Spanned<f64>>,
+              range: std::ops::RangeInclusive<f64>|
+     -> Result<Option<f64>, ProfileError> {
+        match v {
+            None => Ok(None),
+            Some(v) if range.contains(v.get_ref()) => Ok(Some(*v.get_ref())),
+            Some(v) => Err(invalid(
+                key,
+                v,
+                format!("{}..={} Hz", range.start(), range.end()),
+            )),
         }
-        c.sample_hz = *hz.get_ref();
+    };
+    if let Some(hz) = hz("sample_hz", &file.sample_hz, COMPACT_SAMPLE_HZ)? {
+        c.sample_hz = hz;
     }
     if let Some(n) = &file.batch_samples {
         if !(1..=MAX_BATCH_SAMPLES as i64).contains(n.get_ref()) {
@@ -480,19 +483,8 @@ fn compact_config(
     if let Some(d) = ms("coalesce_ms", &file.coalesce_ms, COMPACT_COALESCE_MS)? {
         c.coalesce = d;
     }
-    if let Some(hz) = &file.state_hz {
-        if !COMPACT_STATE_HZ.contains(hz.get_ref()) {
-            return Err(invalid(
-                "state_hz",
-                hz,
-                format!(
-                    "{}..={} Hz",
-                    COMPACT_STATE_HZ.start(),
-                    COMPACT_STATE_HZ.end()
-                ),
-            ));
-        }
-        c.state_hz = *hz.get_ref();
+    if let Some(hz) = hz("state_hz", &file.state_hz, COMPACT_STATE_HZ)? {
+        c.state_hz = hz;
     }
     Ok(c)
 }
