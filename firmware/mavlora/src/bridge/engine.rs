@@ -390,8 +390,11 @@ impl Bridge {
                     // budget, the rest with the list's share (before the list's next frame:
                     // the packer waits for the parameter queue to empty).
                     let cost = frame.as_bytes().len() + self.radio_leg.frame_extra();
-                    if asked == Asked::Set || self.read_answers.try_take(cost, now) {
-                        self.scheduler.push(frame, Class::Priority, now);
+                    if asked == Asked::Set {
+                        // a set's echo is its ack
+                        self.scheduler.push(frame, Class::Command, now);
+                    } else if self.read_answers.try_take(cost, now) {
+                        self.scheduler.push(frame, Class::Protocol, now);
                     } else if self.params.is_some() {
                         // Turn about with the list's frames: neither starves the other.
                         self.stats.param_answers_paced += 1;
@@ -663,7 +666,7 @@ impl Bridge {
                     match self.commands.command(&frame, &msg, now) {
                         CacheVerdict::Forward(f) => return self.forward_to_fc(f),
                         CacheVerdict::Replay(ack) => {
-                            self.scheduler.push(ack, Class::Priority, now);
+                            self.scheduler.push(ack, Class::Command, now);
                             return;
                         }
                         CacheVerdict::Drop => return,
@@ -731,7 +734,7 @@ impl Bridge {
             sequence: 0,
         };
         let ack = encode(MavlinkVersion::V2, header, &refusal);
-        self.scheduler.push(ack, Class::Priority, now);
+        self.scheduler.push(ack, Class::Protocol, now);
         true
     }
 
@@ -769,10 +772,10 @@ impl Bridge {
             }
         }
         if let Some(compactor) = &mut self.compactor {
-            // A coalesced group must leave whole (one radio packet): as priority frames, so a
-            // frame cannot wait behind a parameter stream between the others.
+            // A coalesced group must leave whole (one radio packet): with the commands, so no
+            // other class's frame goes between its frames.
             let class = if compactor.coalescing() {
-                Class::Priority
+                Class::Command
             } else {
                 Class::Periodic
             };
@@ -791,7 +794,7 @@ impl Bridge {
         self.refill_params(now);
         self.commands.set_link_loss(now, self.link_loss(now));
         while let Some(ack) = self.commands.poll_repeat(now) {
-            self.scheduler.push(ack, Class::Priority, now);
+            self.scheduler.push(ack, Class::Command, now);
         }
     }
 
@@ -803,7 +806,7 @@ impl Bridge {
     fn drain_mission(&mut self, now: Instant) {
         while let Some(msg) = self.mission.poll_radio() {
             let frame = self.radio_sender.frame(&msg);
-            self.scheduler.push(frame, Class::Priority, now);
+            self.scheduler.push(frame, Class::Protocol, now);
         }
         let fc = self.watch.fc().unwrap_or((self.radio_sender.system(), 1));
         while let Some(msg) = self.mission.poll_fc(fc) {

@@ -54,6 +54,17 @@ pub struct RadioCounters {
     pub radio_tx: u64,
     /// Bytes the radio budget let out.
     pub radio_tx_bytes: u64,
+    /// Commands and acks the radio budget's full queue dropped (a flood of them, oldest of
+    /// the origin with most waiting first).
+    pub radio_queue_dropped_commands: u64,
+    /// Mission, parameter-request and file-transfer frames its full queue dropped.
+    pub radio_queue_dropped_transfers: u64,
+    /// Status texts its full queue dropped (the least severe first).
+    pub radio_queue_dropped_status: u64,
+    /// Telemetry samples its full queue dropped (unnamed ones first).
+    pub radio_queue_dropped_telemetry: u64,
+    /// Parameter values its full queue dropped.
+    pub radio_queue_dropped_params: u64,
     /// Bytes handed to the radio port.
     pub radio_offered_bytes: u64,
     /// Bytes the radio port accepted.
@@ -114,6 +125,11 @@ impl RadioCounters {
             radio_bad_crc: r.bad_crc,
             radio_tx: sent.sent_frames,
             radio_tx_bytes: sent.sent_bytes,
+            radio_queue_dropped_commands: sent.dropped_command,
+            radio_queue_dropped_transfers: sent.dropped_protocol,
+            radio_queue_dropped_status: sent.dropped_status,
+            radio_queue_dropped_telemetry: sent.dropped_periodic + sent.dropped_unlisted,
+            radio_queue_dropped_params: sent.dropped_param,
             radio_offered_bytes: port.offered_bytes,
             radio_written_bytes: port.written_bytes,
             radio_dropped_bytes: port.dropped_bytes,

@@ -15,7 +15,9 @@ use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
 use crate::param::{ParamValue, ReadGate, ReadGateStats, pack as param_pack, param_value_frame};
 use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig, Notice};
-use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerConfig, SchedulerStats};
+use crate::schedule::{
+    Class, LinkScheduler, Origin, ScheduleError, SchedulerConfig, SchedulerStats,
+};
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
 use crate::wire::{
@@ -365,7 +367,8 @@ impl Router {
                 match self.commands.from_ground(now, from, &frame, &msg) {
                     Admission::Forward(f) => {
                         input.accepted += usize::from(rx.integrity == Integrity::Checked);
-                        self.scheduler.push(f, Class::Priority, now);
+                        let origin = Origin::tagged(&f, from);
+                        self.scheduler.push_from(f, Class::Command, origin, now);
                         continue;
                     }
                     Admission::Hold | Admission::Retry => {
@@ -426,7 +429,9 @@ impl Router {
                 self.drain_mission(now);
                 continue;
             }
-            self.scheduler.push(frame, Class::of(id), now);
+            // each ground station takes its turn: one that floods waits behind itself
+            let origin = Origin::tagged(&frame, from);
+            self.scheduler.push_from(frame, Class::of(id), origin, now);
         }
         input
     }
@@ -669,7 +674,7 @@ impl Router {
     fn drain_mission(&mut self, now: Instant) {
         while let Some(msg) = self.mission.poll_radio(now) {
             let frame = self.sender.frame(&msg);
-            self.scheduler.push(frame, Class::Priority, now);
+            self.scheduler.push(frame, Class::Protocol, now);
         }
         while let Some(((system, component), msg)) = self.mission.poll_ground() {
             let header = MavHeader {
@@ -689,7 +694,7 @@ impl Router {
         self.commands.set_link_loss(now, self.link_loss(now));
         self.commands.handle_timeout(now);
         while let Some(frame) = self.commands.poll_retransmit() {
-            self.scheduler.push(frame, Class::Priority, now);
+            self.scheduler.push(frame, Class::Command, now);
         }
         self.quality.handle_timeout(now, self.radio_reader.stats());
         if let Some(report) = self.quality.poll_report() {

@@ -667,9 +667,20 @@ fn packed_parameters_expand_as_the_autopilot_and_malformed_ones_are_refused() {
 /// A ground station that reads values one by one once its list went quiet for 1 s takes a slow
 /// radio's pause between two packed frames for the list's end: its reads of what the list in
 /// flight brings wait at the router, a read of a value the list lost goes to the radio.
+/// A ground station's read of parameter `index` of vehicle 1.
+fn param_read(g: &mut Sender, index: i16) -> OwnedFrame {
+    g.frame(&MavMessage::PARAM_REQUEST_READ(
+        crate::dialect::PARAM_REQUEST_READ_DATA {
+            target_system: 1,
+            target_component: 1,
+            param_index: index,
+            ..Default::default()
+        },
+    ))
+}
+
 #[test]
 fn reads_of_what_the_list_in_flight_brings_wait_and_lost_values_are_read() {
-    use crate::dialect::PARAM_REQUEST_READ_DATA;
     use crate::param::{ParamValue, pack};
     let value = |index: u16| ParamValue {
         value: [0; 4],
@@ -688,14 +699,7 @@ fn reads_of_what_the_list_in_flight_brings_wait_and_lost_values_are_read() {
     )));
     r.handle_radio_bytes(ms(0), f.as_bytes());
     let mut ground = Sender::new(255, 190, MavlinkVersion::V2);
-    let read = |g: &mut Sender, index: i16| {
-        g.frame(&MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
-            target_system: 1,
-            target_component: 1,
-            param_index: index,
-            ..Default::default()
-        }))
-    };
+    let read = param_read;
     for index in [3, 7, 8, 3] {
         r.handle_gcs_bytes(ms(1200), read(&mut ground, index).as_bytes());
     }
@@ -712,4 +716,82 @@ fn reads_of_what_the_list_in_flight_brings_wait_and_lost_values_are_read() {
     );
     let s = r.stats().param_reads;
     assert_eq!((s.forwarded, s.held_ahead, s.held_repeat), (1, 2, 1));
+}
+
+/// Regression (issue 22, item 12): another allowed ground station sending 100
+/// PARAM_REQUEST_READ a second made 0 of 8 pilot commands run: the reads and the commands
+/// queued for the radio in one line. The pilot's commands now leave within one frame's air
+/// time, and the pilot's own reads take turns with the flood.
+#[test]
+fn a_flooding_ground_station_delays_neither_the_pilots_commands_nor_its_reads() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd, MavResult};
+    let mut r = Router::new(
+        RouterConfig::new(SchedulerConfig::for_radio(300, 300)),
+        Instant::ZERO,
+    )
+    .unwrap();
+    let read = param_read;
+    let (mut pilot, mut fc) = (
+        Sender::new(255, 190, MavlinkVersion::V2),
+        Sender::new(1, 1, MavlinkVersion::V2),
+    );
+    // MAVProxy on the same machine (the same address, its own component id)
+    let mut flooder = Sender::new(255, 230, MavlinkVersion::V2);
+    let (mut sent_at, mut delays, mut pilot_reads) = (Vec::new(), Vec::new(), 0);
+    for t in (0..8_000u64).step_by(10) {
+        let now = ms(t);
+        r.handle_gcs_bytes(now, read(&mut flooder, (t / 10) as i16 + 100).as_bytes());
+        if t % 1_000 == 0 {
+            let k = (t / 1_000) as u8;
+            // distinct commands: none waits for the one before's ack to be told apart
+            let command = [
+                MavCmd::MAV_CMD_DO_SET_SERVO,
+                MavCmd::MAV_CMD_DO_SET_RELAY,
+                MavCmd::MAV_CMD_DO_REPEAT_SERVO,
+                MavCmd::MAV_CMD_DO_REPEAT_RELAY,
+                MavCmd::MAV_CMD_DO_CHANGE_SPEED,
+                MavCmd::MAV_CMD_DO_SET_HOME,
+                MavCmd::MAV_CMD_DO_DIGICAM_CONTROL,
+                MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+            ][usize::from(k)];
+            let cmd = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+                target_system: 1,
+                target_component: 1,
+                command,
+                param1: f32::from(k),
+                ..Default::default()
+            });
+            r.handle_gcs_bytes(now, pilot.frame(&cmd).as_bytes());
+            r.handle_gcs_bytes(now, read(&mut pilot, i16::from(k)).as_bytes());
+            sent_at.push(t);
+        }
+        for msg in radio_out(&mut r, now) {
+            match msg {
+                MavMessage::COMMAND_LONG(c) => {
+                    // the first copy on the air (the relay adds redundant ones)
+                    let k = c.param1 as usize;
+                    if delays.len() == k {
+                        delays.push(t - sent_at[k]);
+                    }
+                    let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+                        command: c.command,
+                        result: MavResult::MAV_RESULT_ACCEPTED,
+                        ..Default::default()
+                    });
+                    r.handle_radio_bytes(now, fc.frame(&ack).as_bytes());
+                }
+                MavMessage::PARAM_REQUEST_READ(p) if p.param_index < 100 => pilot_reads += 1,
+                _ => {}
+            }
+        }
+    }
+    // a command's 45 bytes take 150 ms at 300 B/s; one frame already on the air before it
+    assert_eq!(delays.len(), 8, "commands on the radio: {delays:?}");
+    assert!(
+        delays.iter().all(|&d| d <= 300),
+        "command delays {delays:?} ms"
+    );
+    assert_eq!(pilot_reads, 8, "the pilot's reads");
+    let s = r.stats().scheduler;
+    assert!(s.dropped_protocol > 0 && s.dropped_command == 0, "{s:?}");
 }

@@ -1,31 +1,53 @@
-//! Which frames must get through (priority) and which are replaceable samples (periodic).
+//! Scheduling classes: what goes first (commands and acks), what shares the rest of the
+//! budget (transfers, status text, parameters, telemetry), and which frames are replaceable
+//! samples.
 
 use crate::wire::ids;
 
-/// Scheduling class of a frame, in the order the radio budget serves them.
+/// Scheduling class of a frame (see [`LinkScheduler`](super::LinkScheduler) for the shares).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Class {
-    /// Commands, acks, mission and parameter requests: sent first, in order, never replaced.
-    /// Losing or delaying one stalls a protocol (the paper's mission-upload problem).
-    Priority,
+    /// Commands and their acks (and a parameter set's echo, its ack): sent before anything
+    /// else, in order. What a pilot does must not wait behind what a ground station reads.
+    Command,
+    /// Request/response transfers: mission, parameter requests and sets, file transfer
+    /// (FTP). A guaranteed share of the budget, fair between origins, so a ground station
+    /// downloading files or reading parameters in a loop cannot starve telemetry or the
+    /// pilot's own transfers.
+    Protocol,
+    /// `STATUSTEXT`: a share of its own, fair between origins, and a short queue that drops
+    /// the least severe text first, so an autopilot chattering at 20 texts a second delays
+    /// neither commands nor position.
+    Status,
     /// `PARAM_VALUE` (and the bridge's `MAVLORA_PARAM_VALUES`, several of them in a frame): a
     /// parameter stream is ~1000 values at once (a ground station loading parameters, an
-    /// ArduPilot at boot). It gets its own bounded queue and a guaranteed
-    /// share of the budget, so it is paced instead of pushing commands out of a full queue
-    /// or starving position for minutes.
+    /// ArduPilot at boot). It gets its own bounded queue and a share of the budget, so it is
+    /// paced instead of pushing commands out of a full queue or starving position for minutes.
     Param,
     /// Periodic telemetry the profile names (a `radio` rate or `pass`): only the newest sample
-    /// matters, so a newer one replaces an older queued one; served before anything unnamed.
+    /// matters, so a newer one replaces an older queued one. The largest share: a position
+    /// that arrives while the other classes are busy leaves after at most one frame of each.
     Periodic,
     /// Periodic telemetry the profile does not name: replaced like [`Class::Periodic`], but
-    /// sent only with what the named messages leave of the budget, so an autopilot that
+    /// sent only with what every other class leaves of the budget, so an autopilot that
     /// ignores the stream configuration cannot starve position.
     Unlisted,
 }
 
-/// Message ids that are part of a request/response protocol.
-const PRIORITY: &[u32] = &[
+/// Commands and their acks.
+const COMMAND: &[u32] = &[
+    ids::COMMAND_INT,
+    ids::COMMAND_LONG,
+    ids::COMMAND_ACK,
+    ids::COMMAND_CANCEL,
     ids::SET_MODE,
+    // "go to item n" is the pilot's, not a transfer's
+    ids::MISSION_SET_CURRENT,
+    ids::SETUP_SIGNING,
+];
+
+/// Message ids that are part of a request/response transfer.
+const PROTOCOL: &[u32] = &[
     ids::PARAM_REQUEST_READ,
     ids::PARAM_REQUEST_LIST,
     ids::PARAM_SET,
@@ -33,21 +55,16 @@ const PRIORITY: &[u32] = &[
     ids::MISSION_WRITE_PARTIAL_LIST,
     ids::MISSION_ITEM,
     ids::MISSION_REQUEST,
-    ids::MISSION_SET_CURRENT,
     ids::MISSION_REQUEST_LIST,
     ids::MISSION_COUNT,
     ids::MISSION_CLEAR_ALL,
     ids::MISSION_ITEM_REACHED,
+    // a transfer's last word: it must not overtake the transfer's items
     ids::MISSION_ACK,
     ids::MISSION_REQUEST_INT,
     ids::MISSION_ITEM_INT,
-    ids::COMMAND_INT,
-    ids::COMMAND_LONG,
-    ids::COMMAND_ACK,
-    ids::COMMAND_CANCEL,
+    ids::MAVLORA_MISSION_ITEMS,
     ids::FILE_TRANSFER_PROTOCOL,
-    ids::STATUSTEXT,
-    ids::SETUP_SIGNING,
 ];
 
 /// Message ids whose frames are parts of a sequence or distinct records, not samples of one
@@ -81,14 +98,18 @@ pub fn replaceable(message_id: u32) -> bool {
 }
 
 impl Class {
-    /// Default class of a message id: [`Class::Priority`] for command, mission, parameter
-    /// request and status-text messages, [`Class::Param`] for `PARAM_VALUE` and
-    /// `MAVLORA_PARAM_VALUES`,
-    /// [`Class::Periodic`] for everything else (the bridge demotes what its profile does not
-    /// name to [`Class::Unlisted`]).
+    /// Default class of a message id: [`Class::Command`] for commands and acks,
+    /// [`Class::Protocol`] for mission, parameter-request and file transfers,
+    /// [`Class::Status`] for `STATUSTEXT`, [`Class::Param`] for `PARAM_VALUE` and
+    /// `MAVLORA_PARAM_VALUES`, [`Class::Periodic`] for everything else (the bridge demotes
+    /// what its profile does not name to [`Class::Unlisted`]).
     pub fn of(message_id: u32) -> Self {
-        if PRIORITY.contains(&message_id) {
-            Self::Priority
+        if COMMAND.contains(&message_id) {
+            Self::Command
+        } else if PROTOCOL.contains(&message_id) {
+            Self::Protocol
+        } else if message_id == ids::STATUSTEXT {
+            Self::Status
         } else if matches!(message_id, ids::PARAM_VALUE | ids::MAVLORA_PARAM_VALUES) {
             Self::Param
         } else {
@@ -96,10 +117,10 @@ impl Class {
         }
     }
 
-    /// Whether frames of this class belong to a request/response protocol (never replaced by
-    /// a newer sample): what the IO queues keep in their priority lane.
+    /// Whether frames of this class are messages, not samples of a state (never replaced by
+    /// a newer one): what the IO queues keep in their priority lane.
     pub fn is_protocol(self) -> bool {
-        matches!(self, Self::Priority | Self::Param)
+        !matches!(self, Self::Periodic | Self::Unlisted)
     }
 }
 
@@ -121,13 +142,18 @@ mod tests {
     }
 
     #[test]
-    fn telemetry_is_periodic_and_commands_are_priority() {
+    fn telemetry_is_periodic_and_commands_go_apart_from_transfers() {
         assert_eq!(Class::of(ids::GLOBAL_POSITION_INT), Class::Periodic);
         assert_eq!(Class::of(ids::HEARTBEAT), Class::Periodic);
-        assert_eq!(Class::of(ids::COMMAND_LONG), Class::Priority);
-        assert_eq!(Class::of(ids::MISSION_ITEM_INT), Class::Priority);
+        assert_eq!(Class::of(ids::COMMAND_LONG), Class::Command);
+        assert_eq!(Class::of(ids::COMMAND_ACK), Class::Command);
+        assert_eq!(Class::of(ids::MISSION_ITEM_INT), Class::Protocol);
+        assert_eq!(Class::of(ids::MISSION_ACK), Class::Protocol);
+        assert_eq!(Class::of(ids::FILE_TRANSFER_PROTOCOL), Class::Protocol);
+        assert_eq!(Class::of(ids::STATUSTEXT), Class::Status);
         assert_eq!(Class::of(ids::PARAM_VALUE), Class::Param);
         assert_eq!(Class::of(ids::MAVLORA_PARAM_VALUES), Class::Param);
-        assert!(Class::Param.is_protocol() && !Class::Unlisted.is_protocol());
+        assert!(Class::Param.is_protocol() && Class::Status.is_protocol());
+        assert!(!Class::Unlisted.is_protocol() && !Class::Periodic.is_protocol());
     }
 }

@@ -6,6 +6,7 @@ use tracing::{debug, warn};
 
 use super::bucket::TokenBucket;
 use super::class::{Class, replaceable};
+use super::fair::{FairQueue, Origin};
 use crate::time::Instant;
 use crate::wire::{MAX_FRAME_LEN, OwnedFrame};
 
@@ -18,7 +19,9 @@ pub struct SchedulerConfig {
     /// Bytes that may go out at once above the average; at least one largest frame
     /// ([`MAX_FRAME_LEN`]) so every frame can eventually go.
     pub burst_bytes: u32,
-    /// Bytes that may wait in the queues; beyond it periodic samples are dropped first.
+    /// Bytes that may wait in each class's queue (commands, transfers, telemetry; status
+    /// text a quarter of it, parameters [`PARAM_QUEUE_BYTES`]); beyond it the class drops its
+    /// own frames.
     pub max_queued_bytes: usize,
 }
 
@@ -57,16 +60,33 @@ pub struct SchedulerStats {
     pub sent_bytes: u64,
     /// Periodic frames replaced in the queue by a newer sample of the same message.
     pub replaced: u64,
-    /// Periodic frames dropped because the queue was full.
+    /// Periodic frames dropped because the telemetry queue was full.
     pub dropped_periodic: u64,
-    /// Priority frames dropped because the queue was full of priority frames only.
-    pub dropped_priority: u64,
-    /// Unnamed telemetry frames dropped because the queue was full.
+    /// Unnamed telemetry frames dropped because the telemetry queue was full (before any
+    /// named one).
     pub dropped_unlisted: u64,
+    /// Commands and acks dropped because their queue was full (of one origin's, first).
+    pub dropped_command: u64,
+    /// Transfer frames dropped because their queue was full (of one origin's, first).
+    pub dropped_protocol: u64,
+    /// Status texts dropped because their queue was full (the least severe first).
+    pub dropped_status: u64,
     /// `PARAM_VALUE` frames handed to the radio.
     pub sent_param_frames: u64,
     /// `PARAM_VALUE` frames dropped because their own queue was full.
     pub dropped_param: u64,
+}
+
+impl SchedulerStats {
+    /// Frames dropped for a full queue, of every class.
+    pub fn dropped(&self) -> u64 {
+        self.dropped_periodic
+            + self.dropped_unlisted
+            + self.dropped_command
+            + self.dropped_protocol
+            + self.dropped_status
+            + self.dropped_param
+    }
 }
 
 /// Identity of a periodic stream: a newer frame with the same key replaces the queued one.
@@ -95,15 +115,39 @@ impl Key {
 /// parameters of 33-37 bytes) fits, so a parameter load is paced rather than cut.
 pub const PARAM_QUEUE_BYTES: usize = 64 * 1024;
 
-/// Share of the budget guaranteed to a waiting parameter stream: one byte in
-/// `PARAM_SHARE_DIVISOR` (an eighth: on LoRa SF7's 273 B/s, ~34 B/s, one `PARAM_VALUE` a
-/// second, what is left once the profile's telemetry is served; more when it leaves more).
-pub const PARAM_SHARE_DIVISOR: u64 = 8;
+/// The classes that share the budget, in the order they win a tie.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Lane {
+    Periodic = 0,
+    Protocol = 1,
+    Status = 2,
+    Param = 3,
+}
 
-/// Budget that spare-capacity traffic (a parameter stream beyond its share, unnamed telemetry)
-/// leaves in the bucket: a named frame arriving next (a 3 Hz position is 36-53 bytes, signed
-/// MAVLink 2 included) finds it and leaves at once instead of waiting for a refill behind
-/// traffic that only fills gaps. Reduced to what the burst allows above one largest frame.
+const LANES: [Lane; 4] = [Lane::Periodic, Lane::Protocol, Lane::Status, Lane::Param];
+
+/// Each lane's weight: its share of the budget while every lane has frames waiting (a lane
+/// with nothing waiting leaves its share to the others).
+/// - Telemetry 8/15, and 8/9 against a parameter stream alone: the profile's named
+///   telemetry is what the operator budgeted the link for (compact: ~40-60 B/s, a fifth of
+///   LoRa SF7's budget; ArduPilot's MAVLink 1 profile: most of it), so position keeps its
+///   3 Hz, and a frame that arrives waits at most one frame of each other lane.
+/// - Transfers 4/15: a mission or FTP download goes on at ~65 B/s on LoRa SF7 beside a
+///   saturated link, and takes everything left beside an idle one.
+/// - Status text 2/15: a 60-byte text every 2 s while everything else is busy; the least
+///   severe are dropped first when they come faster.
+/// - Parameters 1/15 (1/9 against telemetry alone, as the eighth they had before): a list of
+///   1,000 values is paced, neither starved nor starving, and takes all the spare budget.
+const WEIGHTS: [u64; 4] = [8, 4, 2, 1];
+
+/// Virtual time a lane advances per byte sent is `UNIT / weight`: a multiple of every
+/// weight, so the division is exact.
+const UNIT: u64 = 840;
+
+/// Budget that spare-capacity traffic (a parameter stream, unnamed telemetry) leaves in the
+/// bucket: a named frame arriving next (a 3 Hz position is 36-53 bytes, signed MAVLink 2
+/// included) finds it and leaves at once instead of waiting for a refill behind traffic that
+/// only fills gaps. Reduced to what the burst allows above one largest frame.
 pub const SPARE_RESERVE_BYTES: usize = 64;
 
 /// Sans-IO scheduler between the filter and the radio.
@@ -112,15 +156,19 @@ pub const SPARE_RESERVE_BYTES: usize = 64;
 /// [`poll_transmit`](Self::poll_transmit) until it returns `None`; wake up again at
 /// [`poll_timeout`](Self::poll_timeout). Guarantees:
 /// - over any window `w`, at most `rate * w + burst` bytes leave (token bucket);
-/// - priority frames leave first, in arrival order, and are dropped only when no periodic
-///   frame is left to drop;
-/// - a waiting parameter stream ([`Class::Param`]) gets at least an eighth of the bytes sent
-///   (ahead of named telemetry only when the spare budget did not give it that much) and
-///   any spare budget, in arrival order, from its own bounded queue ([`PARAM_QUEUE_BYTES`]),
-///   so it never pushes a priority frame out;
-/// - named telemetry ([`Class::Periodic`]) goes before unnamed ([`Class::Unlisted`]), which
-///   only gets what is left and is dropped first when the queue is full; spare-capacity
-///   traffic never takes the last [`SPARE_RESERVE_BYTES`] of the budget;
+/// - commands and acks ([`Class::Command`]) leave first, each origin's in arrival order;
+/// - transfers, status text, parameters and named telemetry share what is left by weight
+///   (start-time fair queueing over [`WEIGHTS`]): a class that has frames waiting gets at
+///   least its share, a class with nothing waiting leaves its share to the others, and a
+///   frame arriving in an idle class waits at most one frame of each busy class;
+/// - within transfers and status text, origins ([`Origin`]) take turns by bytes, each in
+///   its own order: a flooding origin waits behind its own frames;
+/// - each class has its own bounded queue: a flood of one class drops only that class's
+///   frames (the flooding origin's first; for status text, the least severe first), never a
+///   command;
+/// - unnamed telemetry ([`Class::Unlisted`]) only gets what every other class leaves;
+///   spare-capacity traffic (it and parameters) never takes the last
+///   [`SPARE_RESERVE_BYTES`] of the budget;
 /// - a periodic frame replaces a queued frame of the same (sysid, compid, msgid) in place,
 ///   so the freshest sample leaves at the older one's turn instead of queueing behind it;
 ///   parts of a sequence (RTCM fragments, serial console bytes, log data, events) are never
@@ -129,22 +177,23 @@ pub const SPARE_RESERVE_BYTES: usize = 64;
 pub struct LinkScheduler {
     config: SchedulerConfig,
     bucket: TokenBucket,
-    priority: VecDeque<OwnedFrame>,
+    commands: FairQueue,
+    transfers: FairQueue,
+    status: FairQueue,
     params: VecDeque<OwnedFrame>,
     param_bytes: usize,
-    /// Bytes the parameter stream may send without leaving the spare reserve, times
-    /// [`PARAM_SHARE_DIVISOR`] - 1: each byte of another class sent earns one, each
-    /// parameter byte sent on this credit costs `PARAM_SHARE_DIVISOR - 1`. Capped so an idle
-    /// stretch earns no burst.
-    param_credit: u64,
     /// Parts of sequences queued so far: each one's own key.
     parts: u64,
     /// Few distinct keys (one per periodic message per sender), so a linear scan for
     /// replacement beats maintaining an index.
     periodic: VecDeque<(Key, OwnedFrame)>,
     unlisted: VecDeque<(Key, OwnedFrame)>,
-    /// Bytes waiting in the priority and telemetry queues (parameters are counted apart).
-    queued_bytes: usize,
+    /// Bytes waiting in the telemetry queues.
+    telemetry_bytes: usize,
+    /// Start tag of each lane's next frame, and of the frame a lane sent last: a lane that
+    /// gets frames after a pause starts from there, not from its old tag.
+    lane_start: [u64; 4],
+    virtual_time: u64,
     /// Bytes each frame gains after it leaves the scheduler (a signature), charged with it.
     frame_extra: usize,
     stats: SchedulerStats,
@@ -153,10 +202,8 @@ pub struct LinkScheduler {
 /// Which queue the next frame comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Source {
-    Priority,
-    ParamShare,
-    Periodic,
-    ParamLeftover,
+    Command,
+    Lane(Lane),
     Unlisted,
 }
 
@@ -175,14 +222,17 @@ impl LinkScheduler {
         Ok(Self {
             config,
             bucket: TokenBucket::new(config.rate_bytes_per_s, config.burst_bytes, now),
-            priority: VecDeque::new(),
+            commands: FairQueue::default(),
+            transfers: FairQueue::default(),
+            status: FairQueue::default(),
             params: VecDeque::new(),
             param_bytes: 0,
-            param_credit: 0,
             parts: 0,
             periodic: VecDeque::new(),
             unlisted: VecDeque::new(),
-            queued_bytes: 0,
+            telemetry_bytes: 0,
+            lane_start: [0; 4],
+            virtual_time: 0,
             frame_extra: 0,
             stats: SchedulerStats::default(),
         })
@@ -207,10 +257,11 @@ impl LinkScheduler {
         self.stats
     }
 
-    /// Frames waiting: priority and periodic (named and unnamed; parameters not included).
+    /// Frames waiting: messages (commands, transfers, status text) and telemetry (named and
+    /// unnamed); parameters not included.
     pub fn queued_frames(&self) -> (usize, usize) {
         (
-            self.priority.len(),
+            self.commands.len() + self.transfers.len() + self.status.len(),
             self.periodic.len() + self.unlisted.len(),
         )
     }
@@ -220,21 +271,61 @@ impl LinkScheduler {
         self.params.len()
     }
 
-    /// Bytes waiting in the priority and telemetry queues.
+    /// Bytes waiting in every queue but the parameters'.
     pub fn queued_bytes(&self) -> usize {
-        self.queued_bytes
+        self.commands.bytes() + self.transfers.bytes() + self.status.bytes() + self.telemetry_bytes
     }
 
-    /// Queues a frame for the radio. Time is not needed to queue; it is taken for symmetry
-    /// with the other calls and for log context.
+    /// Bytes of status text that may wait: a quarter of the other queues' limit. A text is
+    /// news for the pilot; a deep queue of them would only make every one of them late.
+    fn status_limit(&self) -> usize {
+        (self.config.max_queued_bytes / 4).max(MAX_FRAME_LEN)
+    }
+
+    /// Queues a frame for the radio from the frame's own sender.
     pub fn push(&mut self, frame: OwnedFrame, class: Class, now: Instant) {
-        let len = frame.as_bytes().len();
+        let origin = Origin::of(&frame);
+        self.push_from(frame, class, origin, now);
+    }
+
+    /// Queues a frame for the radio from `origin` (commands, transfers and status text take
+    /// turns between origins). Time is not needed to queue; it is taken for log context.
+    pub fn push_from(&mut self, frame: OwnedFrame, class: Class, origin: Origin, now: Instant) {
+        if let Some(lane) = lane_of(class)
+            && self.lane_is_empty(lane)
+        {
+            // a lane back from a pause starts now: its unused share is not saved up
+            let l = lane as usize;
+            self.lane_start[l] = self.lane_start[l].max(self.virtual_time);
+        }
         match class {
-            Class::Priority => {
-                self.priority.push_back(frame);
-                self.queued_bytes += len;
+            Class::Command => {
+                self.commands.push(origin, frame);
+                let limit = self.config.max_queued_bytes;
+                let n = &mut self.stats.dropped_command;
+                shed(&mut self.commands, limit, oldest, n, now, "commands");
+            }
+            Class::Protocol => {
+                self.transfers.push(origin, frame);
+                let limit = self.config.max_queued_bytes;
+                let n = &mut self.stats.dropped_protocol;
+                shed(&mut self.transfers, limit, oldest, n, now, "transfers");
+            }
+            Class::Status => {
+                self.status.push(origin, frame);
+                let limit = self.status_limit();
+                let n = &mut self.stats.dropped_status;
+                shed(
+                    &mut self.status,
+                    limit,
+                    least_severe,
+                    n,
+                    now,
+                    "status texts",
+                );
             }
             Class::Param => {
+                let len = frame.as_bytes().len();
                 if self.param_bytes + len > PARAM_QUEUE_BYTES {
                     // The ground station re-requests what it misses (PARAM_REQUEST_READ).
                     self.stats.dropped_param += 1;
@@ -249,52 +340,53 @@ impl LinkScheduler {
                 self.param_bytes += len;
                 self.params.push_back(frame);
             }
-            Class::Periodic | Class::Unlisted => {
-                let part = if replaceable(frame.message_id()) {
-                    0
-                } else {
-                    self.parts += 1;
-                    self.parts
-                };
-                let key = Key::of(&frame, part);
-                let queue = if class == Class::Periodic {
-                    &mut self.periodic
-                } else {
-                    &mut self.unlisted
-                };
-                if let Some(slot) = queue.iter_mut().find(|(k, _)| *k == key) {
-                    self.queued_bytes = self.queued_bytes - slot.1.as_bytes().len() + len;
-                    slot.1 = frame;
-                    self.stats.replaced += 1;
-                } else {
-                    queue.push_back((key, frame));
-                    self.queued_bytes += len;
-                }
-            }
+            Class::Periodic | Class::Unlisted => self.push_telemetry(frame, class, now),
         }
-        self.enforce_queue_limit(now);
     }
 
-    fn enforce_queue_limit(&mut self, now: Instant) {
-        while self.queued_bytes > self.config.max_queued_bytes {
+    fn push_telemetry(&mut self, frame: OwnedFrame, class: Class, now: Instant) {
+        let len = frame.as_bytes().len();
+        let part = if replaceable(frame.message_id()) {
+            0
+        } else {
+            self.parts += 1;
+            self.parts
+        };
+        let key = Key::of(&frame, part);
+        let queue = if class == Class::Periodic {
+            &mut self.periodic
+        } else {
+            &mut self.unlisted
+        };
+        if let Some(slot) = queue.iter_mut().find(|(k, _)| *k == key) {
+            self.telemetry_bytes = self.telemetry_bytes - slot.1.as_bytes().len() + len;
+            slot.1 = frame;
+            self.stats.replaced += 1;
+        } else {
+            queue.push_back((key, frame));
+            self.telemetry_bytes += len;
+        }
+        while self.telemetry_bytes > self.config.max_queued_bytes {
             if let Some((key, old)) = self.unlisted.pop_front() {
-                self.queued_bytes -= old.as_bytes().len();
+                self.telemetry_bytes -= old.as_bytes().len();
                 self.stats.dropped_unlisted += 1;
                 debug!(%now, msgid = key.message, "queue full, dropped unlisted frame");
             } else if let Some((key, old)) = self.periodic.pop_front() {
-                self.queued_bytes -= old.as_bytes().len();
+                self.telemetry_bytes -= old.as_bytes().len();
                 self.stats.dropped_periodic += 1;
                 debug!(%now, msgid = key.message, "queue full, dropped periodic frame");
-            } else if let Some(old) = self.priority.pop_front() {
-                self.queued_bytes -= old.as_bytes().len();
-                self.stats.dropped_priority += 1;
-                let n = self.stats.dropped_priority;
-                if n.is_power_of_two() {
-                    warn!(%now, msgid = old.message_id(), dropped = n, "queue full of priority frames, dropped one (logged at the 1st, 2nd, 4th... drop)");
-                }
             } else {
                 break;
             }
+        }
+    }
+
+    fn lane_is_empty(&self, lane: Lane) -> bool {
+        match lane {
+            Lane::Periodic => self.periodic.is_empty(),
+            Lane::Protocol => self.transfers.is_empty(),
+            Lane::Status => self.status.is_empty(),
+            Lane::Param => self.params.is_empty(),
         }
     }
 
@@ -311,34 +403,34 @@ impl LinkScheduler {
             return None;
         }
         let frame = match source {
-            Source::Priority => self.priority.pop_front()?,
-            Source::ParamShare | Source::ParamLeftover => self.params.pop_front()?,
-            Source::Periodic => self.periodic.pop_front()?.1,
-            Source::Unlisted => self.unlisted.pop_front()?.1,
+            Source::Command => self.commands.pop(cost)?,
+            Source::Lane(lane) => {
+                let frame = match lane {
+                    Lane::Periodic => {
+                        let (_, f) = self.periodic.pop_front()?;
+                        self.telemetry_bytes -= len;
+                        f
+                    }
+                    Lane::Protocol => self.transfers.pop(cost)?,
+                    Lane::Status => self.status.pop(cost)?,
+                    Lane::Param => {
+                        let f = self.params.pop_front()?;
+                        self.param_bytes -= len;
+                        self.stats.sent_param_frames += 1;
+                        f
+                    }
+                };
+                let l = lane as usize;
+                self.virtual_time = self.lane_start[l];
+                self.lane_start[l] += cost as u64 * (UNIT / WEIGHTS[l]);
+                frame
+            }
+            Source::Unlisted => {
+                let (_, f) = self.unlisted.pop_front()?;
+                self.telemetry_bytes -= len;
+                f
+            }
         };
-        match source {
-            Source::ParamShare => {
-                self.param_bytes -= len;
-                self.param_credit -= cost as u64 * (PARAM_SHARE_DIVISOR - 1);
-                self.stats.sent_param_frames += 1;
-            }
-            Source::ParamLeftover => {
-                // spare budget counts towards the share: the share only overtakes named
-                // telemetry when the spare budget did not give it as much
-                self.param_bytes -= len;
-                self.param_credit = self
-                    .param_credit
-                    .saturating_sub(cost as u64 * (PARAM_SHARE_DIVISOR - 1));
-                self.stats.sent_param_frames += 1;
-            }
-            _ => {
-                self.queued_bytes -= len;
-                if !self.params.is_empty() {
-                    let cap = (MAX_FRAME_LEN as u64) * (PARAM_SHARE_DIVISOR - 1);
-                    self.param_credit = (self.param_credit + cost as u64).min(cap);
-                }
-            }
-        }
         self.stats.sent_frames += 1;
         self.stats.sent_bytes += cost as u64;
         Some(frame)
@@ -354,7 +446,7 @@ impl LinkScheduler {
 
     fn reserve_for(&self, source: Source) -> usize {
         match source {
-            Source::ParamLeftover | Source::Unlisted => SPARE_RESERVE_BYTES
+            Source::Lane(Lane::Param) | Source::Unlisted => SPARE_RESERVE_BYTES
                 .min((self.config.burst_bytes as usize).saturating_sub(MAX_FRAME_LEN)),
             _ => 0,
         }
@@ -365,27 +457,73 @@ impl LinkScheduler {
     /// [`poll_transmit`](Self::poll_transmit) will send.
     fn next_source(&self) -> Option<(Source, usize)> {
         let len = |f: &OwnedFrame| f.as_bytes().len();
-        if let Some(f) = self.priority.front() {
-            return Some((Source::Priority, len(f)));
+        if let Some(f) = self.commands.front() {
+            return Some((Source::Command, len(f)));
         }
-        let share_due = |f: &OwnedFrame| {
-            self.param_credit >= (len(f) + self.frame_extra) as u64 * (PARAM_SHARE_DIVISOR - 1)
-        };
-        if let Some(f) = self.params.front()
-            && share_due(f)
-        {
-            return Some((Source::ParamShare, len(f)));
-        }
-        if let Some((_, f)) = self.periodic.front() {
-            return Some((Source::Periodic, len(f)));
-        }
-        if let Some(f) = self.params.front() {
-            return Some((Source::ParamLeftover, len(f)));
+        let lane = LANES
+            .iter()
+            .filter(|&&l| !self.lane_is_empty(l))
+            .min_by_key(|&&l| self.lane_start[l as usize]);
+        if let Some(&lane) = lane {
+            let head = match lane {
+                Lane::Periodic => self.periodic.front().map(|(_, f)| f),
+                Lane::Protocol => self.transfers.front(),
+                Lane::Status => self.status.front(),
+                Lane::Param => self.params.front(),
+            }?;
+            return Some((Source::Lane(lane), len(head)));
         }
         self.unlisted
             .front()
             .map(|(_, f)| (Source::Unlisted, len(f)))
     }
+}
+
+/// The lane a class shares the budget in; `None` for commands (first) and unnamed telemetry
+/// (last).
+fn lane_of(class: Class) -> Option<Lane> {
+    match class {
+        Class::Periodic => Some(Lane::Periodic),
+        Class::Protocol => Some(Lane::Protocol),
+        Class::Status => Some(Lane::Status),
+        Class::Param => Some(Lane::Param),
+        Class::Command | Class::Unlisted => None,
+    }
+}
+
+/// Drops frames of the origin with most waiting (the one `choose` picks among its frames)
+/// until `queue` holds at most `limit` bytes, counting them in `dropped`. A log line at the
+/// 1st, 2nd, 4th... drop: a flood fills no disk; the status line has the count.
+fn shed(
+    queue: &mut FairQueue,
+    limit: usize,
+    choose: fn(&VecDeque<OwnedFrame>) -> usize,
+    dropped: &mut u64,
+    now: Instant,
+    what: &str,
+) {
+    while queue.bytes() > limit {
+        let Some(old) = queue.drop_from_largest(choose) else {
+            break;
+        };
+        *dropped += 1;
+        if dropped.is_power_of_two() {
+            warn!(%now, msgid = old.message_id(), dropped = *dropped, "queue of {what} full, dropped a frame of the origin with most waiting (logged at the 1st, 2nd, 4th... drop)");
+        }
+    }
+}
+
+/// A flooding origin's frame to drop first: its oldest.
+fn oldest(_: &VecDeque<OwnedFrame>) -> usize {
+    0
+}
+
+/// The status text to drop first: the least severe (MAV_SEVERITY: 0 emergency ... 7 debug),
+/// the oldest of those. A severity MAVLink 2 trimmed away is 0, emergency: kept longest.
+fn least_severe(texts: &VecDeque<OwnedFrame>) -> usize {
+    let severity = |f: &OwnedFrame| f.payload().first().copied().unwrap_or(0);
+    let worst = texts.iter().map(severity).max().unwrap_or(0);
+    texts.iter().position(|f| severity(f) == worst).unwrap_or(0)
 }
 
 #[cfg(test)]

@@ -1,9 +1,14 @@
+use std::collections::HashMap;
+
 use mavlink::MavlinkVersion;
 use proptest::prelude::*;
 
 use super::*;
 use crate::testutil::raw_frame;
-use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT, PARAM_VALUE};
+use crate::wire::ids::{
+    COMMAND_LONG, FILE_TRANSFER_PROTOCOL, GLOBAL_POSITION_INT, HEARTBEAT, PARAM_REQUEST_READ,
+    PARAM_VALUE, STATUSTEXT,
+};
 
 const ROOM: usize = usize::MAX;
 
@@ -23,6 +28,9 @@ fn frame(id: u32, sysid: u8, compid: u8, seq: u8) -> OwnedFrame {
         COMMAND_LONG => 33,
         HEARTBEAT => 9,
         PARAM_VALUE => 25,
+        PARAM_REQUEST_READ => 20,
+        FILE_TRANSFER_PROTOCOL => 200,
+        STATUSTEXT => 51,
         _ => unreachable!("test uses only the ids above"),
     };
     raw_frame(MavlinkVersion::V2, sysid, compid, seq, id, &vec![0x55; len])
@@ -51,17 +59,31 @@ fn invalid_configs_are_rejected() {
     );
 }
 
+/// A status text of `severity` (MAV_SEVERITY) whose text is `n`.
+fn text(severity: u8, n: u8) -> OwnedFrame {
+    let mut payload = vec![severity];
+    payload.extend([b'a' + n % 26; 50]);
+    raw_frame(MavlinkVersion::V2, 1, 1, n, STATUSTEXT, &payload)
+}
+
 #[test]
-fn priority_goes_before_periodic_in_arrival_order() {
+fn commands_go_first_in_arrival_order() {
     let mut s = LinkScheduler::new(config(10_000), ms(0)).unwrap();
     s.push(frame(GLOBAL_POSITION_INT, 1, 1, 0), Class::Periodic, ms(0));
-    s.push(frame(COMMAND_LONG, 1, 1, 1), Class::Priority, ms(0));
-    s.push(frame(HEARTBEAT, 1, 1, 2), Class::Priority, ms(0));
+    s.push(
+        frame(PARAM_REQUEST_READ, 255, 190, 0),
+        Class::Protocol,
+        ms(0),
+    );
+    s.push(text(6, 0), Class::Status, ms(0));
+    s.push(frame(COMMAND_LONG, 1, 1, 1), Class::Command, ms(0));
+    s.push(frame(HEARTBEAT, 1, 1, 2), Class::Command, ms(0));
     let out: Vec<_> = drain(&mut s, ms(0))
         .iter()
         .map(|f| f.message_id())
         .collect();
-    assert_eq!(out, vec![COMMAND_LONG, HEARTBEAT, GLOBAL_POSITION_INT]);
+    assert_eq!(out[..2], [COMMAND_LONG, HEARTBEAT]);
+    assert_eq!(out.len(), 5);
 }
 
 #[test]
@@ -126,7 +148,7 @@ fn rate_is_enforced_and_poll_timeout_says_when() {
     let mut s = LinkScheduler::new(config(100), ms(0)).unwrap();
     // The burst (280 bytes) lets 6 frames of 45 bytes go at once.
     for seq in 0..10 {
-        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Priority, ms(0));
+        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Command, ms(0));
     }
     let first = drain(&mut s, ms(0));
     let burst_frames = 280 / first[0].as_bytes().len();
@@ -171,27 +193,136 @@ fn frame_larger_than_the_room_waits() {
     let mut s = LinkScheduler::new(config(10_000), ms(0)).unwrap();
     let f = frame(COMMAND_LONG, 1, 1, 0);
     let len = f.as_bytes().len();
-    s.push(f, Class::Priority, ms(0));
+    s.push(f, Class::Command, ms(0));
     assert!(s.poll_transmit(ms(0), len - 1).is_none());
     assert!(s.poll_transmit(ms(0), len).is_some());
 }
 
 #[test]
-fn full_queue_drops_periodic_before_priority() {
+fn a_full_queue_drops_only_its_own_class() {
     let mut c = config(100);
     c.max_queued_bytes = MAX_FRAME_LEN;
     let mut s = LinkScheduler::new(c, ms(0)).unwrap();
-    let periodic = frame(GLOBAL_POSITION_INT, 1, 1, 0); // 40 bytes
-    s.push(periodic, Class::Periodic, ms(0));
     for seq in 0..6 {
-        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Priority, ms(0)); // 45 bytes each
+        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Command, ms(0)); // 45 bytes each
     }
-    // 40 + 6*45 = 310 > 280: the periodic one goes first.
-    assert_eq!(s.stats().dropped_periodic, 1);
-    assert_eq!(s.stats().dropped_priority, 0);
-    s.push(frame(COMMAND_LONG, 1, 1, 6), Class::Priority, ms(0));
-    assert_eq!(s.stats().dropped_priority, 1);
-    assert!(s.queued_bytes() <= MAX_FRAME_LEN);
+    // telemetry far beyond the limit (distinct senders: no replacement)
+    for sys in 1..=20 {
+        s.push(
+            frame(GLOBAL_POSITION_INT, sys, 1, 0),
+            Class::Periodic,
+            ms(0),
+        );
+    }
+    let st = s.stats();
+    assert_eq!((st.dropped_command, st.dropped_periodic), (0, 13), "{st:?}");
+    // a seventh command overflows the commands' own queue: the oldest goes
+    s.push(frame(COMMAND_LONG, 1, 1, 6), Class::Command, ms(0));
+    assert_eq!(s.stats().dropped_command, 1);
+    assert!(s.queued_bytes() <= 2 * MAX_FRAME_LEN);
+}
+
+/// Regression (issue 22, item 12): another allowed ground station sending 100
+/// PARAM_REQUEST_READ a second made 0 of 8 pilot commands run; the transfer queue was one
+/// FIFO shared with commands. The pilot's commands leave first, and the pilot's own
+/// transfers take turns with the flood instead of waiting behind all of it.
+#[test]
+fn a_flooding_ground_station_delays_neither_commands_nor_another_stations_transfers() {
+    let mut s = LinkScheduler::new(config(300), ms(0)).unwrap();
+    let (mut commands_out, mut pilot_reads_out, mut flood_out) = (Vec::new(), 0, 0);
+    let mut t = 0;
+    while t < 8_000 {
+        // the flood: 100 reads a second from system 200
+        s.push(
+            frame(PARAM_REQUEST_READ, 200, 1, (t / 10) as u8),
+            Class::Protocol,
+            ms(t),
+        );
+        if t % 1_000 == 0 {
+            // the pilot: a command and a read a second
+            s.push(
+                frame(COMMAND_LONG, 255, 190, (t / 1000) as u8),
+                Class::Command,
+                ms(t),
+            );
+            s.push(
+                frame(PARAM_REQUEST_READ, 255, 190, (t / 1000) as u8),
+                Class::Protocol,
+                ms(t),
+            );
+        }
+        for f in drain(&mut s, ms(t)) {
+            match (f.message_id(), f.system_id()) {
+                (COMMAND_LONG, _) => commands_out.push((f.sequence(), t)),
+                (PARAM_REQUEST_READ, 255) => pilot_reads_out += 1,
+                _ => flood_out += 1,
+            }
+        }
+        t += 10;
+    }
+    // every command left within one frame time of 300 B/s (45 bytes: 150 ms) of its arrival
+    assert_eq!(commands_out.len(), 8, "{commands_out:?}");
+    for (seq, left) in &commands_out {
+        assert!(left - u64::from(*seq) * 1_000 <= 150, "{commands_out:?}");
+    }
+    // the pilot's reads (1 a second) all left; the flood got the rest
+    assert!(pilot_reads_out >= 7, "{pilot_reads_out} pilot reads out");
+    assert!(
+        flood_out > 0 && s.stats().dropped_protocol > 0,
+        "{:?}",
+        s.stats()
+    );
+    assert_eq!(s.stats().dropped_command, 0);
+}
+
+/// Regression (issue 22, item 12): an autopilot sending STATUSTEXT at 20 a second delayed
+/// command acks to 1.5 s and lost 2 of 8; the texts queued with the acks. Acks leave first,
+/// position keeps its 3 Hz, and a critical text outlives a flood of informational ones.
+#[test]
+fn a_status_text_flood_delays_neither_acks_nor_position_and_keeps_the_severe() {
+    let mut s = LinkScheduler::new(config(251), ms(0)).unwrap();
+    let (mut acks, mut positions, mut texts) = (Vec::new(), Vec::new(), Vec::new());
+    let mut t = 0;
+    while t < 10_000 {
+        if t % 50 == 0 {
+            let severity = if t == 5_000 { 2 } else { 6 }; // one CRITICAL among INFO
+            s.push(text(severity, (t / 50) as u8), Class::Status, ms(t));
+        }
+        if t % 333 == 0 {
+            s.push(
+                frame(GLOBAL_POSITION_INT, 1, 1, (t / 333) as u8),
+                Class::Periodic,
+                ms(t),
+            );
+        }
+        if t % 1_250 == 0 {
+            s.push(
+                frame(COMMAND_LONG, 1, 1, (t / 1250) as u8),
+                Class::Command,
+                ms(t),
+            );
+        }
+        for f in drain(&mut s, ms(t)) {
+            match f.message_id() {
+                COMMAND_LONG => acks.push(t - u64::from(f.sequence()) * 1_250),
+                GLOBAL_POSITION_INT => positions.push(t - u64::from(f.sequence()) * 333),
+                _ => texts.push(f.payload()[0]),
+            }
+        }
+        t += 1;
+    }
+    assert_eq!(acks.len(), 8, "every ack left");
+    // waiting for at most the frame on the air (a text: 63 bytes, 251 ms at 251 B/s)
+    assert!(acks.iter().all(|&d| d <= 260), "ack delays {acks:?} ms");
+    // each position left before the next one came: none replaced, none lost
+    assert_eq!(s.stats().replaced, 0, "{:?}", s.stats());
+    assert!(positions.len() >= 29, "{} positions", positions.len());
+    assert!(
+        positions.iter().all(|&d| d < 333),
+        "position delays {positions:?} ms"
+    );
+    assert!(texts.contains(&2), "the critical text was dropped");
+    assert!(s.stats().dropped_status > 0);
 }
 
 #[test]
@@ -234,10 +365,10 @@ fn parameter_burst_neither_evicts_commands_nor_is_dropped() {
         s.push(frame(PARAM_VALUE, 1, 1, i as u8), Class::Param, ms(0));
     }
     for seq in 0..5 {
-        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Priority, ms(0));
+        s.push(frame(COMMAND_LONG, 1, 1, seq), Class::Command, ms(0));
     }
     let st = s.stats();
-    assert_eq!((st.dropped_priority, st.dropped_param), (0, 0), "{st:?}");
+    assert_eq!((st.dropped_command, st.dropped_param), (0, 0), "{st:?}");
     assert_eq!(s.queued_params(), 1000);
     // commands leave first; then every parameter, in order, paced by the budget
     let mut t = 0;
@@ -252,35 +383,52 @@ fn parameter_burst_neither_evicts_commands_nor_is_dropped() {
     assert!(seqs.iter().enumerate().all(|(i, &q)| q == i as u8));
 }
 
+/// Every lane kept busy gets at least its weight's share of the bytes; an idle lane's share
+/// goes to the busy ones.
 #[test]
-fn waiting_parameters_get_their_share_against_saturating_named_telemetry() {
-    let mut s = LinkScheduler::new(config(400), ms(0)).unwrap();
-    for i in 0..200u32 {
-        s.push(frame(PARAM_VALUE, 1, 1, i as u8), Class::Param, ms(0));
-    }
-    let (mut params, mut bytes, mut param_bytes) = (0, 0, 0);
-    for t in (0..60_000).step_by(10) {
-        // named telemetry offered far above the budget (fresh samples from many senders)
-        for sys in 1..=3 {
-            s.push(
-                frame(GLOBAL_POSITION_INT, sys, 1, 0),
-                Class::Periodic,
-                ms(t),
-            );
-        }
-        for f in drain(&mut s, ms(t)) {
-            bytes += f.as_bytes().len();
-            if f.message_id() == PARAM_VALUE {
-                params += 1;
-                param_bytes += f.as_bytes().len();
+fn busy_classes_get_their_shares() {
+    let shares = |busy: &[Class]| {
+        let mut s = LinkScheduler::new(config(400), ms(0)).unwrap();
+        let mut bytes = [0usize; 4];
+        for t in (0..60_000).step_by(10) {
+            for (i, &class) in busy.iter().enumerate() {
+                let seq = (t / 10) as u8;
+                let f = match class {
+                    Class::Periodic => frame(GLOBAL_POSITION_INT, 1 + (seq % 3), 1, seq),
+                    Class::Protocol => frame(FILE_TRANSFER_PROTOCOL, 255, 190, seq),
+                    Class::Status => text(6, seq),
+                    _ => frame(PARAM_VALUE, 1, 1, seq),
+                };
+                if class != Class::Periodic || t % 30 == 0 || i == 0 {
+                    s.push(f, class, ms(t));
+                }
+            }
+            for f in drain(&mut s, ms(t)) {
+                let lane = match Class::of(f.message_id()) {
+                    Class::Periodic => 0,
+                    Class::Protocol => 1,
+                    Class::Status => 2,
+                    _ => 3,
+                };
+                bytes[lane] += f.as_bytes().len();
             }
         }
+        let total: usize = bytes.iter().sum();
+        bytes.map(|b| b as f64 / total as f64)
+    };
+    let all = shares(&[
+        Class::Periodic,
+        Class::Protocol,
+        Class::Status,
+        Class::Param,
+    ]);
+    for (lane, weight) in WEIGHTS.iter().enumerate() {
+        let due = *weight as f64 / WEIGHTS.iter().sum::<u64>() as f64;
+        assert!(all[lane] >= 0.95 * due, "lane {lane}: {all:?}");
     }
-    let share = param_bytes as f64 / bytes as f64;
-    assert!(
-        params > 0 && share >= 0.95 / PARAM_SHARE_DIVISOR as f64,
-        "{params} params, share {share:.3}"
-    );
+    // parameters against telemetry alone: 1 of 9
+    let two = shares(&[Class::Periodic, Class::Param]);
+    assert!(two[3] >= 0.95 / 9.0, "{two:?}");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -290,7 +438,7 @@ enum Event {
     /// After `gap_ms`, push a frame of `payload` bytes.
     Push {
         gap_ms: u64,
-        priority: bool,
+        class: u8,
         sender: u8,
         msgid: u32,
         payload: usize,
@@ -301,10 +449,10 @@ enum Event {
 
 fn event() -> impl Strategy<Value = Event> {
     prop_oneof![
-        (0u64..200, any::<bool>(), 1u8..3, 0u32..6, 0usize..=255).prop_map(
-            |(gap_ms, priority, sender, msgid, payload)| Event::Push {
+        (0u64..200, 0u8..5, 1u8..3, 0u32..6, 0usize..=255).prop_map(
+            |(gap_ms, class, sender, msgid, payload)| Event::Push {
                 gap_ms,
-                priority,
+                class,
                 sender,
                 msgid: 42_000 + msgid,
                 payload
@@ -315,11 +463,19 @@ fn event() -> impl Strategy<Value = Event> {
     ]
 }
 
+const CLASSES: [Class; 5] = [
+    Class::Command,
+    Class::Protocol,
+    Class::Status,
+    Class::Param,
+    Class::Periodic,
+];
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 
     #[test]
-    fn budget_and_priority_hold_for_random_arrivals(
+    fn budget_order_and_accounting_hold_for_random_arrivals(
         events in prop::collection::vec(event(), 1..200),
         rate in 20u32..2_000,
         extra_burst in 0u32..300,
@@ -330,26 +486,26 @@ proptest! {
         let mut s = LinkScheduler::new(cfg, Instant::ZERO).unwrap();
         let mut now = 0u64; // ms
         let mut released: Vec<(u64, usize)> = Vec::new(); // (µs, bytes)
-        let mut priority_in = Vec::new();
-        let mut priority_out = Vec::new();
+        // message frames (never replaced) by (class, sender), in arrival order
+        let mut messages_in: HashMap<(usize, u8), Vec<Vec<u8>>> = HashMap::new();
+        let mut messages_out: HashMap<(usize, u8), Vec<Vec<u8>>> = HashMap::new();
+        let mut class_of: HashMap<Vec<u8>, usize> = HashMap::new();
+        let (mut commands_in, mut commands_out) = (0u64, 0u64);
         let mut next_seq = 0u8;
         for e in events {
             match e {
-                Event::Push { gap_ms, priority, sender, msgid, payload } => {
+                Event::Push { gap_ms, class, sender, msgid, payload } => {
                     now += gap_ms;
                     next_seq = next_seq.wrapping_add(1);
                     let f = raw_frame(MavlinkVersion::V2, sender, 1, next_seq, msgid, &vec![0x33; payload]);
-                    let class = if priority { Class::Priority } else { Class::Periodic };
-                    if priority {
-                        priority_in.push(f.as_bytes().to_vec());
+                    let c = usize::from(class);
+                    if CLASSES[c] != Class::Periodic {
+                        messages_in.entry((c, sender)).or_default().push(f.as_bytes().to_vec());
+                        class_of.insert(f.as_bytes().to_vec(), c);
                     }
-                    let before = s.stats();
-                    s.push(f, class, ms(now));
-                    let after = s.stats();
-                    if after.dropped_priority > before.dropped_priority {
-                        prop_assert_eq!(s.queued_frames().1, 0, "priority dropped while periodic queued");
-                    }
-                    prop_assert!(s.queued_bytes() <= queue_limit);
+                    commands_in += u64::from(CLASSES[c] == Class::Command);
+                    s.push(f, CLASSES[c], ms(now));
+                    prop_assert!(s.queued_bytes() <= 3 * queue_limit + (queue_limit / 4).max(MAX_FRAME_LEN));
                 }
                 Event::Poll { gap_ms, room } => {
                     now += gap_ms;
@@ -359,8 +515,15 @@ proptest! {
                         prop_assert!(len <= left);
                         left -= len;
                         released.push((now * 1000, len));
-                        if priority_in.contains(&f.as_bytes().to_vec()) {
-                            priority_out.push(f.as_bytes().to_vec());
+                        let c = class_of.get(f.as_bytes()).copied();
+                        if c == Some(0) {
+                            commands_out += 1;
+                        } else {
+                            // nothing else leaves while a command waits
+                            prop_assert_eq!(commands_in, commands_out + s.stats().dropped_command);
+                        }
+                        if let Some(c) = c {
+                            messages_out.entry((c, f.system_id())).or_default().push(f.as_bytes().to_vec());
                         }
                     }
                     // A deadline still ahead means the budget holds nothing back before it.
@@ -380,16 +543,26 @@ proptest! {
                 prop_assert!(bytes <= allowed, "{} bytes in {} µs (allowed {})", bytes, window_us, allowed);
             }
         }
-        // Priority frames leave in order: what left is a prefix-ordered subsequence of what
-        // came in, and nothing was dropped unless counted.
-        let mut it = priority_in.iter();
-        for out in &priority_out {
-            prop_assert!(it.any(|x| x == out), "priority frame out of order");
+        // Each origin's messages of a class leave in their order: what left is an ordered
+        // subsequence of what came in; nothing went missing uncounted.
+        for (key, out) in &messages_out {
+            let mut it = messages_in[key].iter();
+            for f in out {
+                prop_assert!(it.any(|x| x == f), "{:?}: frame out of order", key);
+            }
         }
         let st = s.stats();
+        let total_in: usize = messages_in.values().map(Vec::len).sum();
+        let total_out: usize = messages_out.values().map(Vec::len).sum();
         prop_assert_eq!(
-            priority_in.len() as u64,
-            priority_out.len() as u64 + st.dropped_priority + s.queued_frames().0 as u64
+            total_in as u64,
+            total_out as u64
+                + st.dropped_command
+                + st.dropped_protocol
+                + st.dropped_status
+                + st.dropped_param
+                + s.queued_frames().0 as u64
+                + s.queued_params() as u64
         );
     }
 }
