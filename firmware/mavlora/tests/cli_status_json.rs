@@ -70,6 +70,7 @@ const BRIDGE_COUNTERS: &[&str] = &[
     "command_acks_replayed",
     "command_copies_dropped",
     "command_acks_repeated",
+    "fc_own_commands_dropped",
     "unlisted_dropped",
     "unlisted_dropped_bytes",
 ];

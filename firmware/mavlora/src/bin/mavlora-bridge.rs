@@ -156,6 +156,7 @@ struct BridgeCounters {
     command_acks_replayed: u64,
     command_copies_dropped: u64,
     command_acks_repeated: u64,
+    fc_own_commands_dropped: u64,
     unlisted_dropped: u64,
     unlisted_dropped_bytes: u64,
     /// `unlisted_dropped_<id>`: the unlisted frames dropped, per message id (the first
@@ -203,6 +204,7 @@ impl Side<Bridge> for FcSide {
             command_acks_replayed: s.commands.replayed,
             command_copies_dropped: s.commands.dropped,
             command_acks_repeated: s.commands.repeated,
+            fc_own_commands_dropped: s.fc_own_commands_dropped,
             unlisted_dropped: s.unlisted_dropped,
             unlisted_dropped_bytes: s.unlisted_dropped_bytes,
             unlisted_dropped_by_id: s

@@ -66,6 +66,9 @@ pub struct BridgeStats {
     /// Compact mode: frames the compact messages replace, dropped before the flight
     /// controller was identified.
     pub held_before_fc: u64,
+    /// Commands the autopilot sent its own components (target: its own system), kept off
+    /// the radio.
+    pub fc_own_commands_dropped: u64,
     /// Ground heartbeats regenerated towards the flight controller.
     pub gcs_heartbeats_regenerated: u64,
     /// `LINK_QUALITY` reports sent to the radio.
@@ -308,6 +311,8 @@ impl Bridge {
                     | ids::MISSION_ACK
                     | ids::MISSION_REQUEST_INT
                     | ids::COMMAND_ACK
+                    | ids::COMMAND_LONG
+                    | ids::COMMAND_INT
             );
         let msg = if wants_decode {
             frame.decode::<MavMessage>().ok()
@@ -337,6 +342,17 @@ impl Bridge {
         // What its link can carry: MAVLink 1 has no `mission_type`.
         self.mission
             .set_fc_mavlink1(self.watch.version() == Some(MavlinkVersion::V1));
+        // A command the autopilot sends its own components: PX4 tells its camera and gimbal
+        // of each mode change (target: its own system, component 0) and repeats it while
+        // unanswered. No component of the vehicle's system is beyond the radio, and on LoRa
+        // SF7 these held position and the new mode back for 2.6 s at PX4's RTL.
+        if let Some(msg @ (MavMessage::COMMAND_LONG(_) | MavMessage::COMMAND_INT(_))) = &msg
+            && self.watch.is_fc(&frame)
+            && msg.target_system_id() == Some(frame.system_id())
+        {
+            self.stats.fc_own_commands_dropped += 1;
+            return;
+        }
         if let Some(msg) = &msg {
             if self.addressed_to_us(msg) {
                 if let MavMessage::COMMAND_ACK(ack) = msg

@@ -190,6 +190,40 @@ fn telemetry_is_filtered_limited_and_commands_go_first() {
     assert_eq!(out.first().map(|f| f.message_id()), Some(76));
 }
 
+/// Real PX4 1.16 on LoRa SF7: at each mode change PX4 sends its camera and gimbal commands
+/// (MAV_CMD 2003, 1000, 1001, target its own system, component 0) and repeats them
+/// unanswered; as commands they went before everything and held position and the new mode
+/// back for 2.6 s. Nothing of the vehicle's own system is beyond the radio: they stay on the
+/// vehicle. A command to the ground station still goes.
+#[test]
+fn the_autopilots_commands_to_its_own_components_stay_off_the_radio() {
+    let mut b = Bridge::new(config(), Instant::ZERO).unwrap();
+    let mut fc = Sender::new(7, 1, MavlinkVersion::V2);
+    b.handle_fc_bytes(ms(0), fc_heartbeat(&mut fc).as_bytes());
+    to_radio(&mut b, ms(0));
+    let command = |target_system, command| {
+        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            target_system,
+            target_component: 0,
+            command,
+            ..Default::default()
+        })
+    };
+    for k in 0..5 {
+        let own = command(7, MavCmd::MAV_CMD_IMAGE_STOP_CAPTURE);
+        b.handle_fc_bytes(ms(10 + k), fc.frame(&own).as_bytes());
+    }
+    let to_ground = command(255, MavCmd::MAV_CMD_REQUEST_MESSAGE);
+    b.handle_fc_bytes(ms(20), fc.frame(&to_ground).as_bytes());
+    let out: Vec<MavMessage> = to_radio(&mut b, ms(100))
+        .iter()
+        .filter_map(|f| f.decode::<MavMessage>().ok())
+        .filter(|m| matches!(m, MavMessage::COMMAND_LONG(_)))
+        .collect();
+    assert_eq!(out, [to_ground]);
+    assert_eq!(b.stats().fc_own_commands_dropped, 5);
+}
+
 /// Issue 21: real ArduPilot behind compact MavLora: a PARAM_SET sent while a parameter list
 /// was in flight was echoed to the ground after 7.2 s (8.3 s on LoRa, three sends): the echo
 /// waited behind the list in the parameter queue. The answer to the ground's own question

@@ -3,6 +3,7 @@
 
 use crate::time::Duration;
 use std::collections::VecDeque;
+use tracing::debug;
 
 use crate::dialect::{GLOBAL_POSITION_INT_DATA, LINK_QUALITY_DATA, MavMessage};
 use crate::time::Instant;
@@ -388,6 +389,8 @@ impl Compactor {
         self.change_held = false;
         match self.change(now) {
             Some(true) => {
+                let h = self.status.heartbeat;
+                debug!(%now, mode = ?h.map(|h| h.custom_mode), base_mode = ?h.map(|h| h.base_mode), "status change, sent at once");
                 self.urgent_left = URGENT_COPIES;
                 self.next_urgent = Some(now);
                 self.follow_until = Some(now + URGENT_FOLLOW);
