@@ -2,7 +2,8 @@
 //! see [`SigningState`]): read at start, written atomically (temporary file, fsync, rename)
 //! at start, every [`SAVE_EVERY`] and at exit. A lock file next to it keeps two processes
 //! from sharing one state (the bridge and router on one host must not, and each needs its
-//! own: the default path carries the binary's role).
+//! own: the default path carries the binary's role). The router's ground key has one too, so
+//! a restart refuses what the ground stations sent before it as the radio link does.
 
 use std::fs::{File, OpenOptions};
 use std::io::Write as _;
@@ -10,8 +11,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 
+use super::signing_epoch_now;
 use crate::Duration;
-use crate::signing::SigningState;
+use crate::signing::{SigningConfig, SigningKey, SigningState};
 use crate::time::Instant;
 
 /// How often the state is written while running (the spec asks for at least once a minute;
@@ -74,6 +76,27 @@ impl SigningStateFile {
             },
             state,
         ))
+    }
+
+    /// Signing with `key` as link `link_id` from the clock now, resuming from the state file
+    /// at `path` ([`open`](Self::open): locked and read), which is written back at once so
+    /// that a path that cannot be written fails at start, not at the first save. For the
+    /// radio key and the router's ground key alike.
+    pub fn resume(
+        path: PathBuf,
+        key: SigningKey,
+        link_id: u8,
+    ) -> anyhow::Result<(Self, SigningConfig)> {
+        let (file, state) = Self::open(path)?;
+        let config = SigningConfig {
+            key,
+            link_id,
+            epoch: signing_epoch_now(),
+            state,
+        };
+        file.save(&config.signer().state(Instant::ZERO))?;
+        tracing::info!(state = %file.path().display(), "signing state");
+        Ok((file, config))
     }
 
     /// The file.
