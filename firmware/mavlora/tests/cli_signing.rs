@@ -226,3 +226,45 @@ fn a_pilots_signed_arm_captured_before_a_router_restart_is_refused_after_it() {
         second.3
     );
 }
+/// Regression: a state file holding a timestamp at 2^48 - 60 (from a frame a key holder
+/// stamped there) was loaded as is, and the program signed from there: its timestamps wrapped
+/// and its peer refused every frame. Both programs now refuse such a file at start, naming it.
+#[test]
+fn a_signing_state_stamped_far_ahead_of_the_clock_is_refused_naming_the_file() {
+    let dir = temp_dir("signing-state-ahead");
+    common::radio_key(&dir, 0x2a);
+    let wedged = format!(
+        "mavlora-signing-state 1\ntimestamp {}\nstream 2 255 190 {}\n",
+        (1u64 << 48) - 60,
+        (1u64 << 48) - 61
+    );
+    let router = [
+        "--radio",
+        "/dev/null/none",
+        "--udp-bind",
+        "127.0.0.1:0",
+        "--key",
+        "radio.key",
+    ];
+    let bridge = [
+        "--fc",
+        "/dev/null/fc",
+        "--radio",
+        "/dev/null/none",
+        "--key",
+        "radio.key",
+    ];
+    for (bin, args, state) in [
+        (ROUTER, &router, "radio.key.router-state"),
+        (BRIDGE, &bridge, "radio.key.bridge-state"),
+    ] {
+        std::fs::write(dir.join(state), &wedged).unwrap();
+        let (code, stderr) = run(bin, &dir, args);
+        assert_eq!(code, Some(1), "{stderr}");
+        assert!(
+            stderr.contains(state) && stderr.contains("ahead"),
+            "{stderr}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -80,8 +80,9 @@ impl SigningStateFile {
 
     /// Signing with `key` as link `link_id` from the clock now, resuming from the state file
     /// at `path` ([`open`](Self::open): locked and read), which is written back at once so
-    /// that a path that cannot be written fails at start, not at the first save. For the
-    /// radio key and the router's ground key alike.
+    /// that a path that cannot be written fails at start, not at the first save. A state
+    /// stamped more than a minute ahead of the clock is an error naming the file
+    /// ([`SigningState::check_ahead`]). For the radio key and the router's ground key alike.
     pub fn resume(
         path: PathBuf,
         key: SigningKey,
@@ -94,6 +95,12 @@ impl SigningStateFile {
             epoch: signing_epoch_now(),
             state,
         };
+        // Refused, not clamped: lowering a stored stream timestamp would accept again what
+        // was accepted before, and the file names what to check (the clock, then the file).
+        config
+            .state
+            .check_ahead(config.epoch)
+            .with_context(|| format!("signing state {}", file.path().display()))?;
         file.save(&config.signer().state(Instant::ZERO))?;
         tracing::info!(state = %file.path().display(), "signing state");
         Ok((file, config))
