@@ -219,6 +219,9 @@ fn a_pilots_signed_arm_captured_before_a_router_restart_is_refused_after_it() {
         second.3
     );
     assert_eq!(second.0, 0, "run 2 relayed the captured ARM:\n{}", second.3);
+    // a new state is started loudly (its clock is all it has), the stored one is resumed
+    assert!(first.3.contains("no signing state"), "{}", first.3);
+    assert!(!second.3.contains("no signing state"), "{}", second.3);
     assert!(
         first.2 && second.2,
         "not a clean exit:\n{}\n{}",

@@ -61,7 +61,14 @@ impl SigningStateFile {
             Ok(text) => SigningState::parse(&text)
                 .with_context(|| format!("signing state {}", path.display()))?,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                tracing::info!(path = %path.display(), "no signing state yet: starting from the clock");
+                // A first start, or a lost file: either way the clock is all there is to judge
+                // first frames by, and only the operator knows whether it is right.
+                tracing::warn!(
+                    path = %path.display(),
+                    "no signing state: starting a new one from this clock, which must be right \
+                     within a minute (check `date -u` if this is not a first start): frames are \
+                     judged by it alone until this side has accepted some"
+                );
                 SigningState::default()
             }
             Err(e) => {

@@ -409,6 +409,27 @@ mod tests {
         }
     }
 
+    /// Regression: a bridge that lost its state file, with its clock a day behind, took a
+    /// ground ARM recorded ten minutes before as fresh (a stream it had not seen, and far
+    /// "newer" than its clock) and ran it.
+    #[test]
+    fn a_fresh_signer_with_its_clock_a_day_behind_refuses_a_ten_minute_old_arm() {
+        let key = SigningKey([7; 32]);
+        let now = 300_000_000_000u64;
+        let (day, ten_minutes) = (86_400 * 100_000, 600 * 100_000);
+        let mut router_then = LinkSigner::new(key.clone(), 2, now - ten_minutes);
+        let captured = router_then
+            .sign(&frame(COMMAND_LONG, 255, 190, 0), Instant::ZERO)
+            .unwrap();
+        let mut bridge = LinkSigner::with_state(key, 1, now - day, SigningState::default());
+        let refused = bridge.verify(&captured, Instant::ZERO);
+        assert!(
+            matches!(refused, Err(Rejection::Ahead { .. })),
+            "{refused:?}"
+        );
+        assert_eq!(bridge.stats().accepted, 0);
+    }
+
     /// The spec's clock-behind peer, within the minute both clocks must agree to: a drone that
     /// lost its state, its clock 50 s behind, signs below what the ground accepted from it
     /// before (replays); once it accepted a frame of ours (50 s ahead of its clock: within the
