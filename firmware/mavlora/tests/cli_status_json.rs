@@ -46,6 +46,7 @@ const RADIO_COUNTERS: &[&str] = &[
     "rejected_bad_signature",
     "rejected_replayed",
     "rejected_stale",
+    "rejected_ahead",
     "radio_tx_unsigned",
     "inbox_dropped",
     "inbox_dropped_priority",

@@ -216,7 +216,7 @@ impl Side<Bridge> for FcSide {
         (counters, ())
     }
 
-    fn stop(&mut self) -> Result<()> {
+    fn stop(&mut self, _: &Bridge, _: mavlora::Instant) -> Result<()> {
         self.fc.stop();
         Ok(())
     }

@@ -14,11 +14,11 @@ use tracing::{info, warn};
 
 use mavlora::Instant;
 use mavlora::io::{
-    Decibels, Event, Percent, Program, RadioOptions, Seconds, Side, StatusReport, TcpEndpoint,
-    Tlog, UdpEndpoint, UsageError, signing_epoch_now,
+    Decibels, Event, Percent, Program, RadioOptions, Seconds, Side, SigningStateFile, StatusReport,
+    TcpEndpoint, Tlog, UdpEndpoint, UsageError,
 };
 use mavlora::router::{GroundInput, IpNet, Router, RouterConfig};
-use mavlora::signing::{SigningConfig, SigningKey};
+use mavlora::signing::SigningKey;
 
 /// MavLora router: radio serial port <-> ground stations on UDP and TCP.
 #[derive(Parser, Deserialize, Default, Debug)]
@@ -52,6 +52,11 @@ struct Options {
     /// them are signed with it.
     #[arg(long)]
     ground_key: Option<PathBuf>,
+    /// Ground signing state file: the ground signer's timestamp and the ground stations'
+    /// streams it accepted, so a restart does not accept their frames captured before it
+    /// [default: <ground-key>.ground-state].
+    #[arg(long)]
+    ground_signing_state: Option<PathBuf>,
     /// Commands one ground source may have in the relay at once [default: 4].
     #[arg(long)]
     commands_per_source: Option<usize>,
@@ -158,16 +163,27 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
         }
         config.ground.commands_in_flight = n;
     }
-    if let Some(path) = &o.ground_key {
-        config.ground_signing = Some(SigningConfig {
-            key: SigningKey::load(path)
-                .with_context(|| format!("ground key {}", path.display()))?,
-            link_id: 3,
-            epoch: signing_epoch_now(),
-            state: Default::default(),
-        });
-        info!(key = %path.display(), "ground signing on");
-    }
+    // The ground signer keeps its state as the radio's does: what it accepted from the ground
+    // stations stays a replay across restarts.
+    let ground_state = match (&o.ground_key, o.ground_signing_state) {
+        (Some(path), state) => {
+            let key =
+                SigningKey::load(path).with_context(|| format!("ground key {}", path.display()))?;
+            let state = state.unwrap_or_else(|| SigningStateFile::default_path(path, "ground"));
+            let (file, signing) = SigningStateFile::resume(state, key, 3)?;
+            config.ground_signing = Some(signing);
+            info!(key = %path.display(), "ground signing on");
+            Some(file)
+        }
+        (None, Some(_)) => {
+            return Err(UsageError::option(
+                "ground_signing_state",
+                "has no use without --ground-key / `ground_key`",
+            )
+            .into());
+        }
+        (None, None) => None,
+    };
     info!(allow = ?config.ground.allow.iter().map(ToString::to_string).collect::<Vec<_>>(), allow_sysid = ?config.ground.allow_sysid, "ground policy");
     let tlog = match o.tlog {
         Some(p) => Some(Tlog::create(&p).with_context(|| format!("creating {}", p.display()))?),
@@ -207,14 +223,22 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
         signing = station.signing_label(),
         "router running"
     );
-    station.run(router, GroundSide { udp, tcp, tlog }, report)
+    let side = GroundSide {
+        udp,
+        tcp,
+        tlog,
+        ground_state,
+    };
+    station.run(router, side, report)
 }
 
-/// The router's side of the loop: ground stations on UDP and TCP, and the tlog.
+/// The router's side of the loop: ground stations on UDP and TCP, the tlog and the ground
+/// signing state.
 struct GroundSide {
     udp: UdpEndpoint,
     tcp: Option<TcpEndpoint>,
     tlog: Option<Tlog>,
+    ground_state: Option<SigningStateFile>,
 }
 
 impl GroundSide {
@@ -284,7 +308,7 @@ impl Side<Router> for GroundSide {
         }
     }
 
-    fn transmit(&mut self, router: &mut Router, _now: Instant) {
+    fn transmit(&mut self, router: &mut Router, now: Instant) {
         while let Some(f) = router.poll_gcs_transmit() {
             self.record(f.as_bytes());
             self.udp.send(f.as_bytes());
@@ -293,6 +317,9 @@ impl Side<Router> for GroundSide {
             }
         }
         self.udp.flush();
+        if let Some(file) = &mut self.ground_state {
+            file.tick(now, || router.ground_signing_state(now));
+        }
     }
 
     fn status(&self, router: &Router) -> (RouterCounters, RouterGauges) {
@@ -332,11 +359,16 @@ impl Side<Router> for GroundSide {
         (counters, gauges)
     }
 
-    fn stop(&mut self) -> Result<()> {
-        match &mut self.tlog {
+    fn stop(&mut self, router: &Router, now: Instant) -> Result<()> {
+        let saved = match (&self.ground_state, router.ground_signing_state(now)) {
+            (Some(file), Some(state)) => file.save(&state),
+            _ => Ok(()),
+        };
+        let flushed = match &mut self.tlog {
             Some(t) => t.flush().context("flushing tlog"),
             None => Ok(()),
-        }
+        };
+        saved.and(flushed)
     }
 }
 

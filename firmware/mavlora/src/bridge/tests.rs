@@ -942,3 +942,47 @@ fn compact_mode_asks_for_heartbeat_or_current_mode_at_state_hz() {
         );
     }
 }
+
+/// Regression: a bridge that lost its signing state, its clock a day behind, ran a ground ARM
+/// recorded ten minutes before: a stream it had not seen, stamped far "after" its clock. A
+/// live command from a ground whose clock agrees with the bridge's still goes through.
+#[test]
+fn a_bridge_without_signing_state_and_a_clock_a_day_behind_does_not_run_a_recorded_arm() {
+    use crate::signing::{LinkSigner, SigningConfig, SigningKey};
+    let key = SigningKey([9; 32]);
+    let real = 300_000_000_000u64; // now, 10 us units since 2015
+    let (day, ten_minutes) = (86_400 * 100_000, 600 * 100_000);
+    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    });
+    let mut pilot = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut router_then = LinkSigner::new(key.clone(), 2, real - ten_minutes);
+    let recorded = router_then.sign(&pilot.frame(&arm), ms(0)).unwrap();
+    let arms = |msgs: &[MavMessage]| {
+        msgs.iter()
+            .filter(|m| matches!(m, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_COMPONENT_ARM_DISARM))
+            .count()
+    };
+    for (clock, live) in [(real - day, false), (real, true)] {
+        let mut config = config();
+        config.signing = Some(SigningConfig {
+            key: key.clone(),
+            link_id: 1,
+            epoch: clock,
+            state: Default::default(),
+        });
+        let mut b = Bridge::new(config, Instant::ZERO).unwrap();
+        b.handle_radio_bytes(ms(10), recorded.as_bytes());
+        assert_eq!(arms(&to_fc(&mut b, ms(10))), 0, "the recorded ARM ran");
+        if live {
+            let mut router_now = LinkSigner::new(key.clone(), 2, clock);
+            let fresh = router_now.sign(&pilot.frame(&arm), ms(20)).unwrap();
+            b.handle_radio_bytes(ms(20), fresh.as_bytes());
+            assert_eq!(arms(&to_fc(&mut b, ms(20))), 1, "a live ARM was refused");
+        }
+    }
+}

@@ -35,20 +35,3 @@ pub fn signing_epoch_now() -> u64 {
         .map_or(0, |d| d.as_micros() as u64);
     unix_us.saturating_sub(1_420_070_400 * 1_000_000) / 10
 }
-
-/// Signing settings for one end of the radio link from a key file, its epoch now, resuming
-/// from `state`.
-pub fn signing_from_key_file(
-    path: &std::path::Path,
-    link_id: u8,
-    state: crate::signing::SigningState,
-) -> anyhow::Result<crate::signing::SigningConfig> {
-    let config = crate::signing::SigningConfig {
-        key: crate::signing::SigningKey::load(path)?,
-        link_id,
-        epoch: signing_epoch_now(),
-        state,
-    };
-    tracing::info!(key = %path.display(), "radio link signing on");
-    Ok(config)
-}

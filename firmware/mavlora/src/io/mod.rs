@@ -18,7 +18,7 @@ mod tlog;
 mod udp;
 mod wake;
 
-pub use clock::{Clock, signing_epoch_now, signing_from_key_file};
+pub use clock::{Clock, signing_epoch_now};
 pub use framing::{DatagramFramer, FramingCounters};
 pub use options::{
     Decibels, DecibelsError, Percent, PercentError, Program, RadioOptions, RadioSigning, Seconds,

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 
-use super::{SigningStateFile, StatusReport, run_main, signing_from_key_file};
+use super::{SigningStateFile, StatusReport, run_main};
 use crate::schedule::SchedulerConfig;
 use crate::signing::SigningConfig;
 
@@ -203,10 +203,9 @@ impl RadioOptions {
             .signing_state
             .clone()
             .unwrap_or_else(|| SigningStateFile::default_path(key, role));
-        let (file, state) = SigningStateFile::open(path)?;
-        let config = signing_from_key_file(key, link_id, state)?;
-        file.save(&config.signer().state(crate::time::Instant::ZERO))?;
-        tracing::info!(state = %file.path().display(), "signing state");
+        let (file, config) =
+            SigningStateFile::resume(path, crate::signing::SigningKey::load(key)?, link_id)?;
+        tracing::info!(key = %key.display(), "radio link signing on");
         Ok(RadioSigning {
             config: Some(config),
             state_file: Some(file),

@@ -2,7 +2,8 @@
 //! see [`SigningState`]): read at start, written atomically (temporary file, fsync, rename)
 //! at start, every [`SAVE_EVERY`] and at exit. A lock file next to it keeps two processes
 //! from sharing one state (the bridge and router on one host must not, and each needs its
-//! own: the default path carries the binary's role).
+//! own: the default path carries the binary's role). The router's ground key has one too, so
+//! a restart refuses what the ground stations sent before it as the radio link does.
 
 use std::fs::{File, OpenOptions};
 use std::io::Write as _;
@@ -10,8 +11,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 
+use super::signing_epoch_now;
 use crate::Duration;
-use crate::signing::SigningState;
+use crate::signing::{SigningConfig, SigningKey, SigningState};
 use crate::time::Instant;
 
 /// How often the state is written while running (the spec asks for at least once a minute;
@@ -59,7 +61,14 @@ impl SigningStateFile {
             Ok(text) => SigningState::parse(&text)
                 .with_context(|| format!("signing state {}", path.display()))?,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                tracing::info!(path = %path.display(), "no signing state yet: starting from the clock");
+                // A first start, or a lost file: either way the clock is all there is to judge
+                // first frames by, and only the operator knows whether it is right.
+                tracing::warn!(
+                    path = %path.display(),
+                    "no signing state: starting a new one from this clock, which must be right \
+                     within a minute (check `date -u` if this is not a first start): frames are \
+                     judged by it alone until this side has accepted some"
+                );
                 SigningState::default()
             }
             Err(e) => {
@@ -74,6 +83,34 @@ impl SigningStateFile {
             },
             state,
         ))
+    }
+
+    /// Signing with `key` as link `link_id` from the clock now, resuming from the state file
+    /// at `path` ([`open`](Self::open): locked and read), which is written back at once so
+    /// that a path that cannot be written fails at start, not at the first save. A state
+    /// stamped more than a minute ahead of the clock is an error naming the file
+    /// ([`SigningState::check_ahead`]). For the radio key and the router's ground key alike.
+    pub fn resume(
+        path: PathBuf,
+        key: SigningKey,
+        link_id: u8,
+    ) -> anyhow::Result<(Self, SigningConfig)> {
+        let (file, state) = Self::open(path)?;
+        let config = SigningConfig {
+            key,
+            link_id,
+            epoch: signing_epoch_now(),
+            state,
+        };
+        // Refused, not clamped: lowering a stored stream timestamp would accept again what
+        // was accepted before, and the file names what to check (the clock, then the file).
+        config
+            .state
+            .check_ahead(config.epoch)
+            .with_context(|| format!("signing state {}", file.path().display()))?;
+        file.save(&config.signer().state(Instant::ZERO))?;
+        tracing::info!(state = %file.path().display(), "signing state");
+        Ok((file, config))
     }
 
     /// The file.

@@ -110,9 +110,10 @@ pub trait Side<E> {
     fn transmit(&mut self, engine: &mut E, now: Instant);
     /// Its counters and gauges now.
     fn status(&self, engine: &E) -> (Self::Counters, Self::Gauges);
-    /// Stops its ports once the loop has ended (flushes files); an error ends the program with
-    /// status 1 once the radio is stopped too.
-    fn stop(&mut self) -> anyhow::Result<()>;
+    /// Stops its ports once the loop has ended (flushes files, stores what it keeps of the
+    /// engine at `now`); an error ends the program with status 1 once the radio is stopped
+    /// too.
+    fn stop(&mut self, engine: &E, now: Instant) -> anyhow::Result<()>;
 }
 
 /// The start-up both binaries share, done: options checked, signing set up, the inbox and
@@ -307,7 +308,7 @@ impl Station {
             (Some(file), Some(state)) => file.save(&state),
             _ => Ok(()),
         };
-        let stopped = side.stop();
+        let stopped = side.stop(&engine, self.now());
         self.radio.stop();
         let result = saved.and(stopped);
         report.stop(Some(&self.status(&engine, &side)), &result);

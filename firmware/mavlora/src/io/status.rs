@@ -87,6 +87,8 @@ pub struct RadioCounters {
     pub rejected_replayed: u64,
     /// Radio frames dropped as too old.
     pub rejected_stale: u64,
+    /// Radio frames dropped as stamped more than a minute ahead of this clock.
+    pub rejected_ahead: u64,
     /// Frames sent on the radio without a signature (all of them with `--unsigned`).
     pub radio_tx_unsigned: u64,
     /// Events the main loop's inbox dropped when full.
@@ -141,6 +143,7 @@ impl RadioCounters {
             rejected_bad_signature: signing.bad_signature,
             rejected_replayed: signing.replayed,
             rejected_stale: signing.stale,
+            rejected_ahead: signing.ahead,
             radio_tx_unsigned: signing.sent_unsigned,
             inbox_dropped: inbox.dropped_items,
             inbox_dropped_priority: inbox.dropped_priority,

@@ -270,6 +270,13 @@ impl Router {
         self.radio_leg.signing_state(now)
     }
 
+    /// The ground signer's state to store at `now` (`None`: ground signing off): its
+    /// timestamp and the ground stations' streams it accepted, so that a restarted router
+    /// still refuses a ground frame captured before the restart.
+    pub fn ground_signing_state(&self, now: Instant) -> Option<crate::signing::SigningState> {
+        self.ground_signer.as_ref().map(|s| s.state(now))
+    }
+
     /// Counters as of now.
     pub fn stats(&self) -> RouterStats {
         RouterStats {

@@ -494,6 +494,60 @@ fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_ge
     }
 }
 
+/// The ground signer's state, stored and given to the next router, keeps a ground station's
+/// captured ARM a replay across the restart (the binary stores it in the ground key's state
+/// file); the station's next frame still goes.
+#[test]
+fn the_ground_signers_stored_state_refuses_after_a_restart_what_it_accepted_before() {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
+    use crate::signing::{LinkSigner, SigningConfig, SigningKey, SigningState};
+    let key = SigningKey([7; 32]);
+    let start = |epoch: u64, state: SigningState| {
+        let mut config = RouterConfig::new(SchedulerConfig {
+            rate_bytes_per_s: 1000,
+            burst_bytes: 300,
+            max_queued_bytes: 4000,
+        });
+        config.ground_signing = Some(SigningConfig {
+            key: key.clone(),
+            link_id: 3,
+            epoch,
+            state,
+        });
+        Router::new(config, Instant::ZERO).unwrap()
+    };
+    let mut station = LinkSigner::new(key.clone(), 5, 1_000_000);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    });
+    let captured = station.sign(&gcs.frame(&arm), ms(10)).unwrap();
+    let mut before = start(1_000_000, SigningState::default());
+    assert!(
+        before
+            .handle_gcs_bytes(ms(10), captured.as_bytes())
+            .learn_peer()
+    );
+    assert_eq!(commands(&radio_out(&mut before, ms(10))), 1);
+    let stored = before
+        .ground_signing_state(ms(500))
+        .expect("ground signing on");
+    assert!(stored.streams.contains_key(&(5, 255, 190)), "{stored:?}");
+    // restarted two seconds later: engine time from zero again, the clock moved on
+    let mut after = start(1_000_000 + 200_000, stored);
+    let input = after.handle_gcs_bytes(ms(0), captured.as_bytes());
+    assert_eq!(input.report, Some(GroundRejection::Signature));
+    assert_eq!(commands(&radio_out(&mut after, ms(0))), 0);
+    assert_eq!(after.stats().ground_signing.replayed, 1);
+    let next = station.sign(&gcs.frame(&arm), ms(2100)).unwrap();
+    assert!(after.handle_gcs_bytes(ms(10), next.as_bytes()).learn_peer());
+    assert_eq!(router().ground_signing_state(ms(0)), None);
+}
+
 #[test]
 fn a_restarted_bridge_is_not_read_as_loss_even_when_its_first_frame_is_lost() {
     use crate::dialect::LINK_QUALITY_DATA;

@@ -165,7 +165,8 @@ pub enum GroundRejection {
     SystemId(u8),
     /// The source already has `commands_in_flight` commands in the relay.
     CommandBudget,
-    /// Ground signing is on and the frame is unsigned, badly signed or replayed.
+    /// Ground signing is on and the frame is unsigned, badly signed, replayed or stamped
+    /// more than a minute ahead of our clock.
     Signature,
 }
 
@@ -175,7 +176,9 @@ impl fmt::Display for GroundRejection {
             Self::Address => f.write_str("source address not allowed"),
             Self::SystemId(id) => write!(f, "system id {id} not allowed"),
             Self::CommandBudget => f.write_str("too many commands in flight from this source"),
-            Self::Signature => f.write_str("not signed with the ground key (or replayed)"),
+            Self::Signature => f.write_str(
+                "not signed with the ground key, replayed, or stamped over a minute ahead of our clock",
+            ),
         }
     }
 }

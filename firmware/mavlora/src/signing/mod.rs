@@ -1,8 +1,9 @@
 //! MAVLink 2 message signing on the radio link (SORA requirement D, link security).
 //!
 //! [`LinkSigner`] signs what a side sends on the radio and verifies what it receives:
-//! unsigned frames, bad signatures and replays (a timestamp not above the last one accepted
-//! from the same link id and sender) are rejected and counted. Verified frames have their
+//! unsigned frames, bad signatures, replays (a timestamp not above the last one accepted
+//! from the same link id and sender) and timestamps more than a minute ahead of our clock are
+//! rejected and counted. Verified frames have their
 //! signature stripped before they go on to the flight controller or ground station, which
 //! do not hold the key.
 //!
@@ -21,8 +22,8 @@ mod state;
 
 pub use key::{FormatError, KeyError, SigningKey};
 pub use radio_leg::RadioLeg;
-pub use signer::{LinkSigner, NEW_STREAM_SLACK, Rejection, SigningStats};
-pub use state::{SigningState, StateError, StreamKey};
+pub use signer::{LinkSigner, MAX_AHEAD, NEW_STREAM_SLACK, Rejection, SigningStats};
+pub use state::{AheadError, SigningState, StateError, StreamKey};
 
 /// Signing settings of one radio link end.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -3,7 +3,7 @@
 //! counts radio loss only) and signed unless the link was explicitly set up unsigned; frames
 //! arriving are verified and stripped of their signature, or rejected and counted.
 
-use super::{LinkSigner, SigningConfig, SigningState, SigningStats};
+use super::{LinkSigner, Rejection, SigningConfig, SigningState, SigningStats};
 use crate::time::Instant;
 use crate::wire::{OwnedFrame, Resequencer, to_v2};
 
@@ -87,13 +87,29 @@ impl RadioLeg {
     }
 
     /// `frame` as read from the radio, verified and without its signature; `None` if it is
-    /// rejected (unsigned, bad signature, replayed, stale: counted in [`RadioLeg::stats`]).
+    /// rejected (unsigned, bad signature, replayed, stale, ahead: counted in
+    /// [`RadioLeg::stats`]).
     pub fn incoming(&mut self, frame: OwnedFrame, now: Instant) -> Option<OwnedFrame> {
         let Some(signer) = &mut self.signer else {
             return Some(frame);
         };
         match signer.verify(&frame, now) {
             Ok(plain) => Some(plain),
+            Err(Rejection::Ahead { seconds }) => {
+                // A clock off by more than a minute stops the link: say which and where, on
+                // the 1st, 2nd, 4th, 8th... such frame.
+                let n = signer.stats().ahead;
+                if n.is_power_of_two() {
+                    tracing::warn!(
+                        seconds,
+                        refused = n,
+                        "radio frame stamped more than a minute ahead of this clock refused: \
+                         this clock is behind or the peer's is ahead (both must agree within a \
+                         minute: NTP, GPS or an RTC)"
+                    );
+                }
+                None
+            }
             Err(why) => {
                 tracing::debug!(?why, msgid = frame.message_id(), "radio frame rejected");
                 None

@@ -6,6 +6,10 @@
 //! - a stream's frame must carry a timestamp above the last accepted from that stream;
 //! - a stream not seen before is accepted only if its timestamp is at most one minute behind
 //!   ours;
+//! - no frame is accepted, adopted or stored whose timestamp is more than [`MAX_AHEAD`] (a
+//!   minute) ahead of our clock: one such frame from a key holder would otherwise carry both
+//!   ends' timestamps to wherever it was stamped (2^48 - 60: past the 48-bit wrap, after
+//!   which each end took the other's frames for replays, across restarts too);
 //! - at start the timestamp and the streams come from the stored [`SigningState`], so a
 //!   restart neither reuses timestamps nor forgets what it accepted before.
 
@@ -22,6 +26,11 @@ const SIGNATURE_LEN: usize = 13;
 /// A new stream's first timestamp may lag our timestamp by this much (the spec's one minute,
 /// in 10 µs units).
 pub const NEW_STREAM_SLACK: u64 = 60 * 100_000;
+/// How far ahead of our clock a received timestamp may be (10 µs units): the spec's own
+/// tolerance between two clocks, its one minute for a new stream's lag, taken the other way.
+/// Beyond it one of the two clocks is wrong (or a key holder stamps the future), and the link
+/// refuses rather than follow it. So both ends' clocks must agree within a minute.
+pub const MAX_AHEAD: u64 = NEW_STREAM_SLACK;
 /// Timestamps are 48 bits on the wire.
 const TIMESTAMP_MASK: u64 = (1 << 48) - 1;
 
@@ -37,6 +46,12 @@ pub enum Rejection {
     /// A stream not seen before whose timestamp is more than a minute behind ours (a
     /// captured frame, or a peer whose clock is behind and has not yet heard from us).
     Stale,
+    /// A timestamp more than [`MAX_AHEAD`] ahead of our clock: our clock is behind, the
+    /// sender's ahead, or a key holder stamped it there; never adopted.
+    Ahead {
+        /// How far ahead of our clock, whole seconds.
+        seconds: u64,
+    },
 }
 
 /// Counters.
@@ -59,6 +74,8 @@ pub struct SigningStats {
     pub replayed: u64,
     /// Received frames of a new stream rejected as more than a minute old.
     pub stale: u64,
+    /// Received frames rejected as stamped more than [`MAX_AHEAD`] ahead of our clock.
+    pub ahead: u64,
 }
 
 /// Sans-IO signer/verifier for one end of the radio link.
@@ -83,7 +100,8 @@ impl LinkSigner {
 
     /// A signer that resumes from `state` (stored by a previous run): it starts from the
     /// larger of the stored timestamp and the clock, and keeps rejecting what the previous
-    /// run accepted.
+    /// run accepted. A state stamped beyond [`MAX_AHEAD`] of the clock is the driver's to
+    /// refuse ([`SigningState::check_ahead`]) before it gets here.
     pub fn with_state(key: SigningKey, link_id: u8, epoch: u64, state: SigningState) -> Self {
         Self {
             key,
@@ -166,6 +184,7 @@ impl LinkSigner {
             Err(Rejection::BadSignature) => self.stats.bad_signature += 1,
             Err(Rejection::Replayed) => self.stats.replayed += 1,
             Err(Rejection::Stale) => self.stats.stale += 1,
+            Err(Rejection::Ahead { .. }) => self.stats.ahead += 1,
         }
         result
     }
@@ -181,6 +200,13 @@ impl LinkSigner {
         if self.signature(frame.as_bytes()) != sig[7..13] {
             return Err(Rejection::BadSignature);
         }
+        // Measured from the clock, not from what we adopted: adoption cannot ratchet it.
+        let clock = self.clock(now);
+        if timestamp > clock + MAX_AHEAD {
+            return Err(Rejection::Ahead {
+                seconds: (timestamp - clock) / 100_000,
+            });
+        }
         let stream = (link_id, frame.system_id(), frame.component_id());
         match self.streams.get(&stream) {
             Some(&last) if timestamp <= last => return Err(Rejection::Replayed),
@@ -190,7 +216,8 @@ impl LinkSigner {
             _ => {}
         }
         self.streams.insert(stream, timestamp);
-        // the spec: adopt a newer timestamp from an accepted frame
+        // the spec: adopt a newer timestamp from an accepted frame (at most MAX_AHEAD of our
+        // clock, checked above)
         self.timestamp = self.timestamp.max(timestamp);
         let mut bytes = frame.as_bytes()[..frame.as_bytes().len() - SIGNATURE_LEN].to_vec();
         bytes[2] &= !IFLAG_SIGNED;
@@ -207,7 +234,7 @@ impl LinkSigner {
 mod tests {
     use super::*;
     use crate::testutil::frame;
-    use crate::wire::ids::{GLOBAL_POSITION_INT, HEARTBEAT};
+    use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT};
 
     fn pair() -> (LinkSigner, LinkSigner) {
         let key = SigningKey([7; 32]);
@@ -341,31 +368,106 @@ mod tests {
         assert_eq!(stamp(&s), ahead.state(Instant::ZERO).timestamp);
     }
 
-    /// The spec's clock-behind peer: its first frames, more than a minute behind us, are
-    /// rejected as stale; once it accepted one of ours it signs with our timestamp and gets
-    /// through. A peer within a minute is accepted at once.
+    /// Regression: one frame a key holder stamped 2^48 - 60 was adopted by both ends; their
+    /// timestamps wrapped past 48 bits to small values, every frame after that was a replay to
+    /// the other end, and the state files kept the wedge across restarts.
     #[test]
-    fn peer_with_clock_behind_catches_up_after_hearing_us() {
+    fn a_frame_stamped_near_the_48_bit_wrap_is_refused_and_the_link_keeps_working() {
         let key = SigningKey([7; 32]);
-        let ten_minutes = 600 * 100_000;
-        let mut ground = LinkSigner::new(key.clone(), 2, 50 * ten_minutes);
-        let mut drone = LinkSigner::new(key.clone(), 1, 40 * ten_minutes);
+        let epoch = 300_000_000_000; // 2024, in 10 us units since 2015
+        let mut drone = LinkSigner::new(key.clone(), 1, epoch);
+        let mut ground = LinkSigner::new(key.clone(), 2, epoch);
+        let mut rogue = LinkSigner::new(key, 9, (1 << 48) - 60);
+        let poison = rogue
+            .sign(&frame(HEARTBEAT, 3, 1, 0), Instant::ZERO)
+            .unwrap();
         let t = Instant::from_secs(1);
+        for end in [&mut drone, &mut ground] {
+            let refused = end.verify(&poison, t);
+            assert!(
+                matches!(refused, Err(Rejection::Ahead { .. })),
+                "{refused:?}"
+            );
+            assert_eq!(end.stats().ahead, 1);
+        }
+        // both ends go on: 200 frames each way (the wrap came after 60)
+        for seq in 0..200u8 {
+            let at = t + crate::Duration::from_millis(10 * u64::from(seq));
+            let up = ground
+                .sign(&frame(COMMAND_LONG, 255, 190, seq), at)
+                .unwrap();
+            assert!(drone.verify(&up, at).is_ok(), "command {seq} refused");
+            let down = drone.sign(&frame(HEARTBEAT, 1, 1, seq), at).unwrap();
+            assert!(ground.verify(&down, at).is_ok(), "telemetry {seq} refused");
+        }
+        // and nothing of it is stored for the next start
+        let later = Instant::from_secs(5);
+        for state in [drone.state(later), ground.state(later)] {
+            let near = |t: u64| t < epoch + 10 * NEW_STREAM_SLACK;
+            assert!(near(state.timestamp), "{state:?}");
+            assert!(state.streams.values().all(|&t| near(t)), "{state:?}");
+        }
+    }
+
+    /// Regression: a bridge that lost its state file, with its clock a day behind, took a
+    /// ground ARM recorded ten minutes before as fresh (a stream it had not seen, and far
+    /// "newer" than its clock) and ran it.
+    #[test]
+    fn a_fresh_signer_with_its_clock_a_day_behind_refuses_a_ten_minute_old_arm() {
+        let key = SigningKey([7; 32]);
+        let now = 300_000_000_000u64;
+        let (day, ten_minutes) = (86_400 * 100_000, 600 * 100_000);
+        let mut router_then = LinkSigner::new(key.clone(), 2, now - ten_minutes);
+        let captured = router_then
+            .sign(&frame(COMMAND_LONG, 255, 190, 0), Instant::ZERO)
+            .unwrap();
+        let mut bridge = LinkSigner::with_state(key, 1, now - day, SigningState::default());
+        let refused = bridge.verify(&captured, Instant::ZERO);
+        assert!(
+            matches!(refused, Err(Rejection::Ahead { .. })),
+            "{refused:?}"
+        );
+        assert_eq!(bridge.stats().accepted, 0);
+    }
+
+    /// The spec's clock-behind peer, within the minute both clocks must agree to: a drone that
+    /// lost its state, its clock 50 s behind, signs below what the ground accepted from it
+    /// before (replays); once it accepted a frame of ours (50 s ahead of its clock: within the
+    /// minute) it signs above and gets through. A clock more than a minute behind is refused
+    /// both ways, loudly, instead of following frames that may be recorded.
+    #[test]
+    fn a_peer_within_the_minute_catches_up_and_one_beyond_it_is_refused_both_ways() {
+        let key = SigningKey([7; 32]);
+        let ground_clock = 300_000_000_000;
+        let mut stored = SigningState::default();
+        stored
+            .streams
+            .insert((1, 1, 1), ground_clock - 10 * 100_000);
+        let mut ground = LinkSigner::with_state(key.clone(), 2, ground_clock, stored.clone());
+        let t = Instant::from_secs(1);
+        let mut drone = LinkSigner::new(key.clone(), 1, ground_clock - 50 * 100_000);
         let early = drone.sign(&frame(HEARTBEAT, 1, 1, 0), t).unwrap();
-        assert_eq!(ground.verify(&early, t), Err(Rejection::Stale));
+        assert_eq!(ground.verify(&early, t), Err(Rejection::Replayed));
         let hello = ground.sign(&frame(HEARTBEAT, 255, 190, 0), t).unwrap();
-        assert!(drone.verify(&hello, t).is_ok(), "a peer ahead is accepted");
+        assert!(
+            drone.verify(&hello, t).is_ok(),
+            "50 s ahead is within the minute"
+        );
         let later = drone.sign(&frame(HEARTBEAT, 1, 1, 1), t).unwrap();
         assert!(ground.verify(&later, t).is_ok(), "caught up");
-        assert_eq!(ground.stats().stale, 1);
-        // the stale frame stays rejected even now that the stream is known
-        assert_eq!(ground.verify(&early, t), Err(Rejection::Replayed));
 
-        let mut close = LinkSigner::new(key, 3, 50 * ten_minutes - 30 * 100_000);
-        let f = close.sign(&frame(HEARTBEAT, 2, 1, 0), t).unwrap();
-        assert!(
-            ground.verify(&f, t).is_ok(),
-            "30 s behind is within the minute"
+        let mut ground = LinkSigner::with_state(key.clone(), 2, ground_clock, stored);
+        let hour = 3600 * 100_000;
+        let mut behind = LinkSigner::new(key, 1, ground_clock - hour);
+        let early = behind.sign(&frame(HEARTBEAT, 1, 1, 0), t).unwrap();
+        assert_eq!(ground.verify(&early, t), Err(Rejection::Replayed));
+        let hello = ground.sign(&frame(HEARTBEAT, 255, 190, 0), t).unwrap();
+        assert_eq!(
+            behind.verify(&hello, t),
+            Err(Rejection::Ahead { seconds: 3600 })
         );
+        let still = behind.sign(&frame(HEARTBEAT, 1, 1, 1), t).unwrap();
+        assert_eq!(ground.verify(&still, t), Err(Rejection::Replayed));
+        assert_eq!(behind.stats().ahead, 1);
     }
 }

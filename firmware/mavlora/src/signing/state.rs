@@ -9,9 +9,13 @@
 //! stream 2 255 190 371958469000    # link id, system id, component id, last timestamp
 //! ```
 //!
-//! Reading and writing the file is the driver's ([`crate::io::SigningStateFile`]).
+//! Reading and writing the file is the driver's ([`crate::io::SigningStateFile`]). A state
+//! holding a timestamp more than [`MAX_AHEAD`] ahead of the clock is refused
+//! ([`SigningState::check_ahead`]), never loaded: resuming from it would wedge the link.
 
 use std::collections::BTreeMap;
+
+use super::signer::MAX_AHEAD;
 
 /// A stream of signed frames: (link id, system id, component id).
 pub type StreamKey = (u8, u8, u8);
@@ -37,7 +41,45 @@ pub struct StateError {
     pub reason: String,
 }
 
+/// A stored timestamp more than [`MAX_AHEAD`] ahead of the clock.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "`{entry}` is {seconds} s ahead of this clock, more than the {allowed} s a timestamp may be \
+     ahead: this clock is behind (set it: NTP, GPS or an RTC), or a key holder stamped a frame \
+     into the future and a version without this check kept it. Resuming from it would make \
+     this side's frames look like replays to its peer. If the clock is right, remove the file \
+     (the next start is a fresh state)",
+    allowed = MAX_AHEAD / 100_000
+)]
+pub struct AheadError {
+    /// The entry as the file writes it (`timestamp T`, `stream LINK SYS COMP T`).
+    pub entry: String,
+    /// How far ahead of the clock, whole seconds.
+    pub seconds: u64,
+}
+
 impl SigningState {
+    /// Whether every timestamp is at most [`MAX_AHEAD`] ahead of `clock` (10 µs units since
+    /// 2015-01-01): a signer never accepts one beyond, so a state holding one was stamped by a
+    /// clock that is now behind, or kept a timestamp a key holder stamped into the future.
+    pub fn check_ahead(&self, clock: u64) -> Result<(), AheadError> {
+        let limit = clock + MAX_AHEAD;
+        let own = (self.timestamp > limit)
+            .then(|| (format!("timestamp {}", self.timestamp), self.timestamp));
+        let stream = self
+            .streams
+            .iter()
+            .find(|&(_, &t)| t > limit)
+            .map(|((link, sys, comp), &t)| (format!("stream {link} {sys} {comp} {t}"), t));
+        match own.or(stream) {
+            Some((entry, t)) => Err(AheadError {
+                entry,
+                seconds: (t - clock) / 100_000,
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Parses the text form (see the module doc).
     pub fn parse(text: &str) -> Result<Self, StateError> {
         let mut state = Self::default();
@@ -106,6 +148,32 @@ mod tests {
         assert_eq!(SigningState::parse(&s.to_text()).unwrap(), s);
         let commented = "mavlora-signing-state 1\n# saved by hand\ntimestamp 7 # ok\n\n";
         assert_eq!(SigningState::parse(commented).unwrap().timestamp, 7);
+    }
+
+    /// Regression: a state file kept a timestamp a key holder stamped at 2^48 - 60, and the
+    /// restarted side signed from there (wrapping) and refused its peer as replays.
+    #[test]
+    fn a_state_stamped_beyond_the_bound_ahead_of_the_clock_is_refused_naming_the_entry() {
+        let clock = 300_000_000_000;
+        let mut s = SigningState {
+            timestamp: clock + MAX_AHEAD,
+            ..Default::default()
+        };
+        s.streams.insert((1, 1, 1), clock - 5);
+        assert_eq!(s.check_ahead(clock), Ok(()), "up to the bound is fine");
+        let wedged = (1u64 << 48) - 60;
+        s.streams.insert((2, 255, 190), wedged);
+        let e = s.check_ahead(clock).unwrap_err();
+        assert_eq!(e.entry, format!("stream 2 255 190 {wedged}"));
+        assert_eq!(e.seconds, (wedged - clock) / 100_000);
+        assert!(e.to_string().contains("ahead of this clock"), "{e}");
+        s.timestamp = clock + MAX_AHEAD + 1;
+        assert!(
+            s.check_ahead(clock)
+                .unwrap_err()
+                .entry
+                .starts_with("timestamp ")
+        );
     }
 
     #[test]
