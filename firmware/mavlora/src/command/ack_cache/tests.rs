@@ -1,4 +1,3 @@
-use crate::command::ack_tag::Epoch;
 use mavlink::MavlinkVersion;
 
 use super::*;
@@ -10,13 +9,13 @@ use crate::wire::{Sender, encode};
 const MS: fn(u64) -> Duration = Duration::from_millis;
 
 /// The router run of most tests.
-const EPOCH: Epoch = 0x5eed;
+const EPOCH: u32 = 0x5eed_0001;
 
 /// A copy of a command from the radio, tagged by the router run `epoch`.
 fn tagged(
     s: &mut Sender,
     msg: MavMessage,
-    epoch: Epoch,
+    epoch: u32,
     confirmation: u8,
 ) -> (OwnedFrame, MavMessage) {
     let tag = CommandTag {
