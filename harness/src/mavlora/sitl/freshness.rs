@@ -29,7 +29,11 @@ pub struct Aged {
 /// Freshness of the positions that arrived in a window.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Freshness {
-    /// New samples (distinct `time_boot_ms`) per second of the window.
+    /// New samples (distinct `time_boot_ms`) per second of the vehicle time they span: the
+    /// rate the ground's picture is updated at. Not per second of the window: compact
+    /// telemetry delivers three samples a frame, so a window that ends just before a frame
+    /// would read 2.9 Hz for a link that missed nothing (29 frames of 3 in 30 s). A stall at
+    /// the window's end is `gap_max_s`'s to catch.
     pub rate_hz: f64,
     pub age_p50_s: f64,
     pub age_p95_s: f64,
@@ -90,8 +94,17 @@ pub fn judge(
     let mut ages: Vec<f64> = samples.iter().map(|s| s.age_s).collect();
     ages.sort_by(f64::total_cmp);
     let window = to.as_secs_f64() - from.as_secs_f64();
+    let span_s = match (samples.first(), samples.last()) {
+        (Some(a), Some(b)) => f64::from(b.time_boot_ms.saturating_sub(a.time_boot_ms)) / 1000.0,
+        _ => 0.0,
+    };
+    let rate_hz = if samples.len() >= 2 && span_s > 0.0 {
+        (samples.len() - 1) as f64 / span_s
+    } else {
+        samples.len() as f64 / window
+    };
     Some(Freshness {
-        rate_hz: samples.len() as f64 / window,
+        rate_hz,
         age_p50_s: stats::quantile(&ages, 0.50),
         age_p95_s: stats::quantile(&ages, 0.95),
         age_max_s: *ages.last().expect("not empty"),
@@ -170,7 +183,30 @@ mod tests {
         assert!((f.age_max_s - (0.1 + 0.666 - 0.002)).abs() < 1e-6, "{f:?}");
         assert!((f.age_p50_s - (0.1 + 0.333 - 0.002)).abs() < 1e-6, "{f:?}");
         assert!((f.gap_max_s - 1.0).abs() < 1e-6, "{f:?}");
-        assert!((f.rate_hz - 30.0 / 9.5).abs() < 1e-9, "{f:?}");
+        // 29 intervals over 334..10000 ms of vehicle time, not 30 samples / 9.5 s
+        assert!((f.rate_hz - 29.0 / 9.666).abs() < 1e-9, "{f:?}");
+    }
+
+    /// Regression (CI): PX4 on LoRa SF7 read 2.8999988 Hz against 2.9: the 30 s window
+    /// held 29 compact frames of three samples each, the 30th arriving just after it. The
+    /// samples were 320-340 ms apart, none missing.
+    #[test]
+    fn a_window_that_ends_before_a_batch_does_not_lower_the_rate() {
+        let clock = vec![(at(100.0), 0)];
+        let mut ground = Vec::new();
+        // samples 340 ms apart (2.94 Hz), three to a frame: a frame every 1.02 s
+        for batch in 0..32u32 {
+            let newest_ms = 1020 + batch * 1020;
+            let arrive = 100.0 + f64::from(newest_ms) / 1000.0 + 0.2;
+            for k in (0..3u32).rev() {
+                ground.push(pos(arrive, newest_ms - k * 340));
+            }
+        }
+        // 30 s from just after frame 0: frames 1..=29 (the 30th comes 0.6 s later)
+        let from = 100.0 + 1.02 + 0.2 + 0.01;
+        let f = judge(&ground, &clock, at(from), at(from + 30.0)).unwrap();
+        assert_eq!(f.samples.len(), 87, "29 frames of 3 (87 / 30 s = 2.9 Hz)");
+        assert!((f.rate_hz - 1.0 / 0.34).abs() < 1e-6, "{}", f.rate_hz);
     }
 
     #[test]
