@@ -1,6 +1,7 @@
 //! The bridge's half of the command relay: at most one execution per command, however many
 //! copies of it come, and each ack twice on a lossy link.
 
+use crate::command::ack_tag::Epoch;
 use crate::time::Duration;
 
 use super::ack_tag::{AckTag, tag_ack, untag_command};
@@ -49,7 +50,7 @@ pub struct AckCacheStats {
 struct Entry {
     id: CommandId,
     /// The router run that sent it.
-    epoch: u32,
+    epoch: Epoch,
     /// The router's generation of this identity.
     generation: u8,
     /// When its first copy arrived: the entry lives [`AckCache::new`]'s `hold` from then.
@@ -79,7 +80,7 @@ struct Cached {
 impl Cached {
     /// The ack as it goes on the radio answering the copy `attempt` (`None`: a repeat) of
     /// the router run `epoch`'s `generation`.
-    fn answer(&self, epoch: u32, generation: u8, attempt: Option<u8>) -> OwnedFrame {
+    fn answer(&self, epoch: Epoch, generation: u8, attempt: Option<u8>) -> OwnedFrame {
         if !self.tagged {
             return self.radio.clone();
         }

@@ -9,9 +9,9 @@
 //!
 //! | bytes | meaning |
 //! |---|---|
-//! | 0..4 | the router's epoch (`u32`, little endian): drawn at random at each router start |
-//! | 4 | the radio confirmation: generation (bits 7..3) and attempt (bits 2..0), see [`radio_confirmation`](super::radio_confirmation) |
-//! | 5 | the copy's age: time since the command's first copy went, in 100 ms (rounded down, at most 255) |
+//! | 0..2 | the router's epoch ([`Epoch`], little endian): drawn at random at each router start |
+//! | 2 | the radio confirmation: generation (bits 7..3) and attempt (bits 2..0), see [`radio_confirmation`](super::radio_confirmation) |
+//! | 3 | the copy's age: time since the command's first copy went, in 100 ms (rounded down, at most 255) |
 //!
 //! A receiver that knows the message ignores bytes past its fields (MAVLink 2 extension
 //! rules), so the frame still decodes as the command; the bridge gives the flight controller
@@ -22,7 +22,10 @@
 //! The epoch keeps a restarted router's generations apart from its previous run's: both start
 //! with the same small numbers, and the bridge still holds the previous run's acks. Keyed by
 //! (epoch, identity, generation), a copy of the new run's command is never answered with an
-//! ack of the old run's (two runs draw the same epoch once in 2^32).
+//! ack of the old run's (two runs draw the same epoch once in 2^16, and then it matters only
+//! for a command of the same identity and generation within the cache's 12 s; 16 bits and
+//! not 32 because every byte of a command copy and an ack is air time that telemetry
+//! waits for on a half-duplex LoRa channel).
 //!
 //! The age tells a restarted bridge whether a copy's command may have come before it started
 //! (then it cannot tell whether the autopilot ran it) or certainly after (then a copy it
@@ -35,7 +38,7 @@
 //! it would have to hold the next one back until no such ack could arrive. The bridge knows
 //! which generation it forwarded and writes it into the ack's `result_param2` (a MAVLink 2
 //! extension field) on the way to the radio, and the epoch after the ack's full 10-byte
-//! payload (4 bytes, as above); the router reads both, matches the ack to exactly that
+//! payload (2 bytes, as above); the router reads both, matches the ack to exactly that
 //! command of its own run, and gives the ground station the ack as the autopilot sent it.
 //!
 //! The bridge also writes which copy of the command the ack answers (its attempt): the copy
@@ -81,8 +84,11 @@ const VALUE_BITS: u32 = 21;
 const VALUE_MASK: u32 = (1 << VALUE_BITS) - 1;
 /// The autopilot's own values that fit beside the tag.
 const VALUE_RANGE: std::ops::Range<i32> = -(1 << (VALUE_BITS - 1))..(1 << (VALUE_BITS - 1));
+/// A router run's number, drawn at random at its start (see the [module](self) doc).
+pub type Epoch = u16;
+
 /// The epoch after a payload.
-const EPOCH_LEN: usize = 4;
+const EPOCH_LEN: usize = 2;
 /// A command's tag after its payload: the epoch, the radio confirmation and the age.
 const COMMAND_TAG_LEN: usize = EPOCH_LEN + 2;
 /// The unit of a copy's age.
@@ -92,7 +98,7 @@ const AGE_UNIT: Duration = Duration::from_millis(100);
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct CommandTag {
     /// The router run that sent it.
-    pub epoch: u32,
+    pub epoch: Epoch,
     /// The radio confirmation: generation and attempt
     /// ([`split_confirmation`](super::split_confirmation)).
     pub confirmation: u8,
@@ -105,7 +111,7 @@ pub struct CommandTag {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct AckTag {
     /// The router run whose command it answers.
-    pub epoch: u32,
+    pub epoch: Epoch,
     /// Generation of the command answered (0..32).
     pub generation: u8,
     /// Attempt (the radio confirmation's, 0..=6) of the copy answered; `None` for a repeat
@@ -116,7 +122,7 @@ pub struct AckTag {
 impl AckTag {
     /// The tag of an ack for `generation` of the router run `epoch`, answering the copy
     /// `attempt` (7 and more: none).
-    pub fn new(epoch: u32, generation: u8, attempt: Option<u8>) -> Self {
+    pub fn new(epoch: Epoch, generation: u8, attempt: Option<u8>) -> Self {
         Self {
             epoch,
             generation: generation & 0x1f,
@@ -160,8 +166,8 @@ fn tag_bytes<'a>(frame: &'a OwnedFrame, msg: &MavMessage, n: usize) -> Option<&'
         .then(|| &frame.payload()[len..])
 }
 
-fn epoch_of(bytes: &[u8]) -> u32 {
-    u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]])
+fn epoch_of(bytes: &[u8]) -> Epoch {
+    Epoch::from_le_bytes([bytes[0], bytes[1]])
 }
 
 /// The command `frame` (decoded: `msg`) as it goes on the radio, tagged with `tag` (always
@@ -309,7 +315,7 @@ mod tests {
                     ack(v)
                 };
                 let f = fc.frame(&MavMessage::COMMAND_ACK(a.clone()));
-                for (epoch, generation) in [(0, 0), (1, 1), (0xdead_beef, 17), (u32::MAX, 31)] {
+                for (epoch, generation) in [(0, 0), (1, 1), (0xbeef, 17), (Epoch::MAX, 31)] {
                     for attempt in [Some(0), Some(3), Some(6), None] {
                         let tag = AckTag::new(epoch, generation, attempt);
                         let tagged = tag_ack(&f, &a, tag).expect("fits");
@@ -388,7 +394,7 @@ mod tests {
         for (msg, confirmation) in [(long(0), 0), (long(0x1d), 0x1d), (int(), 0x1d)] {
             let f = gcs.frame(&msg);
             let tag = CommandTag {
-                epoch: 0x0102_0304,
+                epoch: 0x0304,
                 confirmation,
                 age: Duration::from_millis(1200),
             };

@@ -124,6 +124,7 @@ mod ack_cache;
 pub mod ack_tag;
 mod retransmit;
 
+use crate::command::ack_tag::Epoch;
 use crate::time::{Duration, Instant};
 
 pub use ack_cache::{AckCache, AckCacheStats, CacheVerdict};
@@ -282,13 +283,13 @@ impl CommandId {
 /// A router run's epoch ([`CommandRetransmitter::with_epoch`]): random, from the seed std
 /// draws from the operating system for its hash maps, mixed with the wall clock. The
 /// engines take it as configuration, so a run stays deterministic.
-pub fn random_epoch() -> u32 {
+pub fn random_epoch() -> Epoch {
     use std::hash::BuildHasher;
     let clock = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos());
     let h = std::collections::hash_map::RandomState::new().hash_one(clock);
-    (h ^ (h >> 32)) as u32
+    (h ^ (h >> 16) ^ (h >> 32) ^ (h >> 48)) as Epoch
 }
 
 /// `COMMAND_LONG.confirmation`, `None` for `COMMAND_INT` and other messages.

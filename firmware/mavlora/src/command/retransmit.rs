@@ -1,5 +1,6 @@
 //! The router's half of the command relay: retransmission over the radio.
 
+use crate::command::ack_tag::Epoch;
 use std::collections::{HashMap, VecDeque};
 use std::net::IpAddr;
 
@@ -103,7 +104,7 @@ const PLANNED: usize = 3;
 impl Pending {
     /// The copy last counted, as it goes on the radio at `now`: tagged with the router's
     /// `epoch` and its age.
-    fn copy(&self, epoch: u32, now: Instant) -> OwnedFrame {
+    fn copy(&self, epoch: Epoch, now: Instant) -> OwnedFrame {
         let confirmation = radio_confirmation(self.generation, self.attempts.saturating_sub(1));
         let frame = with_confirmation(&self.frame, &self.msg, confirmation);
         tag_command(
@@ -180,7 +181,7 @@ pub struct CommandRetransmitter {
     /// Frames due, waiting for [`poll_retransmit`](CommandRetransmitter::poll_retransmit).
     due: VecDeque<OwnedFrame>,
     /// This run's epoch, in every copy's tag (see [`CommandRetransmitter::with_epoch`]).
-    epoch: u32,
+    epoch: Epoch,
     /// When this run started, if it may follow another.
     started: Option<Instant>,
     stats: RetransmitStats,
@@ -227,7 +228,7 @@ impl CommandRetransmitter {
     /// again. The ground station's own timeout then says the outcome is unknown, as the
     /// command protocol does when no ack comes. (A `COMMAND_INT` carries no such mark: each
     /// one a new run sees is new.)
-    pub fn with_epoch(mut self, epoch: u32, started: Instant) -> Self {
+    pub fn with_epoch(mut self, epoch: Epoch, started: Instant) -> Self {
         self.epoch = epoch;
         self.started = Some(started);
         self

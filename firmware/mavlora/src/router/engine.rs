@@ -1,5 +1,6 @@
 //! The router state machine.
 
+use crate::command::ack_tag::Epoch;
 use crate::time::Duration;
 use std::collections::{HashMap, VecDeque};
 use std::net::{IpAddr, Ipv4Addr};
@@ -57,7 +58,7 @@ pub struct RouterConfig {
     /// This run's mark on every command it sends on the radio, so the bridge never takes
     /// a command of this run for one of a previous run with the same generation (see
     /// [`CommandRetransmitter::with_epoch`]); drawn at random by [`RouterConfig::new`].
-    pub command_epoch: u32,
+    pub command_epoch: Epoch,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
     /// Who on the ground may reach the vehicle (addresses, system ids, command budget).

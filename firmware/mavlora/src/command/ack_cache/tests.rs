@@ -1,3 +1,4 @@
+use crate::command::ack_tag::Epoch;
 use mavlink::MavlinkVersion;
 
 use super::*;
@@ -9,13 +10,13 @@ use crate::wire::{Sender, encode};
 const MS: fn(u64) -> Duration = Duration::from_millis;
 
 /// The router run of most tests.
-const EPOCH: u32 = 0x5eed_0001;
+const EPOCH: Epoch = 0x5eed;
 
 /// A copy of a command from the radio, tagged by the router run `epoch`.
 fn tagged(
     s: &mut Sender,
     msg: MavMessage,
-    epoch: u32,
+    epoch: Epoch,
     confirmation: u8,
 ) -> (OwnedFrame, MavMessage) {
     let tag = CommandTag {

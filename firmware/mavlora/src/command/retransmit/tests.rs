@@ -527,7 +527,7 @@ fn no_resend_comes_sooner_than_the_spacing_after_the_last_copy() {
 #[test]
 fn each_copy_carries_the_run_s_epoch_and_a_command_long_its_radio_confirmation() {
     let t0 = Instant::from_millis(0);
-    let mut r = retransmitter().with_epoch(0xabcd_0123, t0);
+    let mut r = retransmitter().with_epoch(0xabcd, t0);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 4.0, 0);
     let first = forwarded(r.from_ground(t0, GCS, &f, &m));
@@ -535,7 +535,7 @@ fn each_copy_carries_the_run_s_epoch_and_a_command_long_its_radio_confirmation()
     for (copy, attempt) in [(first, 0), (again, 1)] {
         let msg = copy.decode::<MavMessage>().unwrap();
         let tag = untag_command(&copy, &msg).expect("tagged");
-        assert_eq!(tag.epoch, 0xabcd_0123);
+        assert_eq!(tag.epoch, 0xabcd);
         assert_eq!(split_confirmation(tag.confirmation), (0, attempt));
         let MavMessage::COMMAND_LONG(c) = msg else {
             panic!()
