@@ -12,7 +12,7 @@
 //! retry after its timeout, `COMMAND_LONG` with `confirmation` + 1, `COMMAND_INT` as it
 //! was), the router and bridge engines joined by a radio with 120 ms latency that drops the
 //! frames a test names, and an autopilot that records each command it executes and acks it
-//! after a delay.
+//! after a delay (its `result_param2`: the command's `param1`).
 
 use std::collections::VecDeque;
 
@@ -40,8 +40,10 @@ fn budget() -> SchedulerConfig {
     }
 }
 
-fn new_router(now: Instant) -> Router {
-    Router::new(RouterConfig::new(budget()), now).unwrap()
+fn new_router(now: Instant, tune: fn(&mut RouterConfig)) -> Router {
+    let mut config = RouterConfig::new(budget());
+    tune(&mut config);
+    Router::new(config, now).unwrap()
 }
 
 fn new_bridge(now: Instant) -> Bridge {
@@ -94,6 +96,8 @@ fn is_ack(f: &OwnedFrame) -> bool {
 struct World {
     now: Instant,
     router: Router,
+    /// What the router's configuration differs in from the defaults.
+    tune_router: fn(&mut RouterConfig),
     bridge: Bridge,
     gcs: Sender,
     fc: Sender,
@@ -115,10 +119,16 @@ struct World {
 
 impl World {
     fn new() -> Self {
+        Self::with_router(|_| {})
+    }
+
+    /// A world whose router's configuration `tune` changes.
+    fn with_router(tune_router: fn(&mut RouterConfig)) -> Self {
         let now = Instant::ZERO;
         let mut w = Self {
             now,
-            router: new_router(now),
+            router: new_router(now, tune_router),
+            tune_router,
             bridge: new_bridge(now),
             gcs: Sender::new(255, 190, MavlinkVersion::V2),
             fc: Sender::new(1, 1, MavlinkVersion::V2),
@@ -179,6 +189,8 @@ impl World {
             let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
                 command: cmd,
                 result: MavResult::MAV_RESULT_ACCEPTED,
+                // which command it answers, for the ground to check
+                result_param2: param1 as i32,
                 target_system: 255,
                 target_component: 190,
                 ..Default::default()
@@ -247,7 +259,7 @@ impl World {
     }
 
     fn restart_router(&mut self) {
-        self.router = new_router(self.now);
+        self.router = new_router(self.now, self.tune_router);
         // what the previous run had queued dies with it
         self.down.clear();
         // the radio carries something before the next command (heartbeats, reports)
@@ -372,4 +384,63 @@ fn twenty_holds_in_a_row_all_run_and_are_accepted() {
         assert_eq!(w.executions(SET_MODE).len(), 20, "{kind:?}");
         assert_eq!(w.rejected, 0, "{kind:?}");
     }
+}
+
+/// An eager ground station (DO_SET_MODE 4, then 5 before 4 is answered): each command
+/// `(param1, first send)` is retried every 1.5 s up to 5 sends, and an ack answers the
+/// oldest one still waiting (`COMMAND_ACK` names only the command id). Steps the world until
+/// every command is answered or given up; (param1 of the command the ground took the ack
+/// for, the ack's `result_param2`: the param1 of the command the autopilot ran).
+fn eager_ground(
+    w: &mut World,
+    cmd: MavCmd,
+    plan: &[(f32, Instant)],
+    mut each_step: impl FnMut(&mut World),
+) -> Vec<(f32, i32)> {
+    // (param1, sends so far, next send)
+    let mut waiting: VecDeque<(f32, u8, Instant)> = plan.iter().map(|&(p, t)| (p, 0, t)).collect();
+    let mut answers = Vec::new();
+    let end = w.now + Duration::from_secs(30);
+    while w.now < end && !waiting.is_empty() {
+        each_step(w);
+        let now = w.now;
+        for o in waiting.iter_mut().filter(|o| now >= o.2 && o.1 < 5) {
+            w.send(&command(Kind::Long, cmd, o.0, 0.0, o.1));
+            o.1 += 1;
+            o.2 = now + MS(1500);
+        }
+        // given up after the fifth send's timeout
+        waiting.retain(|o| o.1 < 5 || now < o.2);
+        for a in w.step().into_iter().filter(|a| a.command == cmd) {
+            if let Some(o) = waiting.pop_front() {
+                answers.push((o.0, a.result_param2));
+            }
+        }
+    }
+    answers
+}
+
+#[test]
+fn a_newer_command_waits_while_the_ground_still_retries_the_older_one() {
+    // DO_SET_MODE 4 runs at once, but its acks are lost for 3.05 s. The ground retries it
+    // at 1.5 s and sends mode 5 then, before 4 is answered. The router copies mode 4 every
+    // 1.45 s (its timeout on a slow link, no redundant copies): at 1.45 s, just before the
+    // ground's retry, and next at 2.9 s. The ground's next retry is due at 3 s, and until
+    // then it waits for mode 4's ack: the router must not give mode 4 up and put mode 5 on
+    // the radio before (it did at 2.95 s: 1.4 s after the ground's retry, 1.5 s after its
+    // own copy), or the ground takes mode 5's ack for mode 4's.
+    let mut w = World::with_router(|c| {
+        c.command_redundancy = None;
+        c.command_initial_rto = MS(1450);
+    });
+    let start = w.now;
+    w.acks_down_lost = true;
+    let plan = [(4.0, start), (5.0, start + MS(1500))];
+    let answers = eager_ground(&mut w, SET_MODE, &plan, |w| {
+        if w.now >= start + MS(3050) {
+            w.acks_down_lost = false;
+        }
+    });
+    assert_eq!(w.executions(SET_MODE), [4.0, 5.0]);
+    assert_eq!(answers, [(4.0, 4), (5.0, 5)], "(ground's command, ack's)");
 }

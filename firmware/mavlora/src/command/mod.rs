@@ -72,9 +72,13 @@
 //! each answering its own.
 //!
 //! The choice when the ground moves on: an older command whose ground station stopped
-//! retrying it (1.4 s after its last copy) while a newer one with
-//! the same id waits is abandoned: no more copies, its acks swallowed (a station that gave
-//! up would take them for the newer one's). A waiting command the ground stopped retrying
+//! retrying it (no retry within the protocol's 1.5 s and a margin after its last copy) while
+//! a newer one with the same id waits is abandoned: no more copies, its acks swallowed (a
+//! station that gave up would take them for the newer one's). Until then the newer one
+//! waits: a station that still retries the older one takes the first ack with that id for
+//! the older one's. An ack of the older one that comes when the ground may be giving up on
+//! it (1.4 s after its last copy) is swallowed, and the ground's retry, if it comes, sends
+//! the older one again. A waiting command the ground stopped retrying
 //! for two maximum timeouts is never sent. A ground retry (`confirmation` > 0) of a command
 //! the router already finished is sent again as that command (same generation: the bridge
 //! answers from its cache) within the window, and dropped after it.

@@ -89,7 +89,8 @@ struct Pending {
     /// measured loss calls for them; cleared by `IN_PROGRESS`).
     planned: [Option<Instant>; PLANNED],
     /// When the ground last sent it (first send or retry): it still waits for the ack until
-    /// about [`GROUND_PATIENCE`] later.
+    /// about [`GROUND_PATIENCE`] later, and sends it again by [`GROUND_RETRY`] unless it
+    /// gave up.
     last_ground: Instant,
 }
 
@@ -97,6 +98,13 @@ struct Pending {
 /// protocol's 1.5 s retry timeout, less a margin so that an ack forwarded in time is not
 /// taken for the next command's by a station that has just given up.
 const GROUND_PATIENCE: Duration = Duration::from_millis(1400);
+
+/// How long after its last copy a ground station that has not sent a command again has
+/// stopped retrying it: the protocol's 1.5 s retry timeout and a margin for the ground
+/// link and the station's timer. Until then its retry may still come, and the ground still
+/// waits for that command's ack: a newer command with the same id must not be answered
+/// before (the station would take that ack for the older one's).
+const GROUND_RETRY: Duration = Duration::from_millis(1500 + 250);
 
 /// Redundant copies of a command before any timeout.
 const PLANNED: usize = 3;
@@ -571,12 +579,15 @@ impl CommandRetransmitter {
                 .iter()
                 .any(|w| w.id.slot() == self.on_air[i].id.slot());
         if stale {
-            // The ground gave up on it and waits for a newer one with the same id: this
-            // ack would be taken for the newer one's.
+            // The ground may be giving up on it as this ack reaches it, and then take it
+            // for the newer one's with the same id that it waits for: swallowed. It may
+            // retry it instead: the newer one waits until that retry is overdue, and the
+            // retry sends this command again (answered from the bridge's cache).
             let p = self.on_air.swap_remove(i);
             self.stats.abandoned += 1;
             self.stats.late_acks += 1;
-            self.draining.push((p.id.slot(), p.sent + self.max_rto));
+            let until = (p.sent + self.max_rto).max(p.last_ground + GROUND_RETRY);
+            self.draining.push((p.id.slot(), until));
             self.finish(p, false, now);
             return false;
         }
@@ -653,10 +664,12 @@ impl CommandRetransmitter {
                 i += 1;
             }
         }
-        // A newer command waits and the ground stopped asking for the one on the radio:
-        // the older is abandoned (its late acks swallowed), the newer goes.
+        // A newer command waits and the ground stopped asking for the one on the radio (its
+        // retry is overdue, not merely its ack: a station that retries still waits for the
+        // older one's ack, and would take the newer one's for it): the older is abandoned
+        // (its late acks swallowed), the newer goes.
         if let Some(i) = self.on_air.iter().position(|p| {
-            now >= p.last_ground + GROUND_PATIENCE
+            now >= p.last_ground + GROUND_RETRY
                 && self.waiting.iter().any(|w| w.id.slot() == p.id.slot())
         }) {
             let p = self.on_air.swap_remove(i);
@@ -760,7 +773,7 @@ impl CommandRetransmitter {
                 self.on_air
                     .iter()
                     .filter(|p| self.waiting.iter().any(|w| w.id.slot() == p.id.slot()))
-                    .map(|p| p.last_ground + GROUND_PATIENCE),
+                    .map(|p| p.last_ground + GROUND_RETRY),
             );
         self.on_air
             .iter()

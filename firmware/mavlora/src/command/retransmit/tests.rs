@@ -343,6 +343,77 @@ fn a_late_replay_of_an_acked_command_goes_as_that_command() {
     assert!(!r.from_radio_tagged(t0 + MS(5200), 1, 1, &ack(cam), tag(0)));
 }
 
+/// DO_SET_MODE 4 from the ground at 0 and copied by the router at 1.45 s (its timeout, no
+/// redundant copies), no ack yet; the ground retries mode 4 at 1.5 s and sends mode 5 then,
+/// before mode 4 is answered: mode 5 waits. (The retransmitter, the ground's sender.)
+fn mode_4_retried_at_1_5_s_and_mode_5_waiting(t0: Instant) -> (CommandRetransmitter, Sender) {
+    let mut r = CommandRetransmitter::new(MS(1450), MS(200), MS(1500), MAX_ATTEMPTS);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+    let (f4, m4) = command_with(&mut gcs, set_mode, 4.0, 0);
+    forwarded(r.from_ground(t0, GCS, &f4, &m4));
+    assert_eq!(sent(&resend(&mut r, t0 + MS(1450)).unwrap()), (4.0, 0, 1));
+    let (retry, retry_m) = command_with(&mut gcs, set_mode, 4.0, 1);
+    assert_eq!(
+        r.from_ground(t0 + MS(1500), GCS, &retry, &retry_m),
+        Admission::Retry
+    );
+    let (f5, m5) = command_with(&mut gcs, set_mode, 5.0, 0);
+    assert_eq!(r.from_ground(t0 + MS(1500), GCS, &f5, &m5), Admission::Hold);
+    (r, gcs)
+}
+
+#[test]
+fn an_older_command_keeps_its_slot_while_the_ground_may_still_retry_it() {
+    // The ground's next retry of mode 4 is due at 3 s, and until it is overdue the ground
+    // still waits for mode 4's ack: mode 5 must not go before (1.4 s after the ground's
+    // last send, when the router's last copy is older than it), or the ground takes mode
+    // 5's ack for mode 4's.
+    let t0 = Instant::from_millis(0);
+    let (mut r, mut gcs) = mode_4_retried_at_1_5_s_and_mode_5_waiting(t0);
+    let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+    for ms in (1510..3000).step_by(10) {
+        if let Some(f) = resend(&mut r, t0 + MS(ms)) {
+            assert_eq!(sent(&f).0, 4.0, "at {ms} ms");
+        }
+    }
+    let (retry, retry_m) = command_with(&mut gcs, set_mode, 4.0, 2);
+    assert_eq!(
+        r.from_ground(t0 + MS(3000), GCS, &retry, &retry_m),
+        Admission::Retry,
+        "mode 4 is still on the radio"
+    );
+    assert!(r.from_radio_tagged(t0 + MS(3100), 1, 1, &ack(set_mode), tag(0)));
+    assert_eq!(sent(&resend(&mut r, t0 + MS(3100)).unwrap()), (5.0, 1, 0));
+    assert_eq!((r.stats().acked, r.stats().abandoned), (1, 0));
+}
+
+#[test]
+fn an_ack_the_ground_may_have_given_up_on_is_swallowed_but_its_retry_is_answered() {
+    // Mode 4's ack comes 1.4 s after the ground's retry: a station giving up on mode 4
+    // would take it for mode 5's, so it is swallowed. But the ground may retry mode 4
+    // instead (due at 3 s): mode 5 waits, and the retry goes as mode 4 again (the bridge
+    // answers it from its cache) and gets mode 4's ack.
+    let t0 = Instant::from_millis(0);
+    let (mut r, mut gcs) = mode_4_retried_at_1_5_s_and_mode_5_waiting(t0);
+    let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+    assert!(!r.from_radio_tagged(t0 + MS(2900), 1, 1, &ack(set_mode), tag(0)));
+    for ms in (2900..3000).step_by(10) {
+        assert!(resend(&mut r, t0 + MS(ms)).is_none(), "at {ms} ms");
+    }
+    let (retry, retry_m) = command_with(&mut gcs, set_mode, 4.0, 2);
+    let (param1, generation, attempt) = sent(&forwarded(r.from_ground(
+        t0 + MS(3000),
+        GCS,
+        &retry,
+        &retry_m,
+    )));
+    assert_eq!((param1, generation), (4.0, 0));
+    assert!(attempt > 0, "a copy, not a new command");
+    assert!(r.from_radio_tagged(t0 + MS(3100), 1, 1, &ack(set_mode), tag(0)));
+    assert_eq!(sent(&resend(&mut r, t0 + MS(3100)).unwrap()), (5.0, 1, 0));
+}
+
 /// A retransmitter with SiK 64k's redundant copies, its link at `loss` from `now`.
 fn redundant(now: Instant, loss: Option<f64>) -> CommandRetransmitter {
     let mut r = CommandRetransmitter::new(MS(1000), MS(200), MS(1500), MAX_ATTEMPTS)
