@@ -417,13 +417,16 @@ fn compact_mode_replaces_position_and_heartbeat() {
     c.compact = Some(CompactConfig::default());
     let mut b = Bridge::new(c, Instant::ZERO).unwrap();
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA::default());
     let mut ids = Vec::new();
     for k in 0..50u64 {
         let now = ms(k * 200);
         if k % 5 == 0 {
             b.handle_fc_bytes(now, fc_heartbeat(&mut fc).as_bytes());
         }
+        let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            time_boot_ms: k as u32 * 200,
+            ..Default::default()
+        });
         b.handle_fc_bytes(now, fc.frame(&pos).as_bytes());
         ids.extend(to_radio(&mut b, now).iter().map(|f| f.message_id()));
     }

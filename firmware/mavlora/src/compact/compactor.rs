@@ -55,6 +55,10 @@ pub const HEARTBEAT_STALE: Duration = Duration::from_secs(3);
 /// status only: health bits that flicker would otherwise do the same.
 pub const STATUS_CHANGE_MIN: Duration = Duration::from_secs(5);
 
+/// A position whose `time_boot_ms` is this much or more behind the newest is a rebooted
+/// autopilot's (as the bridge counts a reboot); less, it is an older sample: no news.
+const REBOOT_BACK_MS: u32 = 1_000;
+
 /// VFR_HUD's airspeed rides in a frame when it moved this much (cm/s) since the last sent,
 /// and with every status; the ground keeps the last (`VFR_HUD` is shown to a few m/s, and a
 /// frame's bytes decide the duty cycle).
@@ -140,7 +144,10 @@ pub struct Compactor {
     config: CompactConfig,
     samples: Vec<Sample>,
     batch_started: Option<Instant>,
-    next_sample_due: Option<Instant>,
+    /// The vehicle's `time_boot_ms` from which the next sample is due.
+    next_sample_due: Option<u32>,
+    /// `time_boot_ms` of the newest position seen (sampled or not).
+    last_position_ms: Option<u32>,
     /// The newest position sampled: velocity, heading and the altitude offset of a batch.
     newest: Option<GLOBAL_POSITION_INT_DATA>,
     /// The autopilot's latest VFR_HUD (airspeed, throttle), and when it came.
@@ -185,6 +192,7 @@ impl Compactor {
             samples: Vec::with_capacity(MAX_BATCH_SAMPLES),
             batch_started: None,
             next_sample_due: None,
+            last_position_ms: None,
             newest: None,
             air: None,
             air_sent: None,
@@ -292,17 +300,29 @@ impl Compactor {
     }
 
     fn sample(&mut self, pos: &GLOBAL_POSITION_INT_DATA, now: Instant) {
-        let interval = Duration::from_secs_f64(1.0 / self.config.sample_hz);
-        let due = self.next_sample_due.unwrap_or(now);
+        // Slots on the vehicle's clock, not on arrival: an autopilot sending at the sample
+        // rate (ArduPilot asked for 3 Hz) reaches the bridge with the host's jitter, tens of
+        // ms on a loaded machine, and a sample that came early lost its slot (670 ms gaps,
+        // 2.83 Hz at the ground in a CI run) while its own clock said 330 ms.
+        let interval = (1000.0 / self.config.sample_hz).round() as u32;
+        let t = pos.time_boot_ms;
+        let due = match (self.next_sample_due, self.last_position_ms) {
+            // the same sample again, or an older one: nothing new
+            (_, Some(last)) if t == last || (t < last && last - t < REBOOT_BACK_MS) => return,
+            // the clock went back (a reboot) or jumped a minute on: start again
+            (Some(due), Some(last)) if t > last && t - last < 60_000 => due,
+            _ => t,
+        };
+        self.last_position_ms = Some(t);
         // A sample a little early counts as on time: from a 4 Hz autopilot every fourth
         // sample falls on a 3 Hz slot, and with its clock's jitter it comes a few ms before
-        // the slot half of the time; refused, it costs the slot (2.85 Hz instead of 3 over
-        // ptys). An eighth of an interval, far less than the 1/12 s between the two rates.
-        if now + interval / 8 < due {
+        // the slot half of the time; refused, it costs the slot (2.85 Hz instead of 3). An
+        // eighth of an interval, far less than the 1/12 s between the two rates.
+        if t.saturating_add(interval / 8) < due {
             return;
         }
         // Same catch-up rule as the radio filter: 5 Hz in gives 3 Hz out, not 2.5.
-        self.next_sample_due = Some((due + interval).max(now + interval / 2));
+        self.next_sample_due = Some((due + interval).max(t + interval / 2));
         let sample = Sample {
             time_boot_ms: pos.time_boot_ms,
             lat: pos.lat,

@@ -52,10 +52,13 @@ fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
         MavMessage::MISSION_CURRENT(MISSION_CURRENT_DATA::default()),
         MavMessage::VFR_HUD(VFR_HUD_DATA::default()),
     ];
-    let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
-        time_boot_ms: 1000,
-        ..Default::default()
-    });
+    // samples on the vehicle's clock, one per 340 ms
+    let pos = |k: u64| {
+        MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            time_boot_ms: 1000 + k as u32 * 340,
+            ..Default::default()
+        })
+    };
     let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
     let mut radio = Vec::new();
     let mut frames = 0;
@@ -63,7 +66,7 @@ fn compact_frames_expand_into_one_gap_free_vehicle_stream() {
         for m in &status {
             c.observe(m, ms(k * 340));
         }
-        c.observe(&pos, ms(k * 340));
+        c.observe(&pos(k), ms(k * 340));
         while let Some(m) = c.poll(ms(k * 340)) {
             radio.extend_from_slice(bridge.frame(&m).as_bytes());
             frames += 1;
