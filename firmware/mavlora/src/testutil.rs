@@ -57,3 +57,15 @@ pub fn raw_frame(
     bytes.extend_from_slice(&crc.to_le_bytes());
     OwnedFrame::new_checked(bytes).expect("well-formed test frame")
 }
+
+/// A ground station's ARM (`COMMAND_LONG`) for vehicle 1, component 1.
+pub fn arm_command() -> MavMessage {
+    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1: 1.0,
+        ..Default::default()
+    })
+}

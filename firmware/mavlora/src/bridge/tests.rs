@@ -946,13 +946,7 @@ fn a_bridge_without_signing_state_and_a_clock_a_day_behind_does_not_run_a_record
     let key = SigningKey([9; 32]);
     let real = 300_000_000_000u64; // now, 10 us units since 2015
     let (day, ten_minutes) = (86_400 * 100_000, 600 * 100_000);
-    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        target_system: 1,
-        target_component: 1,
-        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-        param1: 1.0,
-        ..Default::default()
-    });
+    let arm = crate::testutil::arm_command();
     let mut pilot = Sender::new(255, 190, MavlinkVersion::V2);
     let mut router_then = LinkSigner::new(key.clone(), 2, real - ten_minutes);
     let recorded = router_then.sign(&pilot.frame(&arm), ms(0)).unwrap();

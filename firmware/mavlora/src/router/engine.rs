@@ -676,7 +676,7 @@ impl Router {
         self.to_gcs.push_back(frame);
     }
 
-    /// Mission frames for the radio (priority, in order: the radio leg relies on it) and for
+    /// Mission frames for the radio (transfers, in order: the radio leg relies on it) and for
     /// the ground (as the vehicle it addressed, in that stream's numbering).
     fn drain_mission(&mut self, now: Instant) {
         while let Some(msg) = self.mission.poll_radio(now) {

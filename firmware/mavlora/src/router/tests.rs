@@ -362,15 +362,8 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
 
 #[test]
 fn ground_frames_from_other_addresses_or_system_ids_never_reach_the_radio() {
-    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
     let mut r = router();
-    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        target_system: 1,
-        target_component: 1,
-        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-        param1: 1.0,
-        ..Default::default()
-    });
+    let arm = crate::testutil::arm_command();
     let intruder: std::net::IpAddr = "192.168.1.66".parse().unwrap();
     let mut spoof = Sender::new(255, 190, MavlinkVersion::V2);
     let input = r.handle_gcs_input(ms(0), intruder, spoof.frame(&arm).as_bytes());
@@ -437,32 +430,35 @@ fn one_source_cannot_fill_the_command_relay() {
     assert_eq!(r.stats().ground.rejected_budget, 10 - budget as u64);
 }
 
-#[test]
-fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_gets_signed_ones() {
-    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
-    use crate::signing::{LinkSigner, SigningConfig, SigningKey};
-    let key = SigningKey([7; 32]);
+/// A router whose ground stations must sign with `key`.
+fn router_with_ground_key(
+    key: &crate::signing::SigningKey,
+    link_id: u8,
+    epoch: u64,
+    state: crate::signing::SigningState,
+) -> Router {
     let mut config = RouterConfig::new(SchedulerConfig {
         rate_bytes_per_s: 1000,
         burst_bytes: 300,
         max_queued_bytes: 4000,
     });
-    config.ground_signing = Some(SigningConfig {
+    config.ground_signing = Some(crate::signing::SigningConfig {
         key: key.clone(),
-        link_id: 2,
-        epoch: 1_000_000,
-        state: Default::default(),
+        link_id,
+        epoch,
+        state,
     });
-    let mut r = Router::new(config, Instant::ZERO).unwrap();
+    Router::new(config, Instant::ZERO).unwrap()
+}
+
+#[test]
+fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_gets_signed_ones() {
+    use crate::signing::{LinkSigner, SigningKey};
+    let key = SigningKey([7; 32]);
+    let mut r = router_with_ground_key(&key, 2, 1_000_000, Default::default());
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut station = LinkSigner::new(key, 9, 1_000_000);
-    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        target_system: 1,
-        target_component: 1,
-        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-        param1: 1.0,
-        ..Default::default()
-    });
+    let arm = crate::testutil::arm_command();
     // unsigned, from an allowed address and system id: not enough
     let input = r.handle_gcs_bytes(ms(0), gcs.frame(&arm).as_bytes());
     assert!(!input.learn_peer());
@@ -502,32 +498,12 @@ fn with_a_ground_key_only_signed_ground_frames_reach_the_radio_and_the_ground_ge
 /// file); the station's next frame still goes.
 #[test]
 fn the_ground_signers_stored_state_refuses_after_a_restart_what_it_accepted_before() {
-    use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
-    use crate::signing::{LinkSigner, SigningConfig, SigningKey, SigningState};
+    use crate::signing::{LinkSigner, SigningKey, SigningState};
     let key = SigningKey([7; 32]);
-    let start = |epoch: u64, state: SigningState| {
-        let mut config = RouterConfig::new(SchedulerConfig {
-            rate_bytes_per_s: 1000,
-            burst_bytes: 300,
-            max_queued_bytes: 4000,
-        });
-        config.ground_signing = Some(SigningConfig {
-            key: key.clone(),
-            link_id: 3,
-            epoch,
-            state,
-        });
-        Router::new(config, Instant::ZERO).unwrap()
-    };
+    let start = |epoch: u64, state: SigningState| router_with_ground_key(&key, 3, epoch, state);
     let mut station = LinkSigner::new(key.clone(), 5, 1_000_000);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
-    let arm = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        target_system: 1,
-        target_component: 1,
-        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-        param1: 1.0,
-        ..Default::default()
-    });
+    let arm = crate::testutil::arm_command();
     let captured = station.sign(&gcs.frame(&arm), ms(10)).unwrap();
     let mut before = start(1_000_000, SigningState::default());
     assert!(

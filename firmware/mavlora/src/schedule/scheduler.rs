@@ -77,18 +77,6 @@ pub struct SchedulerStats {
     pub dropped_param: u64,
 }
 
-impl SchedulerStats {
-    /// Frames dropped for a full queue, of every class.
-    pub fn dropped(&self) -> u64 {
-        self.dropped_periodic
-            + self.dropped_unlisted
-            + self.dropped_command
-            + self.dropped_protocol
-            + self.dropped_status
-            + self.dropped_param
-    }
-}
-
 /// Identity of a periodic stream: a newer frame with the same key replaces the queued one.
 /// A part of a sequence ([`replaceable`] says no) gets a key of its own, `part`, so it is
 /// never replaced.
