@@ -1,6 +1,5 @@
 //! The bridge state machine.
 
-use crate::time::Duration;
 use std::collections::VecDeque;
 
 use mavlink::{MavHeader, MavlinkVersion, Message as _};
@@ -184,7 +183,7 @@ impl Bridge {
             compactor: config.compact.map(Compactor::new),
             mission: MissionRelay::new(config.mission),
             commands: {
-                let c = AckCache::new(ACK_HOLD, Duration::from_secs(1));
+                let c = AckCache::new(ACK_HOLD, now);
                 match config.command_redundancy {
                     Some(r) => c.with_redundancy(r),
                     None => c,

@@ -740,7 +740,16 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
         ..Default::default()
     });
     let is_cmd = |m: &MavMessage| matches!(m, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_DO_SET_MODE);
-    b.handle_radio_bytes(ms(100), gcs.frame(&cmd).as_bytes());
+    // as the router sends it: tagged with its run and the copy's radio confirmation
+    let radio = |gcs: &mut Sender, msg: &MavMessage, confirmation: u8| {
+        let tag = crate::command::CommandTag {
+            epoch: 1,
+            confirmation,
+            age: Duration::ZERO,
+        };
+        crate::command::ack_tag::tag_command(&gcs.frame(msg), msg, tag)
+    };
+    b.handle_radio_bytes(ms(100), radio(&mut gcs, &cmd, 0).as_bytes());
     assert_eq!(
         to_fc(&mut b, ms(100)).iter().filter(|m| is_cmd(m)).count(),
         1
@@ -768,7 +777,7 @@ fn a_resent_command_reaches_the_fc_once_and_its_copy_gets_the_cached_ack() {
     };
     copy.confirmation = 1;
     let copy = MavMessage::COMMAND_LONG(copy);
-    b.handle_radio_bytes(ms(1100), gcs.frame(&copy).as_bytes());
+    b.handle_radio_bytes(ms(1100), radio(&mut gcs, &copy, 1).as_bytes());
     assert_eq!(
         to_fc(&mut b, ms(1100)).iter().filter(|m| is_cmd(m)).count(),
         0,

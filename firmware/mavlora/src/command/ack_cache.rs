@@ -1,13 +1,19 @@
-//! The bridge's half of the command relay: at most one execution per command copy, and
-//! each ack twice on a lossy link.
+//! The bridge's half of the command relay: at most one execution per command, however many
+//! copies of it come, and each ack twice on a lossy link.
 
+use crate::command::ack_tag::Epoch;
 use crate::time::Duration;
 
-use super::ack_tag::{AckTag, tag_ack};
-use super::{CommandId, LossGate, Redundancy, confirmation, split_confirmation, with_confirmation};
+use super::ack_tag::{AckTag, tag_ack, untag_command};
+use super::{CommandId, LossGate, Redundancy, split_confirmation, with_confirmation};
 use crate::dialect::{COMMAND_ACK_DATA, MavMessage, MavResult};
 use crate::time::Instant;
 use crate::wire::OwnedFrame;
+
+/// A copy can wait longer in the router's radio queue than its command's first copy did:
+/// a copy whose first came up to this long after the bridge started may still have had
+/// that first copy come before (see [`AckCache::new`]).
+const RESTART_MARGIN: Duration = super::MAX_RTO;
 
 /// What to do with a command from the radio.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -33,19 +39,26 @@ pub struct AckCacheStats {
     pub repeated: u64,
     /// Copies that arrived while their ack's repeat was due: the repeat answers them.
     pub covered: u64,
+    /// Copies of a command this bridge never saw, soon after it started: it may have
+    /// forwarded the command before (its ack lost), so it does not forward it now.
+    pub refused_after_restart: u64,
+    /// Commands without the router's tag, forwarded as they came (uncached).
+    pub untagged: u64,
 }
 
 #[derive(Debug)]
 struct Entry {
     id: CommandId,
-    /// The router's generation of this identity (0 for `COMMAND_INT`).
+    /// The router run that sent it.
+    epoch: Epoch,
+    /// The router's generation of this identity.
     generation: u8,
     /// When its first copy arrived: the entry lives [`AckCache::new`]'s `hold` from then.
     first: Instant,
     forwarded: Instant,
-    /// Times forwarded to the flight controller.
-    forwards: u8,
-    /// The radio attempt of the copy last forwarded (`None`: `COMMAND_INT`).
+    /// Never forwarded: its copies come from before this bridge started.
+    refused: bool,
+    /// The radio attempt of the copy forwarded.
     attempt: Option<u8>,
     ack: Option<Cached>,
     /// When its ack goes again, if it does.
@@ -65,13 +78,18 @@ struct Cached {
 }
 
 impl Cached {
-    /// The ack as it goes on the radio answering the copy `attempt` (`None`: a repeat).
-    fn answer(&self, generation: u8, attempt: Option<u8>) -> OwnedFrame {
+    /// The ack as it goes on the radio answering the copy `attempt` (`None`: a repeat) of
+    /// the router run `epoch`'s `generation`.
+    fn answer(&self, epoch: Epoch, generation: u8, attempt: Option<u8>) -> OwnedFrame {
         if !self.tagged {
             return self.radio.clone();
         }
-        tag_ack(&self.frame, &self.ack, AckTag::new(generation, attempt))
-            .unwrap_or_else(|| self.radio.clone())
+        tag_ack(
+            &self.frame,
+            &self.ack,
+            AckTag::new(epoch, generation, attempt),
+        )
+        .unwrap_or_else(|| self.radio.clone())
     }
 }
 
@@ -79,7 +97,8 @@ impl Cached {
 #[derive(Debug)]
 pub struct AckCache {
     hold: Duration,
-    in_flight: Duration,
+    /// When this bridge started (see [`AckCache::new`]).
+    started: Instant,
     redundancy: Option<Redundancy>,
     /// Whether the measured loss calls for repeats (see [`AckCache::set_link_loss`]).
     gate: LossGate,
@@ -88,14 +107,25 @@ pub struct AckCache {
 }
 
 impl AckCache {
-    /// Commands and their acks are kept `hold` after a command's first copy arrived (at
-    /// least [`ACK_HOLD`](super::ACK_HOLD): the router's copies arrive within it); a copy
-    /// within `in_flight` of the forwarded command, before its ack, is dropped (after that it
-    /// goes to the flight controller again: the first may have been lost on the wire).
-    pub fn new(hold: Duration, in_flight: Duration) -> Self {
+    /// A cache for a bridge started at `started`. Commands and their acks are kept `hold`
+    /// after a command's first copy arrived (at least [`ACK_HOLD`](super::ACK_HOLD): the
+    /// router's copies arrive within it).
+    ///
+    /// A copy of a command whose ack has not come yet is dropped: the flight controller
+    /// has it (some take seconds to answer) and would run it again, and a command lost on
+    /// the wire is rarer than a slow answer (the ground sends a new one then).
+    ///
+    /// A copy (attempt > 0) of a command this bridge never saw, whose first copy went
+    /// before `started` by its age (within a margin for queueing), is not forwarded: it may
+    /// have reached the flight controller before this bridge restarted, and nothing here
+    /// tells whether it ran. It gets no ack, so the ground's timeout says the outcome is
+    /// unknown (as the command protocol does when no ack comes); running it twice could
+    /// take a second photo or drop a second payload. A copy of a command whose first copy
+    /// went later is one whose earlier copies were lost, and goes.
+    pub fn new(hold: Duration, started: Instant) -> Self {
         Self {
             hold,
-            in_flight,
+            started,
             redundancy: None,
             gate: LossGate::default(),
             entries: Vec::new(),
@@ -131,24 +161,28 @@ impl AckCache {
         self.stats
     }
 
-    /// A command from the radio (`frame` decodes to `msg`). Its confirmation is read as the
-    /// router's (generation, attempt): attempt 0 is a new command, more is a copy of the
-    /// command with the same identity and generation (if none is known, its earlier copies
-    /// were lost: it is new here). `COMMAND_INT` has no confirmation: an identical one is a
-    /// copy.
+    /// A command from the radio (`frame` decodes to `msg`). Its tag names the router run
+    /// (epoch) and the router's (generation, attempt): attempt 0 is a new command, more is a
+    /// copy of the command with the same run, identity and generation (if none is known,
+    /// its earlier copies were lost: it is new here, unless this bridge may have seen them
+    /// before it restarted, see [`new`](Self::new)). A command without a tag is forwarded
+    /// as it came.
     pub fn command(&mut self, frame: &OwnedFrame, msg: &MavMessage, now: Instant) -> CacheVerdict {
         let Some(id) = CommandId::of(msg) else {
             return CacheVerdict::Forward(frame.clone());
         };
+        let Some(tag) = untag_command(frame, msg) else {
+            self.stats.untagged += 1;
+            return CacheVerdict::Forward(frame.clone());
+        };
         self.expire(now);
-        let (generation, attempt) = confirmation(msg).map_or((0, 1), split_confirmation);
-        let radio_attempt = confirmation(msg).map(|_| attempt);
+        let epoch = tag.epoch;
+        let (generation, attempt) = split_confirmation(tag.confirmation);
+        let radio_attempt = Some(attempt);
         let repeat = self.repeat_after(now);
+        let same = |e: &Entry| e.id == id && e.epoch == epoch && e.generation == generation;
         if attempt > 0
-            && let Some(e) = self
-                .entries
-                .iter_mut()
-                .find(|e| e.id == id && e.generation == generation)
+            && let Some(e) = self.entries.iter_mut().find(|e| same(e))
         {
             return match &e.ack {
                 // The repeat still to come answers it, in another air packet than the
@@ -160,34 +194,44 @@ impl AckCache {
                 Some(ack) => {
                     // The answer (and its own repeat) takes the place of a repeat overdue.
                     self.stats.replayed += 1;
-                    let out = ack.answer(generation, radio_attempt);
+                    let out = ack.answer(epoch, generation, radio_attempt);
                     e.repeat_at = repeat.filter(|_| ack.tagged);
                     CacheVerdict::Replay(out)
                 }
-                None if now.saturating_duration_since(e.forwarded) < self.in_flight => {
+                // The flight controller has it, or it was refused: never again.
+                None => {
                     self.stats.dropped += 1;
                     CacheVerdict::Drop
                 }
-                None => {
-                    e.forwarded = now;
-                    e.forwards = e.forwards.saturating_add(1);
-                    e.attempt = radio_attempt;
-                    self.stats.forwarded += 1;
-                    CacheVerdict::Forward(with_confirmation(frame, msg, e.forwards - 1))
-                }
             };
         }
-        self.entries.retain(|e| e.id != id);
+        // A newer generation of the identity replaces the older (the router sends it only
+        // after the older's ack); another run's entries stay, for its late copies.
+        self.entries.retain(|e| !(e.id == id && e.epoch == epoch));
+        // When its first copy arrived, if it did: about this copy's age ago.
+        let first_copy = Instant::from_micros(now.as_micros().saturating_sub(tag.age.as_micros()));
+        let refused = attempt > 0 && first_copy < self.started + RESTART_MARGIN;
         self.entries.push(Entry {
             id,
+            epoch,
             generation,
             first: now,
             forwarded: now,
-            forwards: 1,
+            refused,
             attempt: radio_attempt,
             ack: None,
             repeat_at: None,
         });
+        if refused {
+            tracing::warn!(
+                command = id.command,
+                generation,
+                attempt,
+                "copy of a command that may have run before this bridge started: not forwarded"
+            );
+            self.stats.refused_after_restart += 1;
+            return CacheVerdict::Drop;
+        }
         self.stats.forwarded += 1;
         CacheVerdict::Forward(with_confirmation(frame, msg, 0))
     }
@@ -215,17 +259,14 @@ impl AckCache {
         let e = self
             .entries
             .iter_mut()
-            .filter(|e| e.id.answered_by(system, component, command))
+            .filter(|e| !e.refused && e.id.answered_by(system, component, command))
             .filter(|e| {
                 e.ack
                     .as_ref()
                     .is_none_or(|a| a.ack.result == MavResult::MAV_RESULT_IN_PROGRESS)
             })
             .max_by_key(|e| e.forwarded)?;
-        // COMMAND_INT carries no generation: its acks stay as they are.
-        let radio = (!e.id.is_int())
-            .then(|| tag_ack(frame, ack, AckTag::new(e.generation, e.attempt)))
-            .flatten();
+        let radio = tag_ack(frame, ack, AckTag::new(e.epoch, e.generation, e.attempt));
         let tagged = radio.is_some();
         e.ack = Some(Cached {
             frame: frame.clone(),
@@ -252,7 +293,7 @@ impl AckCache {
             .iter_mut()
             .find(|e| e.repeat_at.is_some_and(|at| now >= at))?;
         e.repeat_at = None;
-        let out = e.ack.as_ref()?.answer(e.generation, None);
+        let out = e.ack.as_ref()?.answer(e.epoch, e.generation, None);
         self.stats.repeated += 1;
         Some(out)
     }

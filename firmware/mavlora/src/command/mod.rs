@@ -10,45 +10,75 @@
 //!   in flight are dropped (the router is already retrying).
 //! - [`AckCache`] (bridge): a command the flight controller has already acknowledged, seen
 //!   again because the ack was lost on the radio, is answered with the same ack instead of
-//!   being executed twice; a copy that arrives while the first is still being executed is
-//!   dropped.
+//!   being executed twice; a copy that arrives before the flight controller's ack (however
+//!   long it takes) is dropped.
+//!
+//! # The invariant
+//!
+//! Each command a ground station sends (one intent: its first send and its own retries,
+//! however many copies the router puts on the radio) is executed by the flight controller
+//! at most once, and every distinct intent is executed when the link carries it: one with
+//! the same parameters as an earlier one, and one sent after the router or the bridge
+//! restarted. Where an end cannot tell whether a command already ran (a restart lost what
+//! it knew), it does not run it and sends no ack: the ground station's timeout is the
+//! command protocol's own "outcome unknown". `tests/command_intents.rs` checks it case by
+//! case, `tests/command_relay.rs` over random plans, loss and ack-loss bursts.
 //!
 //! # Identity and confirmation (the MAVLink command protocol)
 //!
 //! A command is its [`CommandId`]: target system, target component, command id and every
 //! parameter. `COMMAND_LONG.confirmation` 0 is a new command, more is a retransmission of
-//! the same one; a new command with identical parameters is executed again.
+//! the same one; a new command with identical parameters is executed again. `COMMAND_INT`
+//! has no confirmation field: an identical `COMMAND_INT` is a retry while the first is
+//! unanswered (a ground station retries only then), and a new command once the ground got
+//! its ack (ARM, DISARM, ARM; twenty holds in a row).
 //!
-//! Between router and bridge (both ours) the radio carries `confirmation` as
-//! `generation << 3 | attempt` ([`radio_confirmation`]): `attempt` counts the router's sends
-//! of one command (0 first, saturating at 7), `generation` tells two commands with the same
-//! identity apart, so a re-issued command whose first copy was lost is not taken for a
-//! retransmission of the previous one. The bridge gives the flight controller a plain
-//! `confirmation` (0 on its first forward). `COMMAND_INT` has no confirmation field: an
-//! identical `COMMAND_INT` within the retransmission window is a copy.
+//! Between router and bridge (both ours) each copy carries a tag ([`ack_tag`]): the
+//! router's epoch, `generation << 3 | attempt` ([`radio_confirmation`]) and the copy's age.
+//! `attempt` counts the router's sends of one command (0 first, saturating at 7);
+//! `generation` tells two commands with the same identity apart, so a re-issued command
+//! whose first copy was lost is not taken for a retransmission of the previous one; the
+//! epoch, drawn at random at each router start, tells this run's generations from a
+//! previous run's, which the bridge may still hold (both start at 0). The bridge gives the
+//! flight controller the command without the tag and with a plain `confirmation` (0).
+//!
+//! # Restarts
+//!
+//! - The router: its copies carry a new epoch, so the bridge never answers them from the
+//!   previous run's acks, and acks tagged with another epoch answer nothing here. For a
+//!   [`RETRANSMIT_WINDOW`] after it started, a ground retry (`confirmation` > 0) of a
+//!   command it never saw is not sent: the previous run may have had it executed
+//!   ([`CommandRetransmitter::with_epoch`]).
+//! - The bridge: a copy of a command it never saw, whose first copy (by the copy's age)
+//!   went before it started, is not forwarded: it may have been executed before the restart
+//!   with its ack lost ([`AckCache::new`]).
 //!
 //! # Acks
 //!
 //! `COMMAND_ACK` carries only the command id, so the bridge tags each ack it sends on the
-//! radio with the generation of the command it answers (in `result_param2`, see
-//! [`ack_tag`]) and the router matches it to exactly that command, restoring the
+//! radio with the epoch and generation of the command it answers (see [`ack_tag`]) and the
+//! router matches it to exactly that command, restoring the
 //! autopilot's `result_param2` (and MAVLink version) before the ground sees it. The router
 //! keeps at most one command per (target system, command id) on the radio, so the vehicle
 //! runs them in the order the ground sent them; a newer one with the same id goes as soon as
 //! the older one is acknowledged: a late copy's ack names the older generation and is
 //! swallowed (counted), never given to the newer one.
 //!
-//! An untagged ack (`COMMAND_INT`, which has no confirmation to carry a generation, or an
-//! autopilot's `result_param2` too large to share with the tag) cannot be told apart so:
+//! An untagged ack (an autopilot's `result_param2` too large to share with the tag) cannot
+//! be told apart so:
 //! after such an older command that was sent more than once, the newer one waits until its
 //! late copies' acks can no longer arrive (one maximum timeout after its last send). The
 //! ground thus sees the acks of two commands with the same id in the order it sent them,
 //! each answering its own.
 //!
 //! The choice when the ground moves on: an older command whose ground station stopped
-//! retrying it (1.4 s after its last copy) while a newer one with
-//! the same id waits is abandoned: no more copies, its acks swallowed (a station that gave
-//! up would take them for the newer one's). A waiting command the ground stopped retrying
+//! retrying it (no retry within the protocol's 1.5 s and a margin after its last copy) while
+//! a newer one with the same id waits is abandoned: no more copies, its acks swallowed (a
+//! station that gave up would take them for the newer one's). Until then the newer one
+//! waits: a station that still retries the older one takes the first ack with that id for
+//! the older one's. An ack of the older one that comes when the ground may be giving up on
+//! it (1.4 s after its last copy) is swallowed, and the ground's retry, if it comes, sends
+//! the older one again. A waiting command the ground stopped retrying
 //! for two maximum timeouts is never sent. A ground retry (`confirmation` > 0) of a command
 //! the router already finished is sent again as that command (same generation: the bridge
 //! answers from its cache) within the window, and dropped after it.
@@ -98,13 +128,14 @@ mod ack_cache;
 pub mod ack_tag;
 mod retransmit;
 
+use crate::command::ack_tag::Epoch;
 use crate::time::{Duration, Instant};
 
 pub use ack_cache::{AckCache, AckCacheStats, CacheVerdict};
-pub use ack_tag::AckTag;
+pub use ack_tag::{AckTag, CommandTag};
 pub use retransmit::{Admission, CommandRetransmitter, RetransmitStats};
 
-use crate::dialect::MavMessage;
+use crate::dialect::{COMMAND_LONG_DATA, MavMessage};
 
 /// The most sends of one command over the radio (the attempt field has 3 bits).
 pub const MAX_ATTEMPTS: u32 = 8;
@@ -238,11 +269,6 @@ impl CommandId {
         }
     }
 
-    /// Whether it is a `COMMAND_INT` (no confirmation: its acks go untagged).
-    pub fn is_int(&self) -> bool {
-        self.int.is_some()
-    }
-
     /// The (target system, command id) an ack names: one command per slot on the radio.
     pub fn slot(&self) -> (u8, u32) {
         (self.target_system, self.command)
@@ -256,6 +282,18 @@ impl CommandId {
             && self.command == command
             && (self.target_component == 0 || self.target_component == component)
     }
+}
+
+/// A router run's epoch ([`CommandRetransmitter::with_epoch`]): random, from the seed std
+/// draws from the operating system for its hash maps, mixed with the wall clock. The
+/// engines take it as configuration, so a run stays deterministic.
+pub fn random_epoch() -> Epoch {
+    use std::hash::BuildHasher;
+    let clock = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let h = std::collections::hash_map::RandomState::new().hash_one(clock);
+    (h ^ (h >> 16) ^ (h >> 32) ^ (h >> 48)) as Epoch
 }
 
 /// `COMMAND_LONG.confirmation`, `None` for `COMMAND_INT` and other messages.
@@ -277,18 +315,21 @@ pub fn split_confirmation(confirmation: u8) -> (u8, u8) {
     (confirmation >> 3, confirmation & 7)
 }
 
-/// `frame` (a `COMMAND_LONG`) with its confirmation set and its checksum recomputed; other
-/// frames unchanged.
+/// `frame` (decoded: `msg`) encoded again from its fields, a `COMMAND_LONG` with its
+/// confirmation set: a radio tag after the fields ([`ack_tag`]) is gone. Other frames
+/// unchanged.
 pub fn with_confirmation(
     frame: &crate::wire::OwnedFrame,
     msg: &MavMessage,
     confirmation: u8,
 ) -> crate::wire::OwnedFrame {
-    let MavMessage::COMMAND_LONG(c) = msg else {
-        return frame.clone();
+    let msg = match msg {
+        MavMessage::COMMAND_LONG(c) => MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            confirmation,
+            ..c.clone()
+        }),
+        MavMessage::COMMAND_INT(_) => msg.clone(),
+        _ => return frame.clone(),
     };
-    let mut c = c.clone();
-    c.confirmation = confirmation;
-    let version = frame.version();
-    crate::wire::encode(version, frame.header(), &MavMessage::COMMAND_LONG(c))
+    crate::wire::encode(frame.version(), frame.header(), &msg)
 }

@@ -1,8 +1,10 @@
 //! The router's half of the command relay: retransmission over the radio.
 
+use crate::command::ack_tag::Epoch;
 use std::collections::{HashMap, VecDeque};
 use std::net::IpAddr;
 
+use super::ack_tag::{CommandTag, tag_command};
 use super::{
     ACK_HOLD, AckTag, CommandId, LossGate, MAX_ATTEMPTS, MAX_RTO, RETRANSMIT_WINDOW, Redundancy,
     confirmation, radio_confirmation, with_confirmation,
@@ -43,6 +45,12 @@ pub struct RetransmitStats {
     /// Copies resent while nothing had come from the radio since the last (a silent
     /// link): one per maximum timeout, and they use up no attempt (in `retransmissions`).
     pub blind: u64,
+    /// Ground retries (`confirmation` > 0) of a command this router never saw, soon after
+    /// it started: its previous run may have sent it, and the vehicle may have run it, so it
+    /// is not sent as a new command (see [`CommandRetransmitter::with_epoch`]).
+    pub refused_after_restart: u64,
+    /// Tagged acks of another router run's commands, swallowed.
+    pub foreign_acks: u64,
 }
 
 /// What to do with a command from the ground.
@@ -81,7 +89,8 @@ struct Pending {
     /// measured loss calls for them; cleared by `IN_PROGRESS`).
     planned: [Option<Instant>; PLANNED],
     /// When the ground last sent it (first send or retry): it still waits for the ack until
-    /// about [`GROUND_PATIENCE`] later.
+    /// about [`GROUND_PATIENCE`] later, and sends it again by [`GROUND_RETRY`] unless it
+    /// gave up.
     last_ground: Instant,
 }
 
@@ -90,13 +99,31 @@ struct Pending {
 /// taken for the next command's by a station that has just given up.
 const GROUND_PATIENCE: Duration = Duration::from_millis(1400);
 
+/// How long after its last copy a ground station that has not sent a command again has
+/// stopped retrying it: the protocol's 1.5 s retry timeout and a margin for the ground
+/// link and the station's timer. Until then its retry may still come, and the ground still
+/// waits for that command's ack: a newer command with the same id must not be answered
+/// before (the station would take that ack for the older one's).
+const GROUND_RETRY: Duration = Duration::from_millis(1500 + 250);
+
 /// Redundant copies of a command before any timeout.
 const PLANNED: usize = 3;
 
 impl Pending {
-    fn copy(&self) -> OwnedFrame {
-        let c = radio_confirmation(self.generation, self.attempts.saturating_sub(1));
-        with_confirmation(&self.frame, &self.msg, c)
+    /// The copy last counted, as it goes on the radio at `now`: tagged with the router's
+    /// `epoch` and its age.
+    fn copy(&self, epoch: Epoch, now: Instant) -> OwnedFrame {
+        let confirmation = radio_confirmation(self.generation, self.attempts.saturating_sub(1));
+        let frame = with_confirmation(&self.frame, &self.msg, confirmation);
+        tag_command(
+            &frame,
+            &self.msg,
+            CommandTag {
+                epoch,
+                confirmation,
+                age: now.saturating_duration_since(self.first_sent),
+            },
+        )
     }
 
     /// A resend at `now` into a link that has been silent since the last copy: it goes as
@@ -161,6 +188,10 @@ pub struct CommandRetransmitter {
     heard: Option<Instant>,
     /// Frames due, waiting for [`poll_retransmit`](CommandRetransmitter::poll_retransmit).
     due: VecDeque<OwnedFrame>,
+    /// This run's epoch, in every copy's tag (see [`CommandRetransmitter::with_epoch`]).
+    epoch: Epoch,
+    /// When this run started, if it may follow another.
+    started: Option<Instant>,
     stats: RetransmitStats,
 }
 
@@ -188,8 +219,27 @@ impl CommandRetransmitter {
             wake: None,
             heard: None,
             due: VecDeque::new(),
+            epoch: 0,
+            started: None,
             stats: RetransmitStats::default(),
         }
+    }
+
+    /// This run of the router, started at `started`, tags its copies with `epoch` (drawn at
+    /// random at each start): the bridge keeps each run's generations apart, since a new
+    /// run's start again at 0 while the bridge still holds the previous run's acks. Acks
+    /// tagged with another epoch answer nothing here.
+    ///
+    /// For [`RETRANSMIT_WINDOW`] after `started`, a ground retry (`confirmation` > 0) of a
+    /// command this run never saw is dropped: the previous run may have sent it and the
+    /// vehicle run it (its ack lost), and this run cannot tell; sent as new, it would run
+    /// again. The ground station's own timeout then says the outcome is unknown, as the
+    /// command protocol does when no ack comes. (A `COMMAND_INT` carries no such mark: each
+    /// one a new run sees is new.)
+    pub fn with_epoch(mut self, epoch: Epoch, started: Instant) -> Self {
+        self.epoch = epoch;
+        self.started = Some(started);
+        self
     }
 
     /// At most `n` commands from one source in flight (waiting or on the radio) at once.
@@ -345,7 +395,9 @@ impl CommandRetransmitter {
             return Admission::Forward(frame.clone());
         };
         self.expire(now);
-        // COMMAND_INT has no confirmation: an identical one is a copy.
+        // COMMAND_INT has no confirmation: an identical one is a retry while the first is
+        // unanswered (a ground station retries only then).
+        let is_int = confirmation(msg).is_none();
         let copy = confirmation(msg).is_none_or(|c| c > 0);
         if copy {
             if let Some(p) = self
@@ -358,7 +410,10 @@ impl CommandRetransmitter {
                 self.stats.ground_duplicates += 1;
                 return Admission::Retry;
             }
-            if let Some(i) = self.finished.iter().rposition(|f| f.pending.id == id) {
+            // A COMMAND_INT whose ack the ground got is done: an identical one after it is a
+            // new command (ARM, DISARM, ARM), not a retry to answer from the bridge's cache.
+            let last = self.finished.iter().rposition(|f| f.pending.id == id);
+            if let Some(i) = last.filter(|&i| !(is_int && self.finished[i].acked)) {
                 // The ground did not get the ack (or we gave up): send that command again,
                 // as itself, unless a newer one is on the radio. A newer one that waits
                 // keeps waiting: while the ground retries the older one it expects the
@@ -388,14 +443,28 @@ impl CommandRetransmitter {
                 p.in_progress = false;
                 self.stats.retransmissions += 1;
                 self.note_sent(p.id, p.generation, now);
-                let out = p.copy();
+                let out = p.copy(self.epoch, now);
                 self.on_air.push(p);
                 return Admission::Forward(out);
             }
-            if self.generations.contains_key(&id) && confirmation(msg).is_some() {
+            if self.generations.contains_key(&id) && !is_int {
                 // A retry of a command whose window is over: the bridge may still hold it,
                 // so it must not go as a new one; the ground has to send a new command.
                 self.stats.ground_duplicates += 1;
+                return Admission::Retry;
+            }
+            if !is_int
+                && self
+                    .started
+                    .is_some_and(|s| now.saturating_duration_since(s) < RETRANSMIT_WINDOW)
+            {
+                // A retry of a command this run never saw: the previous run may have had it
+                // executed (see `with_epoch`).
+                tracing::warn!(
+                    command = id.command,
+                    "ground retry of a command sent before this router started: not sent"
+                );
+                self.stats.refused_after_restart += 1;
                 return Admission::Retry;
             }
         }
@@ -425,7 +494,7 @@ impl CommandRetransmitter {
             return Admission::Hold;
         }
         self.start_round(&mut p, now);
-        let out = p.copy();
+        let out = p.copy(self.epoch, now);
         self.on_air.push(p);
         Admission::Forward(out)
     }
@@ -461,12 +530,18 @@ impl CommandRetransmitter {
             return true;
         };
         self.expire(now);
+        if tag.is_some_and(|t| t.epoch != self.epoch) {
+            // An ack for a previous run's command (the bridge's repeat, or a late copy's
+            // answer): its generation may be one this run gave another command.
+            self.stats.foreign_acks += 1;
+            return false;
+        }
         let generation = tag.map(|t| t.generation);
         let command = ack.command as u32;
-        // A tagged ack answers only a COMMAND_LONG of its generation.
+        // A tagged ack answers only the command of its generation.
         let answers = |p: &Pending| {
             p.id.answered_by(system, component, command)
-                && generation.is_none_or(|g| !p.id.is_int() && p.generation == g)
+                && generation.is_none_or(|g| p.generation == g)
         };
         let Some(i) = self.on_air.iter().position(answers) else {
             // The first ack of a command the router gave up on (it sent every attempt it
@@ -504,12 +579,15 @@ impl CommandRetransmitter {
                 .iter()
                 .any(|w| w.id.slot() == self.on_air[i].id.slot());
         if stale {
-            // The ground gave up on it and waits for a newer one with the same id: this
-            // ack would be taken for the newer one's.
+            // The ground may be giving up on it as this ack reaches it, and then take it
+            // for the newer one's with the same id that it waits for: swallowed. It may
+            // retry it instead: the newer one waits until that retry is overdue, and the
+            // retry sends this command again (answered from the bridge's cache).
             let p = self.on_air.swap_remove(i);
             self.stats.abandoned += 1;
             self.stats.late_acks += 1;
-            self.draining.push((p.id.slot(), p.sent + self.max_rto));
+            let until = (p.sent + self.max_rto).max(p.last_ground + GROUND_RETRY);
+            self.draining.push((p.id.slot(), until));
             self.finish(p, false, now);
             return false;
         }
@@ -586,10 +664,12 @@ impl CommandRetransmitter {
                 i += 1;
             }
         }
-        // A newer command waits and the ground stopped asking for the one on the radio:
-        // the older is abandoned (its late acks swallowed), the newer goes.
+        // A newer command waits and the ground stopped asking for the one on the radio (its
+        // retry is overdue, not merely its ack: a station that retries still waits for the
+        // older one's ack, and would take the newer one's for it): the older is abandoned
+        // (its late acks swallowed), the newer goes.
         if let Some(i) = self.on_air.iter().position(|p| {
-            now >= p.last_ground + GROUND_PATIENCE
+            now >= p.last_ground + GROUND_RETRY
                 && self.waiting.iter().any(|w| w.id.slot() == p.id.slot())
         }) {
             let p = self.on_air.swap_remove(i);
@@ -605,7 +685,7 @@ impl CommandRetransmitter {
             p.first_sent = now;
             self.start_round(&mut p, now);
             self.note_sent(p.id, p.generation, now);
-            let out = p.copy();
+            let out = p.copy(self.epoch, now);
             self.on_air.push(p);
             return Some(out);
         }
@@ -625,7 +705,7 @@ impl CommandRetransmitter {
                 return self.next_due(now);
             }
             p.count_send(now);
-            let (id, generation, out) = (p.id, p.generation, p.copy());
+            let (id, generation, out) = (p.id, p.generation, p.copy(self.epoch, now));
             self.stats.early_copies += 1;
             self.note_sent(id, generation, now);
             return Some(out);
@@ -666,7 +746,7 @@ impl CommandRetransmitter {
         } else {
             p.count_send(now);
         }
-        let (id, generation, out) = (p.id, p.generation, p.copy());
+        let (id, generation, out) = (p.id, p.generation, p.copy(self.epoch, now));
         self.stats.retransmissions += 1;
         self.note_sent(id, generation, now);
         Some(out)
@@ -693,7 +773,7 @@ impl CommandRetransmitter {
                 self.on_air
                     .iter()
                     .filter(|p| self.waiting.iter().any(|w| w.id.slot() == p.id.slot()))
-                    .map(|p| p.last_ground + GROUND_PATIENCE),
+                    .map(|p| p.last_ground + GROUND_RETRY),
             );
         self.on_air
             .iter()

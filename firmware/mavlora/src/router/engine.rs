@@ -1,5 +1,6 @@
 //! The router state machine.
 
+use crate::command::ack_tag::Epoch;
 use crate::time::Duration;
 use std::collections::{HashMap, VecDeque};
 use std::net::{IpAddr, Ipv4Addr};
@@ -8,7 +9,9 @@ use mavlink::{MavHeader, MavlinkVersion, Message};
 
 use super::trust::{GroundInput, GroundPolicy, GroundRejection, TrustStats};
 use crate::command::ack_tag::untag_ack;
-use crate::command::{Admission, CommandRetransmitter, Redundancy, RetransmitStats, link_loss};
+use crate::command::{
+    Admission, CommandRetransmitter, Redundancy, RetransmitStats, link_loss, random_epoch,
+};
 use crate::compact::Expander;
 use crate::dialect::{MavMessage, RADIO_STATUS_DATA};
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
@@ -54,6 +57,10 @@ pub struct RouterConfig {
     /// shortest resend timeout (see [`CommandRetransmitter::with_redundancy`]); the radio's
     /// timing (default: SiK 64k). `None`: only timeouts resend.
     pub command_redundancy: Option<Redundancy>,
+    /// This run's mark on every command it sends on the radio, so the bridge never takes
+    /// a command of this run for one of a previous run with the same generation (see
+    /// [`CommandRetransmitter::with_epoch`]); drawn at random by [`RouterConfig::new`].
+    pub command_epoch: Epoch,
     /// Sign radio frames and accept only signed, fresh ones; `None`: no signing.
     pub signing: Option<SigningConfig>,
     /// Who on the ground may reach the vehicle (addresses, system ids, command budget).
@@ -79,6 +86,7 @@ impl RouterConfig {
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,
             command_redundancy: Some(Redundancy::SIK_64K),
+            command_epoch: random_epoch(),
             signing: None,
             ground: GroundPolicy::default(),
             ground_signing: None,
@@ -232,7 +240,8 @@ impl Router {
                     config.command_attempts,
                 )
                 .with_source_limit(config.ground.commands_in_flight)
-                .with_budget(config.scheduler.rate_bytes_per_s);
+                .with_budget(config.scheduler.rate_bytes_per_s)
+                .with_epoch(config.command_epoch, now);
                 match config.command_redundancy {
                     Some(r) => c.with_redundancy(r),
                     None => c,

@@ -1,22 +1,46 @@
+use crate::command::ack_tag::Epoch;
 use mavlink::MavlinkVersion;
 
 use super::*;
+use crate::command::ack_tag::{CommandTag, tag_command};
 use crate::command::{ACK_HOLD, Redundancy, radio_confirmation};
 use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd};
-use crate::wire::Sender;
+use crate::wire::{Sender, encode};
 
 const MS: fn(u64) -> Duration = Duration::from_millis;
 
-fn command(s: &mut Sender, confirmation: u8, param1: f32) -> (OwnedFrame, MavMessage) {
-    let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+/// The router run of most tests.
+const EPOCH: Epoch = 0x5eed;
+
+/// A copy of a command from the radio, tagged by the router run `epoch`.
+fn tagged(
+    s: &mut Sender,
+    msg: MavMessage,
+    epoch: Epoch,
+    confirmation: u8,
+) -> (OwnedFrame, MavMessage) {
+    let tag = CommandTag {
+        epoch,
+        confirmation,
+        age: Duration::ZERO,
+    };
+    (tag_command(&s.frame(&msg), &msg, tag), msg)
+}
+
+fn set_mode(confirmation: u8, param1: f32) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
         target_system: 1,
         target_component: 1,
         command: MavCmd::MAV_CMD_DO_SET_MODE,
         confirmation,
         param1,
         ..Default::default()
-    });
-    (s.frame(&msg), msg)
+    })
+}
+
+/// A `COMMAND_LONG` copy from the radio with its radio `confirmation`, of run [`EPOCH`].
+fn command(s: &mut Sender, confirmation: u8, param1: f32) -> (OwnedFrame, MavMessage) {
+    tagged(s, set_mode(confirmation, param1), EPOCH, confirmation)
 }
 
 fn ack(fc: &mut Sender) -> (OwnedFrame, MavMessage) {
@@ -49,10 +73,10 @@ fn forwarded_confirmation(v: CacheVerdict) -> u8 {
 
 #[test]
 fn a_copy_is_dropped_in_flight_and_answered_after_the_ack() {
-    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let (f, m) = command(&mut gcs, 0, 4.0);
     assert_eq!(forwarded_confirmation(c.command(&f, &m, t0)), 0);
     // a retry (confirmation + 1) while the FC executes it
@@ -67,8 +91,8 @@ fn a_copy_is_dropped_in_flight_and_answered_after_the_ack() {
         CacheVerdict::Replay(a) => {
             // the autopilot's ack again, naming the copy it answers
             assert_eq!(untagged(&a).1, untagged(&radio).1);
-            assert_eq!(untagged(&radio).0, AckTag::new(0, Some(0)));
-            assert_eq!(untagged(&a).0, AckTag::new(0, Some(1)));
+            assert_eq!(untagged(&radio).0, AckTag::new(EPOCH, 0, Some(0)));
+            assert_eq!(untagged(&a).0, AckTag::new(EPOCH, 0, Some(1)));
         }
         other => panic!("{other:?}"),
     }
@@ -93,7 +117,7 @@ fn a_copy_is_dropped_in_flight_and_answered_after_the_ack() {
 /// each copy the router resent went to the autopilot and ran again.
 #[test]
 fn a_broadcast_command_s_copy_is_answered_from_the_cache_not_run_again() {
-    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
     let broadcast = |confirmation: u8, gcs: &mut Sender| {
@@ -105,9 +129,9 @@ fn a_broadcast_command_s_copy_is_answered_from_the_cache_not_run_again() {
             param1: 4.0,
             ..Default::default()
         });
-        (gcs.frame(&msg), msg)
+        tagged(gcs, msg, EPOCH, confirmation)
     };
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let (f, m) = broadcast(0, &mut gcs);
     assert_eq!(forwarded_confirmation(c.command(&f, &m, t0)), 0);
     let (af, am) = ack(&mut fc);
@@ -124,10 +148,10 @@ fn a_broadcast_command_s_copy_is_answered_from_the_cache_not_run_again() {
 #[test]
 fn a_late_copy_within_the_router_window_is_not_run_again() {
     // the camera trigger ran, its acks were lost for 7 s: a copy at 7.1 s is answered
-    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
     c.command(&f, &m, t0);
     let (af, am) = ack(&mut fc);
@@ -145,10 +169,10 @@ fn a_late_copy_within_the_router_window_is_not_run_again() {
 
 #[test]
 fn a_deliberate_repeat_runs_again_even_if_its_first_copy_was_lost() {
-    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
     c.command(&f, &m, t0);
     let (af, am) = ack(&mut fc);
@@ -171,10 +195,10 @@ fn a_deliberate_repeat_runs_again_even_if_its_first_copy_was_lost() {
 
 #[test]
 fn cached_acks_expire_after_the_hold() {
-    let mut c = AckCache::new(MS(5000), MS(1000));
+    let mut c = AckCache::new(MS(5000), Instant::ZERO);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let (f, m) = command(&mut gcs, 0, 4.0);
     c.command(&f, &m, t0);
     let (af, am) = ack(&mut fc);
@@ -185,20 +209,17 @@ fn cached_acks_expire_after_the_hold() {
         forwarded_confirmation(c.command(&f2, &m2, t0 + MS(6000))),
         0
     );
-    // and a copy unanswered for longer than `in_flight` goes to the FC again
-    assert_eq!(
-        forwarded_confirmation(c.command(&f2, &m2, t0 + MS(7100))),
-        1
-    );
+    // and never again while the FC has it
+    assert_eq!(c.command(&f2, &m2, t0 + MS(7100)), CacheVerdict::Drop);
 }
 
 #[test]
 fn acks_on_the_radio_name_the_generation_they_answer() {
     use crate::command::ack_tag::untag_ack;
-    let mut c = AckCache::new(ACK_HOLD, MS(1000));
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let (af, am) = ack(&mut fc);
     // an ack that answers nothing from the radio goes as the autopilot sent it
     assert!(c.ack(t0, 1, 1, &af, &am).is_none());
@@ -210,14 +231,14 @@ fn acks_on_the_radio_name_the_generation_they_answer() {
             panic!()
         };
         let (tag, plain, _) = untag_ack(&radio, &a).expect("tag");
-        assert_eq!(tag, AckTag::new(generation, Some(0)));
+        assert_eq!(tag, AckTag::new(EPOCH, generation, Some(0)));
         assert_eq!(plain.as_bytes(), af.as_bytes());
     }
 }
 
 /// A cache with SiK 64k's redundancy, its link at `loss` since `now`.
 fn redundant(now: Instant, loss: Option<f64>) -> AckCache {
-    let mut c = AckCache::new(ACK_HOLD, MS(1000)).with_redundancy(Redundancy::SIK_64K);
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO).with_redundancy(Redundancy::SIK_64K);
     c.set_link_loss(now, loss);
     c
 }
@@ -228,7 +249,7 @@ fn repeats(c: &mut AckCache, now: Instant) -> Vec<OwnedFrame> {
 
 #[test]
 fn on_a_lossy_link_an_ack_goes_again_half_a_round_later_naming_no_copy() {
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let mut c = redundant(t0, Some(0.1));
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
@@ -236,14 +257,14 @@ fn on_a_lossy_link_an_ack_goes_again_half_a_round_later_naming_no_copy() {
     c.command(&f, &m, t0);
     let (af, am) = ack(&mut fc);
     let first = c.ack(t0 + MS(10), 1, 1, &af, &am).expect("tagged");
-    assert_eq!(untagged(&first).0, AckTag::new(4, Some(0)));
+    assert_eq!(untagged(&first).0, AckTag::new(EPOCH, 4, Some(0)));
     assert_eq!(c.poll_timeout(), Some(t0 + MS(135)));
     assert!(repeats(&mut c, t0 + MS(134)).is_empty());
     let again = repeats(&mut c, t0 + MS(135));
     assert_eq!(again.len(), 1, "once");
     assert_eq!(
         untagged(&again[0]),
-        (AckTag::new(4, None), untagged(&first).1)
+        (AckTag::new(EPOCH, 4, None), untagged(&first).1)
     );
     assert!(repeats(&mut c, t0 + MS(5000)).is_empty());
     assert_eq!(c.poll_timeout(), None);
@@ -252,7 +273,7 @@ fn on_a_lossy_link_an_ack_goes_again_half_a_round_later_naming_no_copy() {
 
 #[test]
 fn a_copy_before_the_repeat_is_answered_by_it_and_one_after_gets_its_own_answer() {
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let mut c = redundant(t0, Some(0.1));
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
@@ -267,13 +288,13 @@ fn a_copy_before_the_repeat_is_answered_by_it_and_one_after_gets_its_own_answer(
     // its third copy, a round on: answered, naming that copy, and repeated in turn
     let (f2, m2) = command(&mut gcs, radio_confirmation(0, 2), 1.0);
     match c.command(&f2, &m2, t0 + MS(250)) {
-        CacheVerdict::Replay(a) => assert_eq!(untagged(&a).0, AckTag::new(0, Some(2))),
+        CacheVerdict::Replay(a) => assert_eq!(untagged(&a).0, AckTag::new(EPOCH, 0, Some(2))),
         other => panic!("{other:?}"),
     }
     assert_eq!(c.poll_timeout(), Some(t0 + MS(375)));
     assert_eq!(
         untagged(&repeats(&mut c, t0 + MS(375))[0]).0,
-        AckTag::new(0, None)
+        AckTag::new(EPOCH, 0, None)
     );
     let s = c.stats();
     assert_eq!(
@@ -284,7 +305,7 @@ fn a_copy_before_the_repeat_is_answered_by_it_and_one_after_gets_its_own_answer(
 
 #[test]
 fn a_copy_after_an_overdue_repeat_is_answered_in_its_place() {
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let mut c = redundant(t0, None);
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
@@ -306,18 +327,20 @@ fn a_copy_after_an_overdue_repeat_is_answered_in_its_place() {
 
 #[test]
 fn untagged_and_in_progress_acks_are_not_repeated() {
-    let t0 = Instant::from_millis(0);
+    let t0 = Instant::from_millis(60_000);
     let mut c = redundant(t0, Some(0.3));
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
-    // COMMAND_INT: its ack carries no generation, a repeat could answer the next one
+    // a command without the router's tag (an older router): forwarded uncached, its ack
+    // goes as the autopilot sent it (a repeat could answer the next one)
     let int = MavMessage::COMMAND_INT(crate::dialect::COMMAND_INT_DATA {
         target_system: 1,
         target_component: 1,
         command: MavCmd::MAV_CMD_DO_SET_MODE,
         ..Default::default()
     });
-    c.command(&gcs.frame(&int), &int, t0);
+    let f = gcs.frame(&int);
+    assert_eq!(c.command(&f, &int, t0), CacheVerdict::Forward(f));
     let (af, am) = ack(&mut fc);
     assert!(c.ack(t0, 1, 1, &af, &am).is_none(), "untagged");
     assert_eq!(c.poll_timeout(), None);
@@ -355,4 +378,150 @@ fn on_a_link_measured_clean_for_30_s_an_ack_goes_once() {
         CacheVerdict::Replay(_)
     ));
     assert_eq!(c.poll_timeout(), None);
+}
+
+#[test]
+fn a_copy_is_never_forwarded_again_while_the_autopilot_takes_2_5_s_to_ack() {
+    // a camera that acks after 2.5 s: every copy meanwhile is dropped, not run again
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(60_000);
+    let (f, m) = command(&mut gcs, radio_confirmation(0, 0), 1.0);
+    assert_eq!(forwarded_confirmation(c.command(&f, &m, t0)), 0);
+    for (k, at) in [300u64, 1200, 1500, 2400].into_iter().enumerate() {
+        let (fk, mk) = command(&mut gcs, radio_confirmation(0, k as u32 + 1), 1.0);
+        assert_eq!(
+            c.command(&fk, &mk, t0 + MS(at)),
+            CacheVerdict::Drop,
+            "{at} ms"
+        );
+    }
+    let (af, am) = ack(&mut fc);
+    c.ack(t0 + MS(2500), 1, 1, &af, &am).expect("tagged");
+    let (f5, m5) = command(&mut gcs, radio_confirmation(0, 5), 1.0);
+    assert!(matches!(
+        c.command(&f5, &m5, t0 + MS(2700)),
+        CacheVerdict::Replay(_)
+    ));
+    assert_eq!(c.stats().forwarded, 1);
+}
+
+#[test]
+fn a_new_router_run_s_copy_is_not_answered_with_the_previous_run_s_ack() {
+    // ARM ran for one router run (generation 0); the router restarted, and its new run's
+    // ARM, again generation 0, arrives as a second copy (the first was lost)
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(60_000);
+    let (f, m) = tagged(&mut gcs, set_mode(0, 1.0), 1, radio_confirmation(0, 0));
+    assert_eq!(forwarded_confirmation(c.command(&f, &m, t0)), 0);
+    let (af, am) = ack(&mut fc);
+    c.ack(t0 + MS(10), 1, 1, &af, &am).expect("tagged");
+    let (f2, m2) = tagged(&mut gcs, set_mode(1, 1.0), 2, radio_confirmation(0, 1));
+    assert_eq!(
+        forwarded_confirmation(c.command(&f2, &m2, t0 + MS(3000))),
+        0
+    );
+    // its ack names the new run
+    let radio = c.ack(t0 + MS(3010), 1, 1, &af, &am).expect("tagged");
+    assert_eq!(untagged(&radio).0, AckTag::new(2, 0, Some(1)));
+    // a late copy of the previous run's is still answered from the cache, as that run's
+    let (f3, m3) = tagged(&mut gcs, set_mode(2, 1.0), 1, radio_confirmation(0, 2));
+    match c.command(&f3, &m3, t0 + MS(3100)) {
+        CacheVerdict::Replay(a) => assert_eq!(untagged(&a).0, AckTag::new(1, 0, Some(2))),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_copy_of_a_command_that_may_have_come_before_the_bridge_started_is_not_forwarded() {
+    // the bridge restarted at 60 s; the router's copies tell how long after their
+    // command's first copy they went
+    let started = Instant::from_millis(60_000);
+    let mut c = AckCache::new(ACK_HOLD, started);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let copy = |gcs: &mut Sender, generation, attempt, age| {
+        let msg = set_mode(radio_confirmation(generation, attempt), 1.0);
+        let tag = CommandTag {
+            epoch: EPOCH,
+            confirmation: radio_confirmation(generation, attempt),
+            age: MS(age),
+        };
+        (tag_command(&gcs.frame(&msg), &msg, tag), msg)
+    };
+    // its first copy went 1 s before this one, 0.9 s before the bridge started: it may
+    // have run, its ack lost; neither this copy nor a later one goes
+    let (f, m) = copy(&mut gcs, 3, 2, 1000);
+    assert_eq!(c.command(&f, &m, started + MS(100)), CacheVerdict::Drop);
+    let (f2, m2) = copy(&mut gcs, 3, 3, 2500);
+    assert_eq!(c.command(&f2, &m2, started + MS(1600)), CacheVerdict::Drop);
+    assert_eq!(c.stats().refused_after_restart, 1);
+    assert_eq!(c.stats().forwarded, 0);
+    // the autopilot's ack for that id (of its earlier run) is not taken for it
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let (af, am) = ack(&mut fc);
+    assert!(c.ack(started + MS(1700), 1, 1, &af, &am).is_none());
+    // a first copy is new, whenever it comes
+    let (f3, m3) = copy(&mut gcs, 4, 0, 0);
+    assert_eq!(
+        forwarded_confirmation(c.command(&f3, &m3, started + MS(200))),
+        0
+    );
+    // a copy whose first went 1.7 s after the start (past the margin for queueing): that
+    // first copy was lost, and this one goes
+    let (f4, m4) = copy(&mut gcs, 5, 1, 300);
+    assert_eq!(
+        forwarded_confirmation(c.command(&f4, &m4, started + MS(2000))),
+        0
+    );
+}
+
+#[test]
+fn a_command_int_of_a_new_generation_runs_and_its_ack_is_tagged() {
+    let mut c = AckCache::new(ACK_HOLD, Instant::ZERO);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let t0 = Instant::from_millis(60_000);
+    let int = MavMessage::COMMAND_INT(crate::dialect::COMMAND_INT_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_DO_SET_MODE,
+        param1: 1.0,
+        ..Default::default()
+    });
+    let (af, am) = ack(&mut fc);
+    for (k, generation) in [0u8, 1].into_iter().enumerate() {
+        let at = t0 + MS(1000 * k as u64);
+        let (f, m) = tagged(
+            &mut gcs,
+            int.clone(),
+            EPOCH,
+            radio_confirmation(generation, 0),
+        );
+        match c.command(&f, &m, at) {
+            // the autopilot gets it as the ground sent it, without the tag
+            CacheVerdict::Forward(out) => {
+                assert_eq!(
+                    out.as_bytes(),
+                    encode(f.version(), f.header(), &int).as_bytes()
+                )
+            }
+            other => panic!("{other:?}"),
+        }
+        let radio = c.ack(at + MS(10), 1, 1, &af, &am).expect("tagged");
+        assert_eq!(untagged(&radio).0, AckTag::new(EPOCH, generation, Some(0)));
+        let (f1, m1) = tagged(
+            &mut gcs,
+            int.clone(),
+            EPOCH,
+            radio_confirmation(generation, 1),
+        );
+        assert!(matches!(
+            c.command(&f1, &m1, at + MS(500)),
+            CacheVerdict::Replay(_)
+        ));
+    }
+    assert_eq!(c.stats().forwarded, 2);
 }

@@ -1,6 +1,7 @@
 use mavlink::MavlinkVersion;
 
 use super::*;
+use crate::command::ack_tag::untag_command;
 use crate::command::split_confirmation;
 use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd};
 use crate::wire::Sender;
@@ -32,18 +33,33 @@ fn ack(cmd: MavCmd) -> MavMessage {
     })
 }
 
-/// (param1, generation, attempt) of a radio copy.
+/// (param1, generation, attempt) of a radio copy, from its tag.
 fn sent(f: &OwnedFrame) -> (f32, u8, u8) {
-    let MavMessage::COMMAND_LONG(c) = f.decode::<MavMessage>().unwrap() else {
-        panic!("not a command");
+    let msg = f.decode::<MavMessage>().unwrap();
+    let param1 = match &msg {
+        MavMessage::COMMAND_LONG(c) => c.param1,
+        MavMessage::COMMAND_INT(c) => c.param1,
+        other => panic!("not a command: {other:?}"),
     };
-    let (g, a) = split_confirmation(c.confirmation);
-    (c.param1, g, a)
+    let tag = untag_command(f, &msg).expect("tagged");
+    let (g, a) = split_confirmation(tag.confirmation);
+    (param1, g, a)
+}
+
+fn command_int(s: &mut Sender, cmd: MavCmd, param1: f32) -> (OwnedFrame, MavMessage) {
+    let msg = MavMessage::COMMAND_INT(crate::dialect::COMMAND_INT_DATA {
+        target_system: 1,
+        target_component: 1,
+        command: cmd,
+        param1,
+        ..Default::default()
+    });
+    (s.frame(&msg), msg)
 }
 
 /// A tag naming `generation` and no copy.
 fn tag(generation: u8) -> Option<AckTag> {
-    Some(AckTag::new(generation, None))
+    Some(AckTag::new(0, generation, None))
 }
 
 fn forwarded(a: Admission) -> OwnedFrame {
@@ -327,6 +343,77 @@ fn a_late_replay_of_an_acked_command_goes_as_that_command() {
     assert!(!r.from_radio_tagged(t0 + MS(5200), 1, 1, &ack(cam), tag(0)));
 }
 
+/// DO_SET_MODE 4 from the ground at 0 and copied by the router at 1.45 s (its timeout, no
+/// redundant copies), no ack yet; the ground retries mode 4 at 1.5 s and sends mode 5 then,
+/// before mode 4 is answered: mode 5 waits. (The retransmitter, the ground's sender.)
+fn mode_4_retried_at_1_5_s_and_mode_5_waiting(t0: Instant) -> (CommandRetransmitter, Sender) {
+    let mut r = CommandRetransmitter::new(MS(1450), MS(200), MS(1500), MAX_ATTEMPTS);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+    let (f4, m4) = command_with(&mut gcs, set_mode, 4.0, 0);
+    forwarded(r.from_ground(t0, GCS, &f4, &m4));
+    assert_eq!(sent(&resend(&mut r, t0 + MS(1450)).unwrap()), (4.0, 0, 1));
+    let (retry, retry_m) = command_with(&mut gcs, set_mode, 4.0, 1);
+    assert_eq!(
+        r.from_ground(t0 + MS(1500), GCS, &retry, &retry_m),
+        Admission::Retry
+    );
+    let (f5, m5) = command_with(&mut gcs, set_mode, 5.0, 0);
+    assert_eq!(r.from_ground(t0 + MS(1500), GCS, &f5, &m5), Admission::Hold);
+    (r, gcs)
+}
+
+#[test]
+fn an_older_command_keeps_its_slot_while_the_ground_may_still_retry_it() {
+    // The ground's next retry of mode 4 is due at 3 s, and until it is overdue the ground
+    // still waits for mode 4's ack: mode 5 must not go before (1.4 s after the ground's
+    // last send, when the router's last copy is older than it), or the ground takes mode
+    // 5's ack for mode 4's.
+    let t0 = Instant::from_millis(0);
+    let (mut r, mut gcs) = mode_4_retried_at_1_5_s_and_mode_5_waiting(t0);
+    let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+    for ms in (1510..3000).step_by(10) {
+        if let Some(f) = resend(&mut r, t0 + MS(ms)) {
+            assert_eq!(sent(&f).0, 4.0, "at {ms} ms");
+        }
+    }
+    let (retry, retry_m) = command_with(&mut gcs, set_mode, 4.0, 2);
+    assert_eq!(
+        r.from_ground(t0 + MS(3000), GCS, &retry, &retry_m),
+        Admission::Retry,
+        "mode 4 is still on the radio"
+    );
+    assert!(r.from_radio_tagged(t0 + MS(3100), 1, 1, &ack(set_mode), tag(0)));
+    assert_eq!(sent(&resend(&mut r, t0 + MS(3100)).unwrap()), (5.0, 1, 0));
+    assert_eq!((r.stats().acked, r.stats().abandoned), (1, 0));
+}
+
+#[test]
+fn an_ack_the_ground_may_have_given_up_on_is_swallowed_but_its_retry_is_answered() {
+    // Mode 4's ack comes 1.4 s after the ground's retry: a station giving up on mode 4
+    // would take it for mode 5's, so it is swallowed. But the ground may retry mode 4
+    // instead (due at 3 s): mode 5 waits, and the retry goes as mode 4 again (the bridge
+    // answers it from its cache) and gets mode 4's ack.
+    let t0 = Instant::from_millis(0);
+    let (mut r, mut gcs) = mode_4_retried_at_1_5_s_and_mode_5_waiting(t0);
+    let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+    assert!(!r.from_radio_tagged(t0 + MS(2900), 1, 1, &ack(set_mode), tag(0)));
+    for ms in (2900..3000).step_by(10) {
+        assert!(resend(&mut r, t0 + MS(ms)).is_none(), "at {ms} ms");
+    }
+    let (retry, retry_m) = command_with(&mut gcs, set_mode, 4.0, 2);
+    let (param1, generation, attempt) = sent(&forwarded(r.from_ground(
+        t0 + MS(3000),
+        GCS,
+        &retry,
+        &retry_m,
+    )));
+    assert_eq!((param1, generation), (4.0, 0));
+    assert!(attempt > 0, "a copy, not a new command");
+    assert!(r.from_radio_tagged(t0 + MS(3100), 1, 1, &ack(set_mode), tag(0)));
+    assert_eq!(sent(&resend(&mut r, t0 + MS(3100)).unwrap()), (5.0, 1, 0));
+}
+
 /// A retransmitter with SiK 64k's redundant copies, its link at `loss` from `now`.
 fn redundant(now: Instant, loss: Option<f64>) -> CommandRetransmitter {
     let mut r = CommandRetransmitter::new(MS(1000), MS(200), MS(1500), MAX_ATTEMPTS)
@@ -387,7 +474,7 @@ fn the_ack_ends_the_copies_still_planned() {
     forwarded(r.from_ground(t0, GCS, &f, &m));
     assert_eq!(sends(&mut r, 0, 100), vec![(40, 1)]);
     let ack = ack(MavCmd::MAV_CMD_DO_SET_MODE);
-    assert!(r.from_radio_tagged(t0 + MS(101), 1, 1, &ack, Some(AckTag::new(0, Some(0)))));
+    assert!(r.from_radio_tagged(t0 + MS(101), 1, 1, &ack, Some(AckTag::new(0, 0, Some(0)))));
     assert!(sends(&mut r, 101, 5000).is_empty());
     assert_eq!(r.poll_timeout(), None);
 }
@@ -463,7 +550,13 @@ fn the_round_trip_is_measured_from_the_copy_the_ack_names() {
     forwarded(r.from_ground(t0, GCS, &f, &m));
     sends(&mut r, 0, 200);
     let set_mode = ack(MavCmd::MAV_CMD_DO_SET_MODE);
-    assert!(r.from_radio_tagged(t0 + MS(256), 1, 1, &set_mode, Some(AckTag::new(0, Some(2)))));
+    assert!(r.from_radio_tagged(
+        t0 + MS(256),
+        1,
+        1,
+        &set_mode,
+        Some(AckTag::new(0, 0, Some(2)))
+    ));
     assert_eq!(r.rtt().srtt(), Some(MS(131)));
     // the bridge's repeat names no copy, an untagged ack after several copies is
     // ambiguous (Karn): neither is a sample
@@ -500,4 +593,122 @@ fn no_resend_comes_sooner_than_the_spacing_after_the_last_copy() {
     let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 99.0, 0);
     forwarded(r.from_ground(now, GCS, &f, &m));
     assert_eq!(r.poll_timeout(), Some(now + MS(125)));
+}
+
+#[test]
+fn each_copy_carries_the_run_s_epoch_and_a_command_long_its_radio_confirmation() {
+    let t0 = Instant::from_millis(0);
+    let mut r = retransmitter().with_epoch(0xabcd, t0);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let (f, m) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 4.0, 0);
+    let first = forwarded(r.from_ground(t0, GCS, &f, &m));
+    let again = resend(&mut r, t0 + MS(1000)).expect("due");
+    for (copy, attempt) in [(first, 0), (again, 1)] {
+        let msg = copy.decode::<MavMessage>().unwrap();
+        let tag = untag_command(&copy, &msg).expect("tagged");
+        assert_eq!(tag.epoch, 0xabcd);
+        assert_eq!(split_confirmation(tag.confirmation), (0, attempt));
+        let MavMessage::COMMAND_LONG(c) = msg else {
+            panic!()
+        };
+        assert_eq!(c.confirmation, tag.confirmation);
+    }
+}
+
+#[test]
+fn an_identical_command_int_after_its_ack_is_a_new_command_and_before_it_a_retry() {
+    // ARM, DISARM, ARM as COMMAND_INT: no confirmation says which is a retry; a ground
+    // station retries only while it has no ack
+    let mut r = retransmitter();
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let arm = MavCmd::MAV_CMD_COMPONENT_ARM_DISARM;
+    let t0 = Instant::from_millis(0);
+    let (f, m) = command_int(&mut gcs, arm, 1.0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0, GCS, &f, &m))),
+        (1.0, 0, 0)
+    );
+    // the ground's retry before the ack: the relay is at it already
+    assert_eq!(r.from_ground(t0 + MS(500), GCS, &f, &m), Admission::Retry);
+    assert!(r.from_radio_tagged(t0 + MS(600), 1, 1, &ack(arm), tag(0)));
+    let (f2, m2) = command_int(&mut gcs, arm, 0.0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0 + MS(1000), GCS, &f2, &m2))),
+        (0.0, 1, 0)
+    );
+    assert!(r.from_radio_tagged(t0 + MS(1300), 1, 1, &ack(arm), tag(1)));
+    // ARM again: answered, so a new command, with a generation of its own
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0 + MS(2000), GCS, &f, &m))),
+        (1.0, 2, 0)
+    );
+    // and its ack, tagged, answers it (not the first ARM's)
+    assert!(r.from_radio_tagged(t0 + MS(2300), 1, 1, &ack(arm), tag(2)));
+    assert_eq!(r.stats().commands, 3);
+    assert_eq!(r.stats().acked, 3);
+}
+
+#[test]
+fn a_command_int_given_up_without_an_ack_is_sent_again_as_itself() {
+    // the ground never got an ack: an identical COMMAND_INT is its retry
+    let mut r = CommandRetransmitter::new(MS(1000), MS(200), MS(1500), 1);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let trigger = MavCmd::MAV_CMD_DO_DIGICAM_CONTROL;
+    let t0 = Instant::from_millis(0);
+    let (f, m) = command_int(&mut gcs, trigger, 1.0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0, GCS, &f, &m))),
+        (1.0, 0, 0)
+    );
+    assert!(resend(&mut r, t0 + MS(1500)).is_none(), "given up");
+    assert_eq!(
+        sent(&forwarded(r.from_ground(t0 + MS(1500), GCS, &f, &m))),
+        (1.0, 0, 1)
+    );
+}
+
+#[test]
+fn soon_after_a_restart_a_ground_retry_of_a_command_this_run_never_saw_is_not_sent() {
+    let started = Instant::from_millis(100_000);
+    let mut r = retransmitter().with_epoch(2, started);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let trigger = MavCmd::MAV_CMD_DO_DIGICAM_CONTROL;
+    // the previous run may have had it run: not sent as a new command
+    let (f, m) = command_with(&mut gcs, trigger, 1.0, 2);
+    assert_eq!(
+        r.from_ground(started + MS(500), GCS, &f, &m),
+        Admission::Retry
+    );
+    assert_eq!(r.stats().refused_after_restart, 1);
+    assert_eq!(r.stats().commands, 0);
+    // a new one (confirmation 0) goes, and its own retries are its copies
+    let (f0, m0) = command_with(&mut gcs, trigger, 1.0, 0);
+    assert_eq!(
+        sent(&forwarded(r.from_ground(started + MS(600), GCS, &f0, &m0))),
+        (1.0, 0, 0)
+    );
+    // after the window a retry of an unknown command is one whose first send was lost
+    let (f3, m3) = command_with(&mut gcs, MavCmd::MAV_CMD_DO_SET_MODE, 4.0, 1);
+    assert!(matches!(
+        r.from_ground(started + RETRANSMIT_WINDOW, GCS, &f3, &m3),
+        Admission::Forward(_)
+    ));
+}
+
+#[test]
+fn an_ack_tagged_by_another_run_answers_nothing() {
+    // the bridge repeats an ack of the previous run's generation 0 after a restart: this
+    // run's generation 0 is another command
+    let t0 = Instant::from_millis(0);
+    let mut r = retransmitter().with_epoch(2, t0);
+    let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let arm = MavCmd::MAV_CMD_COMPONENT_ARM_DISARM;
+    let (f, m) = command_with(&mut gcs, arm, 1.0, 0);
+    forwarded(r.from_ground(t0, GCS, &f, &m));
+    let old = Some(AckTag::new(1, 0, None));
+    assert!(!r.from_radio_tagged(t0 + MS(100), 1, 1, &ack(arm), old));
+    assert_eq!(r.stats().foreign_acks, 1);
+    assert_eq!(r.stats().acked, 0);
+    assert!(r.from_radio_tagged(t0 + MS(300), 1, 1, &ack(arm), Some(AckTag::new(2, 0, None))));
+    assert_eq!(r.stats().acked, 1);
 }
