@@ -71,6 +71,8 @@ const BRIDGE_COUNTERS: &[&str] = &[
     "command_acks_replayed",
     "command_copies_dropped",
     "command_acks_repeated",
+    "commands_refused_after_restart",
+    "commands_untagged",
     "fc_own_commands_dropped",
     "unlisted_dropped",
     "unlisted_dropped_bytes",
@@ -97,6 +99,8 @@ const ROUTER_COUNTERS: &[&str] = &[
     "commands_queued",
     "command_late_acks",
     "commands_abandoned",
+    "commands_refused_after_restart",
+    "command_foreign_acks",
     "ground_rejected",
 ];
 

@@ -276,6 +276,8 @@ struct RouterCounters {
     commands_queued: u64,
     command_late_acks: u64,
     commands_abandoned: u64,
+    commands_refused_after_restart: u64,
+    command_foreign_acks: u64,
     ground_rejected: u64,
 }
 
@@ -351,6 +353,8 @@ impl Side<Router> for GroundSide {
             commands_queued: s.commands.queued,
             command_late_acks: s.commands.late_acks,
             commands_abandoned: s.commands.abandoned,
+            commands_refused_after_restart: s.commands.refused_after_restart,
+            command_foreign_acks: s.commands.foreign_acks,
             ground_rejected: s.ground.total(),
         };
         let gauges = RouterGauges {
