@@ -44,6 +44,7 @@ const RADIO_COUNTERS: &[&str] = &[
     "radio_refused_opens",
     "rejected_unsigned",
     "rejected_bad_signature",
+    "rejected_reflected",
     "rejected_replayed",
     "rejected_stale",
     "rejected_ahead",

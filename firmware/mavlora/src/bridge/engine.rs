@@ -21,12 +21,13 @@ use crate::filter::{
 };
 use crate::mission::{MissionRelay, MissionStats};
 use crate::param::{ParamPackStats, ParamPacker, ParamValue};
-use crate::quality::LinkQuality;
+use crate::quality::{LinkQuality, is_local_radio_status};
 use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats, TokenBucket};
 use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
 use crate::wire::{
-    FrameReader, MAX_FRAME_LEN, OwnedFrame, ReaderStats, Sender, StreamId, encode, ids, to_v1,
+    FrameReader, MAX_FRAME_LEN, OwnedFrame, ReaderStats, Received, Sender, StreamId, encode, ids,
+    to_v1,
 };
 use std::collections::BTreeMap;
 
@@ -176,7 +177,7 @@ impl Bridge {
         let comp = config.component_id;
         Ok(Self {
             fc_reader: FrameReader::new(),
-            radio_reader: FrameReader::new(),
+            radio_reader: FrameReader::counting_accepted(),
             filter: RadioFilter::new(config.profile.clone()),
             scheduler,
             quality: LinkQuality::new(config.quality, now),
@@ -608,21 +609,23 @@ impl Bridge {
     pub fn handle_radio_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.radio_reader.push(bytes);
         while let Some(rx) = self.radio_reader.next_frame() {
-            self.radio_frame(rx.frame, now);
+            self.radio_frame(rx, now);
         }
         self.quality.observe(now, self.radio_reader.stats());
     }
 
-    fn radio_frame(&mut self, frame: OwnedFrame, now: Instant) {
+    fn radio_frame(&mut self, rx: Received, now: Instant) {
         // The local radio's own report (SiK injects it into its serial output): never signed,
-        // for the link-quality engine only.
-        if frame.message_id() == ids::RADIO_STATUS {
-            self.quality.handle_frame(now, &frame);
+        // for the link-quality engine only, and not a frame of the peer's.
+        if is_local_radio_status(&rx.frame) {
+            self.quality.handle_local_radio(&rx.frame);
             return;
         }
-        let Some(frame) = self.radio_leg.incoming(frame, now) else {
+        // Only frames the peer signed count as received: loss is the peer's frames lost.
+        let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
             return;
         };
+        self.radio_reader.accept(&frame, rx.integrity);
         self.quality.handle_frame(now, &frame);
         if self.quality.take_peer_restart() {
             self.radio_reader.expect_restart(StreamId {
@@ -634,6 +637,9 @@ impl Bridge {
         }
         let id = frame.message_id();
         match id {
+            // The ground's radio reports to the router, never to this flight controller (whose
+            // flow control follows its own radio's).
+            ids::RADIO_STATUS => return,
             // LINK_QUALITY is for us; the flight controller does not know it.
             ids::LINK_QUALITY => {
                 self.stats.link_quality_received += 1;

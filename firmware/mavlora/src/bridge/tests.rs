@@ -820,7 +820,8 @@ fn compact_mode_keeps_replaced_messages_off_the_radio_before_the_fc_is_known() {
 fn with_signing_on_the_local_radios_unsigned_status_still_reaches_the_link_report() {
     // SiK injects RADIO_STATUS into its serial output itself: it cannot be signed, and
     // dropping it with the unsigned air frames would blind the link monitor to the noise
-    // floor. It feeds the report, and is not counted as a frame from the peer.
+    // floor. It feeds the report, and is not counted as a frame from the peer (nor is an
+    // unsigned frame from the air).
     use crate::dialect::RADIO_STATUS_DATA;
     use crate::quality::RssiScale;
     use crate::signing::{SigningConfig, SigningKey};
@@ -859,8 +860,8 @@ fn with_signing_on_the_local_radios_unsigned_status_still_reaches_the_link_repor
     };
     assert_eq!((report.noise, report.rssi), (-104, -80));
     assert_eq!(
-        report.rx_packets, 1,
-        "the refused command, not the radio's status"
+        report.rx_packets, 0,
+        "neither the refused command nor the radio's status is a frame of the peer's"
     );
 }
 

@@ -83,6 +83,8 @@ pub struct RadioCounters {
     pub rejected_unsigned: u64,
     /// Radio frames dropped for a wrong signature.
     pub rejected_bad_signature: u64,
+    /// Radio frames dropped as our own, sent back (signed with this end's link id).
+    pub rejected_reflected: u64,
     /// Radio frames dropped as replays.
     pub rejected_replayed: u64,
     /// Radio frames dropped as too old.
@@ -141,6 +143,7 @@ impl RadioCounters {
             radio_refused_opens: port.refused_opens,
             rejected_unsigned: signing.unsigned,
             rejected_bad_signature: signing.bad_signature,
+            rejected_reflected: signing.reflected,
             rejected_replayed: signing.replayed,
             rejected_stale: signing.stale,
             rejected_ahead: signing.ahead,

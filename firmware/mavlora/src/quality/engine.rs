@@ -24,7 +24,7 @@ use super::rssi::RssiScale;
 use super::window::LossWindow;
 use crate::dialect::{LINK_QUALITY_DATA, MavMessage, RADIO_STATUS_DATA};
 use crate::time::{Duration, Instant};
-use crate::wire::{Frame, ReaderStats, ids};
+use crate::wire::{Frame, ReaderStats, StreamId, ids};
 
 /// A `LINK_QUALITY` frame on the radio: MAVLink 2, 13-byte payload with the noise floor (one
 /// byte less when the radio reports none), unsigned.
@@ -135,9 +135,29 @@ pub enum PeerState {
 /// peer made it: not counted against the report.
 const IN_FLIGHT: Duration = Duration::from_secs(1);
 
+/// The ids a SiK radio (and radios that follow it: RFD900, mLRS) writes its own
+/// `RADIO_STATUS` with into its serial output: system `'3'`, component `'D'`
+/// (`MAV_COMP_ID_TELEMETRY_RADIO`), unsigned.
+pub const LOCAL_RADIO: StreamId = StreamId {
+    system: b'3',
+    component: b'D',
+};
+
+/// Whether a frame read from the radio's port is the local radio's own `RADIO_STATUS`: unsigned,
+/// from [`LOCAL_RADIO`]. Any other `RADIO_STATUS` is a frame like the rest: it must be signed.
+/// (One sent over the air with these ids comes out of the radio the same way: it can move the
+/// rssi and noise the pilot sees, nothing else.)
+pub fn is_local_radio_status<T: AsRef<[u8]>>(frame: &Frame<T>) -> bool {
+    frame.message_id() == ids::RADIO_STATUS
+        && !frame.is_signed()
+        && frame.system_id() == LOCAL_RADIO.system
+        && frame.component_id() == LOCAL_RADIO.component
+}
+
 /// Sans-IO link-quality engine for one radio link.
 ///
-/// Feed it every frame read from the radio ([`handle_frame`](Self::handle_frame)) and the
+/// Feed it every frame the peer sent ([`handle_frame`](Self::handle_frame)), the local
+/// radio's own reports ([`handle_local_radio`](Self::handle_local_radio)) and the
 /// radio reader's counters after each read ([`observe`](Self::observe)); count what leaves
 /// on the radio ([`sent_frame`](Self::sent_frame)); at [`poll_timeout`](Self::poll_timeout)
 /// call [`handle_timeout`](Self::handle_timeout), then send what
@@ -163,9 +183,6 @@ pub struct LinkQuality {
     peer_regime_noise: Option<i8>,
     /// The peer's uptime went back since [`take_peer_restart`](Self::take_peer_restart).
     peer_restarted: bool,
-    /// The local radio's `RADIO_STATUS` frames the reader counted: taken out of what we
-    /// report received, which is the peer's frames.
-    local_frames: u64,
     /// The peer's counters, unwrapped, over the window.
     peer_window: LossWindow,
     peer_totals: (u64, u64),
@@ -205,7 +222,6 @@ impl LinkQuality {
             peer: None,
             peer_noise_floor: None,
             peer_regime_noise: None,
-            local_frames: 0,
             peer_restarted: false,
             peer_window: LossWindow::new(config.window),
             peer_totals: (0, 0),
@@ -233,24 +249,23 @@ impl LinkQuality {
         self.remote_rssi = remote_rssi;
     }
 
-    /// Looks at a frame read from the radio. Only the peer's `LINK_QUALITY` and the local
-    /// radio's `RADIO_STATUS` are decoded; other frames are ignored by header.
+    /// Looks at a frame the peer sent (signature checked). Only its `LINK_QUALITY` is
+    /// decoded; other frames are ignored by header.
     pub fn handle_frame<T: AsRef<[u8]>>(&mut self, now: Instant, frame: &Frame<T>) {
-        match frame.message_id() {
-            ids::LINK_QUALITY => {
-                self.heard(now);
-                if let Ok(MavMessage::LINK_QUALITY(report)) = frame.decode::<MavMessage>() {
-                    self.peer_report(report, now);
-                }
-            }
-            // Injected by the local radio: not the peer, and not one of its frames either.
-            ids::RADIO_STATUS => {
-                self.local_frames += 1;
-                if let Ok(MavMessage::RADIO_STATUS(status)) = frame.decode::<MavMessage>() {
-                    self.handle_radio_status(status);
-                }
-            }
-            _ => self.heard(now),
+        self.heard(now);
+        if frame.message_id() == ids::LINK_QUALITY
+            && let Ok(MavMessage::LINK_QUALITY(report)) = frame.decode::<MavMessage>()
+        {
+            self.peer_report(report, now);
+        }
+    }
+
+    /// The local radio's own `RADIO_STATUS` frame, injected into its serial output
+    /// ([`is_local_radio_status`]): not the peer's, and not one of its frames either (the
+    /// radio reader must not count it as received).
+    pub fn handle_local_radio<T: AsRef<[u8]>>(&mut self, frame: &Frame<T>) {
+        if let Ok(MavMessage::RADIO_STATUS(status)) = frame.decode::<MavMessage>() {
+            self.handle_radio_status(status);
         }
     }
 
@@ -262,7 +277,7 @@ impl LinkQuality {
     }
 
     /// A status report of the local radio: in the radio's byte stream (SiK injects
-    /// `RADIO_STATUS` there, see [`handle_frame`](Self::handle_frame)) or read out of band
+    /// `RADIO_STATUS` there, see [`handle_local_radio`](Self::handle_local_radio)) or read out of band
     /// (a modem's registers), with the scale of its `rssi`/`noise` bytes.
     /// Ignored when [`LinkQualityConfig::radio_status`] is `None`.
     pub fn handle_radio_status(&mut self, status: RADIO_STATUS_DATA) {
@@ -285,8 +300,7 @@ impl LinkQuality {
     /// an early report when it moved.
     pub fn observe(&mut self, now: Instant, stats: &ReaderStats) {
         self.observed_at = Some(now);
-        self.own_window
-            .push(now, self.peer_frames(stats), stats.lost);
+        self.own_window.push(now, stats.frames(), stats.lost);
         self.stats = stats.clone();
     }
 
@@ -389,10 +403,6 @@ impl LinkQuality {
     }
 
     /// Frames the reader counted that came from the peer.
-    fn peer_frames(&self, stats: &ReaderStats) -> u64 {
-        stats.frames().saturating_sub(self.local_frames)
-    }
-
     /// Our loss estimate over the window, as of `now`.
     pub fn own_loss(&self, now: Instant) -> Option<f64> {
         self.own_window.estimate(now)
@@ -536,7 +546,7 @@ impl LinkQuality {
         let unknown = |v: Option<i8>| v.unwrap_or(i8::MAX);
         self.due = Some(LINK_QUALITY_DATA {
             time_boot_ms: now.saturating_duration_since(self.started).as_millis() as u32,
-            rx_packets: self.peer_frames(stats) as u16,
+            rx_packets: stats.frames() as u16,
             rx_lost: stats.lost as u16,
             rx_bad_crc: stats.bad_crc as u16,
             rssi: unknown(self.rssi),

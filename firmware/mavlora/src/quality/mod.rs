@@ -8,8 +8,8 @@ mod rssi;
 mod window;
 
 pub use engine::{
-    LinkQuality, LinkQualityConfig, MONITOR_SHARE, PeerReport, PeerState, REPORT_BYTES,
-    REPORT_BYTES_SIGNED,
+    LOCAL_RADIO, LinkQuality, LinkQualityConfig, MONITOR_SHARE, PeerReport, PeerState,
+    REPORT_BYTES, REPORT_BYTES_SIGNED, is_local_radio_status,
 };
 pub use monitor::{Direction, Health, LinkMonitor, MonitorConfig, Notice};
 pub use rssi::RssiScale;

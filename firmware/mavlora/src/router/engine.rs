@@ -17,7 +17,9 @@ use crate::dialect::{MavMessage, RADIO_STATUS_DATA};
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
 use crate::param::{ParamValue, ReadGate, ReadGateStats, pack as param_pack, param_value_frame};
-use crate::quality::{LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig, Notice};
+use crate::quality::{
+    LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig, Notice, is_local_radio_status,
+};
 use crate::schedule::{
     Class, LinkScheduler, Origin, ScheduleError, SchedulerConfig, SchedulerStats,
 };
@@ -210,7 +212,7 @@ impl Router {
         let profile = Profile::parse(&format!("[messages.HEARTBEAT]\nradio = {hz}\n"), "router")
             .expect("a positive rate is a valid profile");
         Ok(Self {
-            radio_reader: FrameReader::new(),
+            radio_reader: FrameReader::counting_accepted(),
             gcs_reader: FrameReader::new(),
             quality: LinkQuality::new(config.quality, now),
             monitor: LinkMonitor::new(config.monitor),
@@ -483,13 +485,15 @@ impl Router {
         while let Some(rx) = self.radio_reader.next_frame() {
             // The local radio's own report (SiK injects it into its serial output): never
             // signed, never the vehicle, folded into ours for the ground.
-            if rx.frame.message_id() == ids::RADIO_STATUS {
-                self.quality.handle_frame(now, &rx.frame);
+            if is_local_radio_status(&rx.frame) {
+                self.quality.handle_local_radio(&rx.frame);
                 continue;
             }
+            // Only frames the peer signed count as received: loss is the peer's frames lost.
             let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
                 continue;
             };
+            self.radio_reader.accept(&frame, rx.integrity);
             // The link carries something: a command's timeout means loss again, not silence.
             self.commands.heard_radio(now);
             self.quality.handle_frame(now, &frame);
@@ -503,6 +507,9 @@ impl Router {
                 self.vehicle = Some(frame.system_id());
             }
             match frame.message_id() {
+                // The ground's RADIO_STATUS is ours (the link monitor's), built from both
+                // radios' reports; the far end has none to send.
+                ids::RADIO_STATUS => {}
                 ids::MAVLORA_COMPACT => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.expand(now, frame.system_id(), frame.component_id(), &msg);

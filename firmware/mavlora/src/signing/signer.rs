@@ -41,6 +41,11 @@ pub enum Rejection {
     Unsigned,
     /// The signature does not match the key.
     BadSignature,
+    /// Signed with our own link id: a frame of ours sent back to us (reflected or recorded on
+    /// the air). Our two ends sign as different links, and a new stream would otherwise take
+    /// it as the peer's (the bridge's own signed NAV_LAND, replayed 30 s later, reached the
+    /// flight controller).
+    Reflected,
     /// Timestamp not above the last accepted one of its stream (also across a restart).
     Replayed,
     /// A stream not seen before whose timestamp is more than a minute behind ours (a
@@ -70,6 +75,8 @@ pub struct SigningStats {
     pub unsigned: u64,
     /// Received frames rejected for a bad signature.
     pub bad_signature: u64,
+    /// Received frames rejected as our own (signed with our link id).
+    pub reflected: u64,
     /// Received frames rejected as replays.
     pub replayed: u64,
     /// Received frames of a new stream rejected as more than a minute old.
@@ -182,6 +189,7 @@ impl LinkSigner {
             Ok(_) => self.stats.accepted += 1,
             Err(Rejection::Unsigned) => self.stats.unsigned += 1,
             Err(Rejection::BadSignature) => self.stats.bad_signature += 1,
+            Err(Rejection::Reflected) => self.stats.reflected += 1,
             Err(Rejection::Replayed) => self.stats.replayed += 1,
             Err(Rejection::Stale) => self.stats.stale += 1,
             Err(Rejection::Ahead { .. }) => self.stats.ahead += 1,
@@ -199,6 +207,9 @@ impl LinkSigner {
         let timestamp = u64::from_le_bytes(ts);
         if self.signature(frame.as_bytes()) != sig[7..13] {
             return Err(Rejection::BadSignature);
+        }
+        if link_id == self.link_id {
+            return Err(Rejection::Reflected);
         }
         // Measured from the clock, not from what we adopted: adoption cannot ratchet it.
         let clock = self.clock(now);
@@ -254,6 +265,16 @@ mod tests {
         let plain = b.verify(&signed, Instant::ZERO).unwrap();
         assert_eq!(plain, f);
         assert_eq!(b.stats().accepted, 1);
+    }
+
+    #[test]
+    fn a_frame_signed_with_our_own_link_id_is_refused() {
+        let (mut a, mut b) = pair();
+        let f = frame(GLOBAL_POSITION_INT, 1, 1, 9);
+        let ours = a.sign(&f, Instant::ZERO).unwrap();
+        assert_eq!(a.verify(&ours, Instant::ZERO), Err(Rejection::Reflected));
+        assert_eq!(a.stats().reflected, 1);
+        assert!(b.verify(&ours, Instant::ZERO).is_ok(), "the peer takes it");
     }
 
     #[test]

@@ -46,6 +46,18 @@ pub struct Received {
 /// Looks up the CRC_EXTRA of a message id; `None` for ids the reader should forward unchecked.
 pub type CrcExtraFn = fn(u32) -> Option<u8>;
 
+/// When a frame counts as received (frames, per-stream sequence numbers, loss).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Counting {
+    /// As the reader takes it off the byte stream.
+    OnRead,
+    /// Only once the caller accepts it ([`FrameReader::accept`]): a signed radio link, where a
+    /// frame nobody signed must move neither the frame count nor the loss (injected frames
+    /// with the peer's ids and made-up sequence numbers read as a "88 % lost" link, or fill a
+    /// real gap and hide it).
+    OnAccept,
+}
+
 /// What the bytes at one position are.
 enum Candidate {
     /// Not all bytes needed to decide have arrived.
@@ -70,6 +82,7 @@ pub struct FrameReader {
     /// The input has ended: incomplete candidates are garbage, not "wait for more".
     finished: bool,
     crc_extra: CrcExtraFn,
+    counting: Counting,
     stats: ReaderStats,
 }
 
@@ -94,8 +107,37 @@ impl FrameReader {
             start: 0,
             finished: false,
             crc_extra,
+            counting: Counting::OnRead,
             stats: ReaderStats::default(),
         }
+    }
+
+    /// As [`new`](Self::new), but a frame counts as received (in [`ReaderStats::frames`],
+    /// its stream's sequence and loss) only when the caller [`accept`](Self::accept)s it,
+    /// after checking its signature. Garbage, bad checksums and partial frames count as read.
+    pub fn counting_accepted() -> Self {
+        Self {
+            counting: Counting::OnAccept,
+            ..Self::new()
+        }
+    }
+
+    /// Counts `frame`, which [`next_frame`](Self::next_frame) returned with `integrity`, as
+    /// received (a [`counting_accepted`](Self::counting_accepted) reader; the others counted
+    /// it already, and this does nothing).
+    pub fn accept<T: AsRef<[u8]>>(&mut self, frame: &Frame<T>, integrity: Integrity) {
+        if self.counting == Counting::OnAccept {
+            self.record(frame, integrity);
+        }
+    }
+
+    fn record<T: AsRef<[u8]>>(&mut self, frame: &Frame<T>, integrity: Integrity) {
+        let stream = StreamId {
+            system: frame.system_id(),
+            component: frame.component_id(),
+        };
+        self.stats
+            .record_frame(stream, frame.sequence(), integrity == Integrity::Checked);
     }
 
     /// Appends received bytes. Pushing bytes after [`finish`](Self::finish) starts a new
@@ -181,15 +223,9 @@ impl FrameReader {
                     let bytes = self.buf[self.start..self.start + len].to_vec();
                     self.start += len;
                     let frame = Frame::new_unchecked(bytes);
-                    let stream = StreamId {
-                        system: frame.system_id(),
-                        component: frame.component_id(),
-                    };
-                    self.stats.record_frame(
-                        stream,
-                        frame.sequence(),
-                        integrity == Integrity::Checked,
-                    );
+                    if self.counting == Counting::OnRead {
+                        self.record(&frame, integrity);
+                    }
                     return Some(Received { frame, integrity });
                 }
             }

@@ -80,18 +80,18 @@ fn a_noise_floor_that_rises_sends_a_report_early_and_the_reports_carry_it() {
         ..config()
     };
     let mut lq = LinkQuality::new(config, secs(0));
-    lq.handle_frame(secs(0), &sik_status(-110));
+    lq.handle_local_radio(&sik_status(-110));
     let first = due_report(&mut lq, secs(30), &stats).unwrap();
     assert_eq!(first.noise, -110);
     // A 2 dB wobble is a reading's noise, not a change.
-    lq.handle_frame(secs(31), &sik_status(-108));
+    lq.handle_local_radio(&sik_status(-108));
     assert!(due_report(&mut lq, secs(32), &stats).is_none());
     // 12 dB up: out within the next look, not at the 30 s keep-alive.
-    lq.handle_frame(secs(33), &sik_status(-98));
+    lq.handle_local_radio(&sik_status(-98));
     let early = due_report(&mut lq, Instant::from_millis(33_200), &stats).unwrap();
     assert_eq!(early.noise, -98);
     // And back down: restored as fast.
-    lq.handle_frame(secs(40), &sik_status(-110));
+    lq.handle_local_radio(&sik_status(-110));
     assert_eq!(
         due_report(&mut lq, Instant::from_millis(40_200), &stats).map(|r| r.noise),
         Some(-110)
@@ -120,25 +120,6 @@ fn the_peer_noise_rise_is_over_its_quietest_floor_and_restarts_its_loss_estimate
     // A report gone stale says nothing about now.
     lq.handle_frame(secs(5), &sender.frame(&with_noise(17, 6, -96)));
     assert_eq!(lq.peer_noise_rise_db(secs(9)), None);
-}
-
-#[test]
-fn the_local_radios_own_frames_are_not_counted_as_the_peers() {
-    // A sparse uplink (one frame) among SiK's once-a-second RADIO_STATUS: what we report
-    // received must be the peer's frames only, or the peer's loss estimate drowns.
-    let mut reader = FrameReader::new();
-    let mut lq = LinkQuality::new(config(), secs(0));
-    for k in 0..5u8 {
-        reader.push(sik_status(-110).as_bytes());
-        if k == 2 {
-            reader.push(frame(HEARTBEAT, 255, 190, 0).as_bytes());
-        }
-        while let Some(rx) = reader.next_frame() {
-            lq.handle_frame(secs(u64::from(k)), &rx.frame);
-        }
-    }
-    let r = due_report(&mut lq, secs(5), reader.stats()).unwrap();
-    assert_eq!(r.rx_packets, 1);
 }
 
 #[test]
@@ -194,7 +175,7 @@ fn sik_radio_status_sets_rssi() {
     });
     let f = Sender::new(51, 68, MavlinkVersion::V1).frame(&status);
     let mut lq = LinkQuality::new(config(), secs(0));
-    lq.handle_frame(secs(0), &f);
+    lq.handle_local_radio(&f);
     let r = due_report(&mut lq, secs(1), &ReaderStats::default()).unwrap();
     assert_eq!((r.rssi, r.remote_rssi), (-77, i8::MAX));
 
@@ -203,7 +184,7 @@ fn sik_radio_status_sets_rssi() {
         ..config()
     };
     let mut ignoring = LinkQuality::new(config, secs(0));
-    ignoring.handle_frame(secs(0), &f);
+    ignoring.handle_local_radio(&f);
     let r = due_report(&mut ignoring, secs(1), &ReaderStats::default()).unwrap();
     assert_eq!(r.rssi, i8::MAX);
 }
