@@ -45,6 +45,7 @@ pub mod bridge;
 pub mod command;
 pub mod compact;
 pub mod filter;
+mod input_file;
 #[cfg(feature = "cli")]
 pub mod io;
 pub mod mission;

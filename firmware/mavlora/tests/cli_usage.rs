@@ -56,6 +56,85 @@ fn out_of_range_durations_on_the_command_line_are_usage_errors() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Values of the right type that name no usable setting (issue 22 item 21): each is refused
+/// at start naming its option, never run with.
+#[test]
+fn ids_bauds_and_client_limits_that_cannot_work_are_usage_errors() {
+    let dir = temp_dir("usage-limits");
+    let radio = ["--radio", "/dev/null/none", "--udp-bind", "127.0.0.1:0"];
+    let fc = ["--fc", "/dev/null/fc", "--radio", "/dev/null/none"];
+    let cases: [(&str, &[&str], &[&str], &str); 6] = [
+        (
+            ROUTER,
+            &radio,
+            &["--tcp-listen", "127.0.0.1:0", "--tcp-max-clients", "0"],
+            "tcp-max-clients",
+        ),
+        (ROUTER, &radio, &["--allow-sysid", "255,0"], "allow-sysid"),
+        (ROUTER, &radio, &["--radio-baud", "0"], "radio-baud"),
+        (BRIDGE, &fc, &["--system-id", "255"], "system-id"),
+        (BRIDGE, &fc, &["--system-id", "0"], "system-id"),
+        (BRIDGE, &fc, &["--fc-baud", "0"], "fc-baud"),
+    ];
+    for (bin, ports, extra, name) in cases {
+        let args = [ports, extra].concat();
+        let (code, stderr) = run(bin, &dir, &args);
+        assert_eq!(code, Some(2), "{bin} {extra:?}: {stderr}");
+        assert!(
+            stderr.contains(name),
+            "{bin} {extra:?} does not name it: {stderr}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A profile, config or key path that leads to a device or a FIFO is refused at once, naming
+/// the path: `/dev/zero` was read for 1 GB, a FIFO key hung start-up with no word.
+#[cfg(unix)]
+#[test]
+fn files_that_are_devices_or_fifos_are_refused_at_once_naming_them() {
+    let dir = temp_dir("usage-files");
+    let fifo = dir.join("radio.key");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .args(["-m", "600"])
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let fifo = fifo.to_str().unwrap();
+    let fc = ["--fc", "/dev/null/fc", "--radio", "/dev/null/none"];
+    for (flag, path) in [
+        ("--profile", "/dev/zero"),
+        ("--config", "/dev/zero"),
+        ("--key", fifo),
+    ] {
+        let started = std::time::Instant::now();
+        let args = [&fc[..], &[flag, path]].concat();
+        let (code, stderr) = if flag == "--key" {
+            common::run(BRIDGE, &dir, &args)
+        } else {
+            run(BRIDGE, &dir, &args)
+        };
+        assert!(
+            matches!(code, Some(c) if c != 0),
+            "{flag} {path}: {code:?} {stderr}"
+        );
+        assert!(
+            started.elapsed().as_secs() < 5,
+            "{flag} {path} took {:?}",
+            started.elapsed()
+        );
+        assert!(
+            stderr.contains(path),
+            "{flag}: the path is not named: {stderr}"
+        );
+        assert!(stderr.contains("not a regular file"), "{flag}: {stderr}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn out_of_range_values_in_a_config_file_name_the_file_line_and_key() {
     let dir = temp_dir("usage-config");

@@ -110,12 +110,28 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
         );
     }
     if let Some(id) = o.system_id {
+        // 0 addresses every system and is nobody's; 255 is the ground stations' by
+        // convention (QGroundControl, Mission Planner, MAVProxy).
+        if id == 0 || id == 255 {
+            return Err(UsageError::option(
+                "system_id",
+                format!("{id}: a vehicle's id is 1..=254 (0 is broadcast, 255 a ground station's)"),
+            )
+            .into());
+        }
         config.system_id = id;
     }
     config.signing = setup.signing.config.clone();
     config.quality = setup.quality;
 
     let fc_baud = o.fc_baud.unwrap_or(FC_BAUD);
+    if fc_baud == 0 {
+        return Err(UsageError::option(
+            "fc_baud",
+            "0: must be the flight controller port's baud rate",
+        )
+        .into());
+    }
     let fc = setup.spawn("fc", &fc_path, fc_baud, frame_gap(fc_baud / 10))?;
     let (rate, burst) = (setup.rate, setup.burst);
     let station = setup.open_radio()?;

@@ -155,6 +155,13 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
         config.ground.allow = allow;
     }
     if let Some(ids) = o.allow_sysid {
+        if ids.contains(&0) {
+            return Err(UsageError::option(
+                "allow_sysid",
+                "0 is the broadcast id: no ground station sends from it",
+            )
+            .into());
+        }
         config.ground.allow_sysid = ids;
     }
     if let Some(n) = o.commands_per_source {
@@ -202,6 +209,13 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
             let max = o
                 .tcp_max_clients
                 .unwrap_or(mavlora::io::DEFAULT_MAX_CLIENTS);
+            if max == 0 {
+                return Err(UsageError::option(
+                    "tcp_max_clients",
+                    "0: must be at least 1 (leave out --tcp-listen for no TCP)",
+                )
+                .into());
+            }
             let ground = config.ground.clone();
             let admits = move |ip| ground.allows_address(ip);
             Some(TcpEndpoint::spawn(

@@ -266,10 +266,11 @@ impl Profile {
     /// Reads and validates a profile file.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, ProfileError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
-            path: path.display().to_string(),
-            source,
-        })?;
+        let text = crate::input_file::read_to_string(path, crate::input_file::MAX_TEXT_FILE)
+            .map_err(|source| ProfileError::Read {
+                path: path.display().to_string(),
+                source,
+            })?;
         Self::parse(&text, &path.display().to_string())
     }
 

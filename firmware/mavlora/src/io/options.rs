@@ -437,11 +437,14 @@ where
     T: clap::CommandFactory + serde::de::DeserializeOwned,
 {
     use serde::Deserializer as _;
-    let text = std::fs::read_to_string(path).map_err(|e| UsageError::Config {
-        path: path.display().to_string(),
-        line: None,
-        message: format!("cannot read: {e}"),
-    })?;
+    let text =
+        crate::input_file::read_to_string(path, crate::input_file::MAX_TEXT_FILE).map_err(|e| {
+            UsageError::Config {
+                path: path.display().to_string(),
+                line: None,
+                message: format!("cannot read: {e}"),
+            }
+        })?;
     let in_file = |e: toml::de::Error| {
         let start = e.span().map(|span| span.start.min(text.len()));
         // The key on the line at fault, when the fault is in a `key = value` line.

@@ -57,7 +57,9 @@ impl SigningStateFile {
                 return Err(e).with_context(|| format!("locking {}", lock_path.display()));
             }
         }
-        let state = match std::fs::read_to_string(&path) {
+        // Bounded by what a state can hold: a timestamp and one line per stream, at most
+        // 256 links × 65,536 senders; well under 64 MiB.
+        let state = match crate::input_file::read_to_string(&path, 64 << 20) {
             Ok(text) => SigningState::parse(&text)
                 .with_context(|| format!("signing state {}", path.display()))?,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {

@@ -144,6 +144,13 @@ impl RadioOptions {
     /// inbox made and the signal handler installed.
     pub fn setup(&self, link_id: u8, role: &str) -> anyhow::Result<Setup> {
         let radio_path = self.radio_port()?;
+        if self.radio_baud() == 0 {
+            return Err(super::UsageError::option(
+                "radio_baud",
+                "0: must be the radio port's baud rate",
+            )
+            .into());
+        }
         let scheduler = self.scheduler()?;
         let signing = self.signing(link_id, role)?;
         let quality = self.link_quality(signing.config.is_some());

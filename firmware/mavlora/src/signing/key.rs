@@ -87,7 +87,8 @@ impl SigningKey {
         }
         #[cfg(not(unix))]
         let _ = meta;
-        let bytes = std::fs::read(path).map_err(read)?;
+        // A key is 65 bytes: a few more cannot be one, and a FIFO would hang start-up.
+        let bytes = crate::input_file::read(path, 1024).map_err(read)?;
         Self::parse(&bytes).map_err(|reason| KeyError::Format {
             path: shown(),
             reason,
