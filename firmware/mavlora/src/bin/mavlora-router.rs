@@ -70,7 +70,8 @@ struct Options {
     /// Write a MAVProxy-format telemetry log here.
     #[arg(long)]
     tlog: Option<PathBuf>,
-    /// Seconds between ground heartbeats sent over the radio, 0.1..=86400 [default: 5].
+    /// Seconds between ground heartbeats sent over the radio, 0.1..=86400 [default: from
+    /// --rate: 1 at 1360 B/s and more, up to 5 on slower radios; see the README].
     #[arg(long)]
     gcs_heartbeat_period: Option<Seconds>,
     /// Uplink or downlink loss (percent) at which the ground station is told the link is

@@ -40,9 +40,11 @@ pub struct BridgeConfig {
     pub config_attempts: u32,
     /// Ground-station heartbeats are regenerated towards the flight controller at this period…
     pub gcs_heartbeat_period: Duration,
-    /// …for this long after the last one heard from the radio (the router sends them sparsely:
-    /// PX4 declares data-link loss after `COM_DL_LOSS_T`, 10 s by default).
-    pub gcs_heartbeat_hold: Duration,
+    /// …until this long after the ground's next heartbeat over the radio was due (its period
+    /// measured, see `bridge::gcs_heartbeat`): the radio's latency and jitter. A real link
+    /// loss reaches the autopilot's GCS failsafe (ArduPilot `FS_GCS_TIMEOUT` 5 s, PX4
+    /// `COM_DL_LOSS_T` 10 s) at most the router's period and this late.
+    pub gcs_heartbeat_margin: Duration,
     /// Each ack of a command from the radio goes twice on a lossy link (see
     /// [`AckCache::with_redundancy`](crate::command::AckCache::with_redundancy)); the radio's
     /// timing (default: SiK 64k). `None`: once, and again only for a copy of the command.
@@ -69,7 +71,7 @@ impl BridgeConfig {
             config_retry: Duration::from_secs(2),
             config_attempts: 3,
             gcs_heartbeat_period: Duration::from_secs(1),
-            gcs_heartbeat_hold: Duration::from_secs(7),
+            gcs_heartbeat_margin: Duration::from_secs(2),
             command_redundancy: Some(Redundancy::SIK_64K),
             param_pack: Some(ParamPackConfig::for_rate(scheduler.rate_bytes_per_s)),
         }

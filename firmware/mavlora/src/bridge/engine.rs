@@ -193,7 +193,8 @@ impl Bridge {
             watch: FcWatch::new(config.fc_silence),
             gcs_heartbeat: GcsHeartbeat::new(
                 config.gcs_heartbeat_period,
-                config.gcs_heartbeat_hold,
+                config.gcs_heartbeat_margin,
+                crate::router::GCS_HEARTBEAT_LONGEST,
             ),
             param_answers: ParamAnswers::default(),
             read_answers: TokenBucket::new(

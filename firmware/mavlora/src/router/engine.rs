@@ -45,7 +45,8 @@ pub struct RouterConfig {
     /// Component id the expanded standard messages claim (the vehicle's autopilot).
     pub autopilot_component: u8,
     /// At most one ground heartbeat per sender per this period goes over the radio; the
-    /// bridge regenerates them at 1 Hz for the flight controller.
+    /// bridge regenerates them at 1 Hz for the flight controller until one period and a
+    /// margin after the last it heard. Default: [`gcs_heartbeat_period_for`] the budget.
     pub gcs_heartbeat_period: Duration,
     /// Mission uploads: the ground's transfer ends here (keep-alive, radio polls).
     pub mission: TerminatorConfig,
@@ -73,6 +74,24 @@ pub struct RouterConfig {
     pub ground_signing: Option<SigningConfig>,
 }
 
+/// The share of the radio budget the ground's heartbeats may take by default.
+pub const GCS_HEARTBEAT_SHARE: f64 = 0.025;
+/// The longest default period of the ground's heartbeats over the radio (the bridge's
+/// assumption until it has measured the router's).
+pub const GCS_HEARTBEAT_LONGEST: Duration = Duration::from_secs(5);
+/// A signed ground `HEARTBEAT` on the radio: 9 bytes of payload, 12 of framing, 13 of
+/// signature.
+const SIGNED_HEARTBEAT_BYTES: f64 = 34.0;
+
+/// The ground's heartbeats over a radio of `rate` bytes/s: each of the ground's own (1 Hz)
+/// when [`GCS_HEARTBEAT_SHARE`] of the budget carries that (SiK 64k: the flight controller
+/// hears of a link loss at most 3 s late), else as often as the share allows, at most
+/// [`GCS_HEARTBEAT_LONGEST`] apart (LoRa SF7: 5 s, and up to 7 s late).
+pub fn gcs_heartbeat_period_for(rate_bytes_per_s: u32) -> Duration {
+    let secs = SIGNED_HEARTBEAT_BYTES / (GCS_HEARTBEAT_SHARE * f64::from(rate_bytes_per_s.max(1)));
+    Duration::from_secs_f64(secs.clamp(1.0, GCS_HEARTBEAT_LONGEST.as_secs_f64()))
+}
+
 impl RouterConfig {
     /// Defaults around a radio budget.
     pub fn new(scheduler: SchedulerConfig) -> Self {
@@ -83,7 +102,7 @@ impl RouterConfig {
             system_id: 255,
             component_id: 191,
             autopilot_component: 1,
-            gcs_heartbeat_period: Duration::from_secs(5),
+            gcs_heartbeat_period: gcs_heartbeat_period_for(scheduler.rate_bytes_per_s),
             mission: TerminatorConfig::default(),
             command_initial_rto: Duration::from_millis(1000),
             command_attempts: 8,

@@ -11,7 +11,10 @@
 mod engine;
 pub mod trust;
 
-pub use engine::{Router, RouterConfig, RouterStats};
+pub use engine::{
+    GCS_HEARTBEAT_LONGEST, GCS_HEARTBEAT_SHARE, Router, RouterConfig, RouterStats,
+    gcs_heartbeat_period_for,
+};
 pub use trust::{GroundInput, GroundPolicy, GroundRejection, IpNet, TrustStats};
 
 #[cfg(test)]

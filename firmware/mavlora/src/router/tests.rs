@@ -142,7 +142,13 @@ fn the_bridges_link_report_in_a_compact_frame_feeds_the_monitor_and_reaches_the_
 
 #[test]
 fn ground_heartbeats_are_thinned_towards_the_radio() {
-    let mut r = router();
+    let mut config = RouterConfig::new(SchedulerConfig {
+        rate_bytes_per_s: 1000,
+        burst_bytes: 300,
+        max_queued_bytes: 4000,
+    });
+    config.gcs_heartbeat_period = crate::time::Duration::from_secs(5);
+    let mut r = Router::new(config, Instant::ZERO).unwrap();
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
     let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
         mavtype: MavType::MAV_TYPE_GCS,
@@ -358,6 +364,41 @@ fn a_command_is_resent_over_the_radio_until_its_ack_returns() {
         ),
         (1, 2, 1, 1, 1)
     );
+}
+
+/// The ground's 1 Hz heartbeats go over the radio each second on a budget where 2.5 % carries
+/// them (SiK: the autopilot hears of a link loss at most 3 s late), one per 5 s on LoRa SF7's
+/// 251 B/s, in between on the default 683 B/s.
+#[test]
+fn ground_heartbeats_go_as_often_as_the_budget_allows() {
+    for (rate, every) in [(4000, 1), (683, 2), (251, 5)] {
+        let mut r = Router::new(
+            RouterConfig::new(SchedulerConfig {
+                rate_bytes_per_s: rate,
+                burst_bytes: 600,
+                max_queued_bytes: 8000,
+            }),
+            Instant::ZERO,
+        )
+        .unwrap();
+        let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+        let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            mavtype: MavType::MAV_TYPE_GCS,
+            ..Default::default()
+        });
+        let mut sent = 0;
+        for k in 0..60 {
+            let now = ms(1000 * k + 10);
+            r.handle_gcs_bytes(now, gcs.frame(&hb).as_bytes());
+            sent += radio_out(&mut r, now)
+                .iter()
+                .filter(
+                    |m| matches!(m, MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS),
+                )
+                .count();
+        }
+        assert_eq!(sent, 60 / every, "{rate} B/s");
+    }
 }
 
 /// 60,000 source addresses each sending one frame: every one is counted, the first 1024 are
