@@ -100,6 +100,7 @@ const ROUTER_COUNTERS: &[&str] = &[
     "commands_queued",
     "command_late_acks",
     "commands_abandoned",
+    "gcs_not_v1",
     "commands_refused_after_restart",
     "command_foreign_acks",
     "ground_rejected",

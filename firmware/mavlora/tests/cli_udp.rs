@@ -117,3 +117,89 @@ fn one_frame_per_datagram_on_request() {
     assert_eq!(times, (1..=FRAMES_UNPACKED).collect::<Vec<_>>());
     assert!(datagrams.iter().all(|d| d.len() == 1), "{datagrams:?}");
 }
+
+/// Several ground stations on one host (issue 22 item 16): every accepted sender gets every
+/// frame, each in the MAVLink version it speaks. A station speaking MAVLink 1 gets MAVLink 1
+/// (and not CURRENT_MODE, id 436, which MAVLink 1 cannot carry), the other keeps MAVLink 2
+/// and gets it. Before, only the last sender got data, and one MAVLink 1 heartbeat turned
+/// every station's output into MAVLink 1.
+#[test]
+fn each_ground_station_gets_every_frame_in_its_own_mavlink_version() {
+    use mavlora::dialect::{CURRENT_MODE_DATA, HEARTBEAT_DATA, MavType};
+    let (mut radio, slave) = pty_pair();
+    let port = common::free_udp_port();
+    let router_addr = format!("127.0.0.1:{port}");
+    let mut router = Guard(
+        Some(
+            Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+                .args(["--unsigned", "--radio", &slave.name().unwrap()])
+                .args(["--udp-bind", &router_addr])
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap(),
+        ),
+        "mavlora-router",
+    );
+    let stations: Vec<(UdpSocket, Sender)> = [MavlinkVersion::V2, MavlinkVersion::V1]
+        .into_iter()
+        .map(|version| {
+            let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+            socket
+                .set_read_timeout(Some(Duration::from_millis(20)))
+                .unwrap();
+            (socket, Sender::new(255, 190, version))
+        })
+        .collect();
+    let gcs_heartbeat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_GCS,
+        ..Default::default()
+    });
+    let mut vehicle = Sender::new(1, 1, MavlinkVersion::V2);
+    let vehicle_heartbeat = MavMessage::HEARTBEAT(HEARTBEAT_DATA::default());
+    let current_mode = MavMessage::CURRENT_MODE(CURRENT_MODE_DATA::default());
+    // (heartbeats as MAVLink 1, as MAVLink 2, CURRENT_MODE: id 436) seen by each station
+    let mut seen = [(0, 0, 0); 2];
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut buf = [0u8; 65_536];
+    let enough =
+        |seen: &[(u32, u32, u32); 2]| seen[0].1 >= 10 && seen[0].2 >= 10 && seen[1].0 >= 10;
+    let mut stations = stations;
+    // The stations speak once a second, A then B: B is always the last sender.
+    let mut next_hello = Instant::now();
+    while !enough(&seen) && Instant::now() < deadline {
+        if Instant::now() >= next_hello {
+            for (socket, sender) in &mut stations {
+                socket
+                    .send_to(sender.frame(&gcs_heartbeat).as_bytes(), &router_addr)
+                    .unwrap();
+            }
+            next_hello += Duration::from_secs(1);
+        }
+        radio
+            .write_all(vehicle.frame(&vehicle_heartbeat).as_bytes())
+            .unwrap();
+        radio
+            .write_all(vehicle.frame(&current_mode).as_bytes())
+            .unwrap();
+        for (k, (socket, _)) in stations.iter().enumerate() {
+            while let Ok(n) = socket.recv(&mut buf) {
+                let mut reader = FrameReader::new();
+                reader.push(&buf[..n]);
+                while let Some(rx) = reader.next_frame() {
+                    match (rx.frame.message_id(), rx.frame.version()) {
+                        (0, MavlinkVersion::V1) => seen[k].0 += 1,
+                        (0, MavlinkVersion::V2) => seen[k].1 += 1,
+                        (436, _) => seen[k].2 += 1,
+                        _ => {}
+                    }
+                }
+            }
+        }
+    }
+    assert!(router.terminate(), "the router did not stop cleanly");
+    assert!(
+        enough(&seen),
+        "(v1 heartbeats, v2 heartbeats, id 436): {seen:?}"
+    );
+    assert_eq!((seen[0].0, seen[1].1, seen[1].2), (0, 0, 0), "{seen:?}");
+}

@@ -57,7 +57,8 @@ struct Options {
     /// [default: <ground-key>.ground-state].
     #[arg(long)]
     ground_signing_state: Option<PathBuf>,
-    /// Commands one ground source may have in the relay at once [default: 4].
+    /// Commands one ground source (address and port: one application) may have in the relay
+    /// at once [default: 4].
     #[arg(long)]
     commands_per_source: Option<usize>,
     /// Also listen for ground stations on TCP here, e.g. 0.0.0.0:5760 (QGroundControl "TCP",
@@ -291,6 +292,7 @@ struct RouterCounters {
     commands_queued: u64,
     command_late_acks: u64,
     commands_abandoned: u64,
+    gcs_not_v1: u64,
     commands_refused_after_restart: u64,
     command_foreign_acks: u64,
     ground_rejected: u64,
@@ -315,11 +317,19 @@ impl Side<Router> for GroundSide {
             Event::Tcp(frame, from) => (frame, from, false),
             _ => return,
         };
-        let input = router.handle_gcs_input(now, from.ip(), &frame);
+        let input = router.handle_gcs_input(now, from, &frame);
         report(from, &input);
         if input.learn_peer() {
+            // Whole and checked by the engine: its start byte is its version.
+            let version = if frame.first() == Some(&mavlora::wire::STX_V1) {
+                mavlink::MavlinkVersion::V1
+            } else {
+                mavlink::MavlinkVersion::V2
+            };
             if udp {
-                self.udp.learn(from);
+                self.udp.learn(from, version);
+            } else if let Some(tcp) = &self.tcp {
+                tcp.learn(from, version);
             }
             self.record(&frame);
         }
@@ -368,6 +378,7 @@ impl Side<Router> for GroundSide {
             commands_queued: s.commands.queued,
             command_late_acks: s.commands.late_acks,
             commands_abandoned: s.commands.abandoned,
+            gcs_not_v1: self.udp.not_v1() + t.not_v1,
             commands_refused_after_restart: s.commands.refused_after_restart,
             command_foreign_acks: s.commands.foreign_acks,
             ground_rejected: s.ground.total(),

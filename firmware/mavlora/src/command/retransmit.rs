@@ -2,7 +2,7 @@
 
 use crate::command::ack_tag::Epoch;
 use std::collections::{HashMap, VecDeque};
-use std::net::IpAddr;
+use std::net::SocketAddr;
 
 use super::ack_tag::{CommandTag, tag_command};
 use super::{
@@ -70,7 +70,7 @@ pub enum Admission {
 /// A command from the ground, waiting or on the radio.
 #[derive(Debug)]
 struct Pending {
-    source: IpAddr,
+    source: SocketAddr,
     id: CommandId,
     generation: u8,
     frame: OwnedFrame,
@@ -327,7 +327,7 @@ impl CommandRetransmitter {
     }
 
     /// Commands from `source` in flight.
-    pub fn in_flight_from(&self, source: IpAddr) -> usize {
+    pub fn in_flight_from(&self, source: SocketAddr) -> usize {
         self.on_air
             .iter()
             .chain(&self.waiting)
@@ -383,11 +383,12 @@ impl CommandRetransmitter {
             .unwrap_or(start & 0x1f)
     }
 
-    /// A frame from the ground station at `source` (`frame` decodes to `msg`).
+    /// A frame from the ground station at `source` (`frame` decodes to `msg`): its address
+    /// and port, so each application on a host has its own budget.
     pub fn from_ground(
         &mut self,
         now: Instant,
-        source: IpAddr,
+        source: SocketAddr,
         frame: &OwnedFrame,
         msg: &MavMessage,
     ) -> Admission {

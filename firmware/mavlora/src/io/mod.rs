@@ -7,6 +7,7 @@
 
 mod clock;
 mod framing;
+mod ground_version;
 mod options;
 mod queue;
 mod serial;
@@ -31,7 +32,7 @@ pub use station::{RadioEngine, Setup, Side, Station};
 pub use status::{Joined, RadioCounters, RadioGauges, RadioStats, Status, StatusReport};
 pub use tcp::{DEFAULT_MAX_CLIENTS, TcpCounters, TcpEndpoint};
 pub use tlog::Tlog;
-pub use udp::{MAX_DATAGRAM, UdpEndpoint};
+pub use udp::{MAX_DATAGRAM, MAX_UDP_PEERS, UdpEndpoint};
 
 /// What the IO threads tell the main loop.
 #[derive(Debug)]

@@ -46,6 +46,9 @@ pub struct TcpCounters {
     pub dropped_bytes: u64,
     /// Partial frames from clients dropped after an idle gap.
     pub partials_dropped: u64,
+    /// Frames not given to MAVLink 1 clients because MAVLink 1 cannot carry them (ids above
+    /// 255), per client.
+    pub not_v1: u64,
 }
 
 #[derive(Debug)]
@@ -53,6 +56,8 @@ struct Client {
     addr: SocketAddr,
     stream: TcpStream,
     out: Queue<Vec<u8>>,
+    /// It spoke MAVLink 1 last: it gets its own MAVLink 1 copy of each frame.
+    v1: AtomicBool,
 }
 
 #[derive(Debug, Default)]
@@ -62,6 +67,8 @@ struct Shared {
     /// Dropped bytes of clients gone (those connected count in their queue).
     gone_dropped: AtomicU64,
     partials_dropped: AtomicU64,
+    /// Frames a MAVLink 1 client could not be given (per client).
+    not_v1: AtomicU64,
 }
 
 impl Shared {
@@ -145,18 +152,40 @@ impl TcpEndpoint {
             refused: self.shared.refused.load(Ordering::Relaxed),
             dropped_bytes: queued + self.shared.gone_dropped.load(Ordering::Relaxed),
             partials_dropped: self.shared.partials_dropped.load(Ordering::Relaxed),
+            not_v1: self.shared.not_v1.load(Ordering::Relaxed),
         }
     }
 
-    /// Queues one frame for every client; never blocks. A client whose queue is full loses
-    /// its oldest periodic frames first (counted).
+    /// The client at `from` sent a frame the ground policy accepted, in `version`: it gets
+    /// frames in that version from now on.
+    pub fn learn(&self, from: SocketAddr, version: mavlink::MavlinkVersion) {
+        if let Some(c) = self.shared.clients().iter().find(|c| c.addr == from) {
+            c.v1.store(version == mavlink::MavlinkVersion::V1, Ordering::Relaxed);
+        }
+    }
+
+    /// Queues one frame for every client, in the version each speaks; never blocks. A
+    /// client whose queue is full loses its oldest periodic frames first (counted). A frame
+    /// MAVLink 1 cannot carry is dropped for MAVLink 1 clients only (counted).
     pub fn send(&self, bytes: &[u8]) {
         let lane = match Frame::new_checked(bytes).map(|f| Class::of(f.message_id())) {
             Ok(class) if class.is_protocol() => Lane::Priority,
             _ => Lane::Bulk,
         };
+        let mut v1: Option<Option<Vec<u8>>> = None;
         for c in self.shared.clients().iter() {
-            c.out.push(bytes.to_vec(), bytes.len(), lane);
+            if !c.v1.load(Ordering::Relaxed) {
+                c.out.push(bytes.to_vec(), bytes.len(), lane);
+                continue;
+            }
+            match v1.get_or_insert_with(|| super::ground_version::as_v1(bytes)) {
+                Some(f) => {
+                    c.out.push(f.clone(), f.len(), lane);
+                }
+                None => {
+                    self.shared.not_v1.fetch_add(1, Ordering::Relaxed);
+                }
+            }
         }
     }
 }
@@ -210,6 +239,7 @@ fn add_client(
         addr: from,
         stream,
         out: Queue::new(CLIENT_QUEUE_BYTES),
+        v1: AtomicBool::new(false),
     });
     info!(client = %from, "TCP ground station connected");
     shared.clients().push(client.clone());

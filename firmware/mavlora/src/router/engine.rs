@@ -3,7 +3,7 @@
 use crate::command::ack_tag::Epoch;
 use crate::time::Duration;
 use std::collections::{HashMap, VecDeque};
-use std::net::{IpAddr, Ipv4Addr};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 
 use mavlink::{MavHeader, MavlinkVersion, Message};
 
@@ -26,7 +26,7 @@ use crate::schedule::{
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
 use crate::wire::{
-    FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, StreamId, encode, ids, known, to_v1,
+    FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, StreamId, encode, ids, known,
 };
 
 /// Router settings.
@@ -146,8 +146,6 @@ pub struct RouterStats {
     pub to_gcs_frames: u64,
     /// Bytes sent to the ground station.
     pub to_gcs_bytes: u64,
-    /// Radio frames a MAVLink 1 ground station could not be given (ids above 255).
-    pub to_gcs_not_v1: u64,
     /// Mission uploads terminated here: started, accepted, failed, repairs, keep-alives.
     pub mission: TerminatorStats,
     /// The command relay's resends and dropped ground retries.
@@ -192,9 +190,6 @@ pub struct Router {
     to_gcs: VecDeque<OwnedFrame>,
     /// Renumbers and signs what leaves on the radio, verifies what arrives.
     radio_leg: RadioLeg,
-    /// The version the ground station speaks (its last accepted frame's); MAVLink 2 until
-    /// it said otherwise.
-    ground_version: MavlinkVersion,
     /// Verifies what the ground sends and signs what it gets, with the ground key.
     ground_signer: Option<LinkSigner>,
     /// When each (source, reason) rejection was last reported.
@@ -225,7 +220,7 @@ fn first_generation(radio_leg: &RadioLeg, now: Instant) -> u8 {
 pub(crate) const REPORTED_SOURCES: usize = 1024;
 
 /// The source [`Router::handle_gcs_bytes`] stands for: an in-process ground station.
-const IN_PROCESS: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
+const IN_PROCESS: SocketAddr = SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0);
 
 impl Router {
     /// A router started at `now`.
@@ -276,7 +271,6 @@ impl Router {
             resequenced: HashMap::new(),
             to_gcs: VecDeque::new(),
             radio_leg,
-            ground_version: MavlinkVersion::V2,
             reported: HashMap::new(),
             sent_notices: VecDeque::new(),
             ground_signer: config.ground_signing.as_ref().map(SigningConfig::signer),
@@ -364,9 +358,14 @@ impl Router {
     /// `from`. Frames go to the radio only if the ground policy allows the address and the
     /// frame's system id and the source's command budget has room; the answer says whether
     /// `from` may become the UDP peer and what to report.
-    pub fn handle_gcs_input(&mut self, now: Instant, from: IpAddr, bytes: &[u8]) -> GroundInput {
+    pub fn handle_gcs_input(
+        &mut self,
+        now: Instant,
+        from: SocketAddr,
+        bytes: &[u8],
+    ) -> GroundInput {
         let mut input = GroundInput::default();
-        if !self.config.ground.allows_address(from) {
+        if !self.config.ground.allows_address(from.ip()) {
             input.rejected = 1;
             self.reject(now, from, GroundRejection::Address, &mut input);
             return input;
@@ -394,9 +393,8 @@ impl Router {
                 );
                 continue;
             }
-            // the radio carries MAVLink 2 only; a ground station that speaks MAVLink 1 gets
-            // MAVLink 1 back
-            self.ground_version = frame.version();
+            // The radio carries MAVLink 2 only. Frames for the ground leave as MAVLink 2; the
+            // endpoints give a station that speaks MAVLink 1 its own copy in MAVLink 1.
             let Some(frame) = self.radio_leg.admit(frame) else {
                 continue;
             };
@@ -482,10 +480,12 @@ impl Router {
     fn reject(
         &mut self,
         now: Instant,
-        from: IpAddr,
+        from: SocketAddr,
         why: GroundRejection,
         input: &mut GroundInput,
     ) {
+        // Reported per address: a host's applications are one source to the log.
+        let from = from.ip();
         self.stats.ground.count(why);
         let every = self.config.ground.log_every;
         if self.reported.len() >= REPORTED_SOURCES {
@@ -699,13 +699,6 @@ impl Router {
     /// dropped: a station that signs would reject them).
     fn enqueue_gcs(&mut self, now: Instant, frame: OwnedFrame) {
         let frame = match &mut self.ground_signer {
-            None if self.ground_version == MavlinkVersion::V1 => match to_v1(frame) {
-                Some(v1) => v1,
-                None => {
-                    self.stats.to_gcs_not_v1 += 1;
-                    return;
-                }
-            },
             None => frame,
             Some(signer) => match signer.sign(&frame, now) {
                 Some(signed) => signed,

@@ -410,7 +410,7 @@ fn a_sweep_of_source_addresses_is_counted_without_remembering_or_logging_each() 
     let hb = spoof.frame(&MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()));
     let mut reported = 0;
     for k in 0..60_000u32 {
-        let from = std::net::IpAddr::from(std::net::Ipv4Addr::from(0x0a00_0000 + k));
+        let from = std::net::SocketAddr::from((std::net::Ipv4Addr::from(0x0a00_0000 + k), 14550));
         let input = r.handle_gcs_input(ms(u64::from(k) / 100), from, hb.as_bytes());
         reported += usize::from(input.report.is_some());
     }
@@ -422,7 +422,7 @@ fn a_sweep_of_source_addresses_is_counted_without_remembering_or_logging_each() 
 fn ground_frames_from_other_addresses_or_system_ids_never_reach_the_radio() {
     let mut r = router();
     let arm = crate::testutil::arm_command();
-    let intruder: std::net::IpAddr = "192.168.1.66".parse().unwrap();
+    let intruder: std::net::SocketAddr = "192.168.1.66:14550".parse().unwrap();
     let mut spoof = Sender::new(255, 190, MavlinkVersion::V2);
     let input = r.handle_gcs_input(ms(0), intruder, spoof.frame(&arm).as_bytes());
     assert!(!input.learn_peer());
@@ -457,7 +457,8 @@ fn one_source_cannot_fill_the_command_relay() {
     use crate::dialect::{COMMAND_LONG_DATA, MavCmd};
     let mut r = router();
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
-    let other: std::net::IpAddr = "::1".parse().unwrap();
+    // Another application on the same host: same address, its own port.
+    let other: std::net::SocketAddr = "127.0.0.1:14551".parse().unwrap();
     // distinct commands (to ten vehicles) from one source: only the budget goes out
     let budget = GroundPolicy::default().commands_in_flight;
     for k in 0..10u8 {
@@ -470,7 +471,7 @@ fn one_source_cannot_fill_the_command_relay() {
         r.handle_gcs_bytes(ms(0), gcs.frame(&msg).as_bytes());
     }
     assert_eq!(commands(&radio_out(&mut r, ms(0))), budget);
-    // another station's command still goes
+    // another station's command still goes (the pilot's, when a script used up its own)
     let mut other_gcs = Sender::new(255, 191, MavlinkVersion::V2);
     let input = r.handle_gcs_input(
         ms(10),

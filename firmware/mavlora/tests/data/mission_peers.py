@@ -289,13 +289,15 @@ class World:
         now = time.monotonic()
         self.fc.read(now)
         self.fc.tick(now)
-        # The router sends to its UDP peer: what either ground socket gets, both hear.
-        msgs = []
-        for conn in {id(g.conn): g.conn for g in self.grounds}.values():
-            while (msg := conn.recv_match(blocking=False)) is not None:
-                msgs.append(msg)
+        # The router sends every frame to each ground station it accepted: each hears its
+        # own socket.
+        heard = {}
         for g in self.grounds:
-            g.poll(now, msgs)
+            if id(g.conn) not in heard:
+                heard[id(g.conn)] = []
+                while (msg := g.conn.recv_match(blocking=False)) is not None:
+                    heard[id(g.conn)].append(msg)
+            g.poll(now, heard[id(g.conn)])
 
     def run(self, seconds: float, until=None) -> bool:
         end = time.monotonic() + seconds
@@ -444,7 +446,7 @@ def main() -> int:
         w.run(2)
         if args.scenario == "px4":
             # MAVSDK's ground station (system 245) on a socket of its own, to the router's
-            # address; it hears what the router sends to either socket
+            # address; the router sends to it once it has spoken
             host, port = next(iter(conn.clients))
             sdk_conn = mavutil.mavlink_connection(f"udpout:{host}:{port}", source_system=MAVSDK[0],
                                                   source_component=MAVSDK[1], dialect="common")

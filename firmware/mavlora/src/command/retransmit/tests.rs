@@ -7,7 +7,7 @@ use crate::dialect::{COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd};
 use crate::wire::Sender;
 
 const MS: fn(u64) -> Duration = Duration::from_millis;
-const GCS: IpAddr = IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
+const GCS: SocketAddr = SocketAddr::new(std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST), 14550);
 
 fn command_with(s: &mut Sender, cmd: MavCmd, param1: f32, conf: u8) -> (OwnedFrame, MavMessage) {
     let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
