@@ -11,14 +11,20 @@
 //!   type it gets, or until it clears or partially writes that type) is told ACCEPTED only if
 //!   the flight controller acked ACCEPTED, to the bridge, after the bridge had given it every
 //!   item since its `MISSION_COUNT`, and those items are exactly the plan the ground sent
-//!   (its first items in order after its count, as a vehicle takes them).
+//!   (its first items in order after its count, as a vehicle takes them);
+//! - each command runs at most once per ground intent: the flight controller is given a
+//!   command (target, id, every parameter) no more often than the ground sent it anew
+//!   (`COMMAND_LONG` with `confirmation` 0, or a first retry of one it never sent anew; every
+//!   `COMMAND_INT`, which has no confirmation), however many copies and retries went.
 //!
 //! Input records `[op, advance, len, bytes...]`: ops below 0xF0 feed the bytes to one of the
 //! four sides (or flush a side's partial frame); ops 0xF0.. are well-formed mission messages
 //! built from the bytes (a ground's count, item, clear-all, partial write, legacy item; the
 //! flight controller's heartbeat, request, ack; an honest autopilot's or ground's next step;
 //! a `PARAM_VALUE` of the flight controller's list, which the bridge packs and the router
-//! expands), so whole uploads and lists are a few records away from any input.
+//! expands; a ground's command, new or a retry, and the flight controller's ack of the last
+//! command it got), so whole uploads, lists and commands are a few records away from any
+//! input.
 //!
 //! Inputs of odd length run the bridge with compact telemetry (its frames, made of whatever
 //! the flight controller sent, are expanded by the router), even ones without.
@@ -34,10 +40,11 @@ use mavlink::MavlinkVersion;
 use mavlora::bridge::{Bridge, BridgeConfig};
 use mavlora::compact::CompactConfig;
 use mavlora::dialect::{
-    HEARTBEAT_DATA, MISSION_ACK_DATA, MISSION_CLEAR_ALL_DATA, MISSION_COUNT_DATA,
-    MISSION_ITEM_DATA, MISSION_ITEM_INT_DATA, MISSION_REQUEST_INT_DATA,
-    MISSION_WRITE_PARTIAL_LIST_DATA, MavAutopilot, MavMessage, MavMissionResult, MavMissionType,
-    MavParamType, MavType, PARAM_VALUE_DATA,
+    COMMAND_ACK_DATA, COMMAND_INT_DATA, COMMAND_LONG_DATA, HEARTBEAT_DATA, MISSION_ACK_DATA,
+    MISSION_CLEAR_ALL_DATA, MISSION_COUNT_DATA, MISSION_ITEM_DATA, MISSION_ITEM_INT_DATA,
+    MISSION_REQUEST_INT_DATA, MISSION_WRITE_PARTIAL_LIST_DATA, MavAutopilot, MavCmd, MavFrame,
+    MavMessage, MavMissionResult, MavMissionType, MavParamType, MavResult, MavType,
+    PARAM_VALUE_DATA,
 };
 use mavlora::filter::Profile;
 use mavlora::mission::plan::same_plan;
@@ -300,6 +307,99 @@ impl MissionWatch {
     }
 }
 
+/// A command as the flight controller runs it: target, command id, every parameter (bits).
+type Identity = (u8, u8, u32, [u32; 7], bool);
+
+fn identity(msg: &MavMessage) -> Option<Identity> {
+    Some(match msg {
+        MavMessage::COMMAND_LONG(c) => (
+            c.target_system,
+            c.target_component,
+            c.command as u32,
+            [
+                c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+            ]
+            .map(f32::to_bits),
+            false,
+        ),
+        MavMessage::COMMAND_INT(c) => (
+            c.target_system,
+            c.target_component,
+            c.command as u32,
+            [
+                c.param1.to_bits(),
+                c.param2.to_bits(),
+                c.param3.to_bits(),
+                c.param4.to_bits(),
+                c.x as u32,
+                c.y as u32,
+                c.z.to_bits() ^ ((c.frame as u32) << 24),
+            ],
+            true,
+        ),
+        _ => return None,
+    })
+}
+
+/// What the ground sent and what the flight controller was given, for the command invariant.
+#[derive(Default)]
+struct CommandWatch {
+    ground_in: FrameReader,
+    /// Ground intents per command: sends anew, and whether any send came at all.
+    intents: HashMap<Identity, (u32, bool)>,
+    executed: HashMap<Identity, u32>,
+    /// The last command the flight controller got, for its honest ack op.
+    last: Option<MavCmd>,
+}
+
+impl CommandWatch {
+    fn ground_bytes(&mut self, bytes: &[u8]) {
+        self.ground_in.push(bytes);
+        while let Some(rx) = self.ground_in.next_frame() {
+            let Ok(msg) = rx.frame.decode::<MavMessage>() else {
+                continue;
+            };
+            let Some(id) = identity(&msg) else {
+                continue;
+            };
+            let anew = match &msg {
+                MavMessage::COMMAND_LONG(c) => c.confirmation == 0,
+                _ => true,
+            };
+            let e = self.intents.entry(id).or_default();
+            e.0 += u32::from(anew);
+            e.1 = true;
+        }
+    }
+
+    /// A frame the bridge gave the flight controller.
+    fn fc_got(&mut self, frame: &OwnedFrame) {
+        // The bridge's own stream-rate commands are its, not the ground's.
+        if (frame.system_id(), frame.component_id()) == BRIDGE {
+            return;
+        }
+        let Ok(msg) = frame.decode::<MavMessage>() else {
+            return;
+        };
+        let Some(id) = identity(&msg) else {
+            return;
+        };
+        self.last = match &msg {
+            MavMessage::COMMAND_LONG(c) => Some(c.command),
+            MavMessage::COMMAND_INT(c) => Some(c.command),
+            _ => None,
+        };
+        let n = self.executed.entry(id).or_default();
+        *n += 1;
+        let (anew, any) = self.intents.get(&id).copied().unwrap_or_default();
+        let intents = anew.max(u32::from(any));
+        assert!(
+            *n <= intents,
+            "the flight controller got command {id:?} {n} times for {intents} ground intents"
+        );
+    }
+}
+
 fn is_mission(id: u32) -> bool {
     matches!(
         id,
@@ -314,7 +414,12 @@ fn is_mission(id: u32) -> bool {
 
 /// The well-formed message structured op `op` (0xF0..) builds from `b`, and who sends it
 /// (the flight controller, or a ground station), by (system, component).
-fn structured(op: u8, b: &[u8], watch: &MissionWatch) -> Option<(MavMessage, (u8, u8))> {
+fn structured(
+    op: u8,
+    b: &[u8],
+    watch: &MissionWatch,
+    commands: &CommandWatch,
+) -> Option<(MavMessage, (u8, u8))> {
     let at = |k: usize| b.get(k).copied().unwrap_or(0);
     let t = mission_type(at(1));
     let to_fc = |msg| Some((msg, FC));
@@ -463,6 +568,46 @@ fn structured(op: u8, b: &[u8], watch: &MissionWatch) -> Option<(MavMessage, (u8
                 },
             }));
         }
+        // A ground's command: one of a few, its parameter from the bytes, new
+        // (`confirmation` 0) or a retry, as COMMAND_LONG or COMMAND_INT.
+        12 => {
+            let command = match at(0) % 3 {
+                0 => MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+                1 => MavCmd::MAV_CMD_DO_SET_MODE,
+                _ => MavCmd::MAV_CMD_NAV_LAND,
+            };
+            let param1 = f32::from(at(2) % 4);
+            let msg = if at(1) & 0x80 == 0 {
+                MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+                    target_system: FC.0,
+                    target_component: at(3) % 2,
+                    command,
+                    confirmation: at(1) % 3,
+                    param1,
+                    ..Default::default()
+                })
+            } else {
+                MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+                    target_system: FC.0,
+                    target_component: at(3) % 2,
+                    frame: MavFrame::MAV_FRAME_GLOBAL,
+                    command,
+                    param1,
+                    ..Default::default()
+                })
+            };
+            (msg, if at(3) & 2 == 0 { GROUND } else { OTHER_GROUND })
+        }
+        // The flight controller's ack of the last command it was given.
+        13 => {
+            return to_fc(MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+                command: commands.last?,
+                result: MavResult::MAV_RESULT_ACCEPTED,
+                target_system: GROUND.0,
+                target_component: GROUND.1,
+                ..Default::default()
+            }));
+        }
         _ => return None,
     })
 }
@@ -494,6 +639,7 @@ pub fn run(data: &[u8]) {
     let mut check_bridge = signing(9).signer();
     let mut check_router = signing(9).signer();
     let mut watch = MissionWatch::default();
+    let mut commands = CommandWatch::default();
     let mut senders: HashMap<(u8, u8), Sender> = HashMap::new();
     let mut now = start;
     // Input: records of [op, advance_ms, len, bytes...].
@@ -504,7 +650,7 @@ pub fn run(data: &[u8]) {
         rest = next;
         now += Duration::from_millis(u64::from(*advance) * 4);
         if *op >= 0xF0 {
-            if let Some((msg, from)) = structured(*op, bytes, &watch) {
+            if let Some((msg, from)) = structured(*op, bytes, &watch, &commands) {
                 let sender = senders
                     .entry(from)
                     .or_insert_with(|| Sender::new(from.0, from.1, MavlinkVersion::V2));
@@ -514,6 +660,7 @@ pub fn run(data: &[u8]) {
                     bridge.handle_fc_bytes(now, frame.as_bytes());
                 } else {
                     watch.ground_bytes(frame.as_bytes());
+                    commands.ground_bytes(frame.as_bytes());
                     let _ = router.handle_gcs_bytes(now, frame.as_bytes());
                 }
             }
@@ -525,6 +672,7 @@ pub fn run(data: &[u8]) {
                 }
                 1 => {
                     watch.ground_bytes(bytes);
+                    commands.ground_bytes(bytes);
                     let _ = router.handle_gcs_bytes(now, bytes);
                 }
                 2 => bridge.handle_radio_bytes(now, bytes),
@@ -553,6 +701,7 @@ pub fn run(data: &[u8]) {
         }
         while let Some(f) = bridge.poll_fc_transmit(now) {
             watch.fc_got(&f);
+            commands.fc_got(&f);
         }
         while let Some(f) = router.poll_gcs_transmit() {
             watch.ground_got(&f);
