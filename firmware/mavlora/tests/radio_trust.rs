@@ -168,3 +168,27 @@ fn only_the_local_radios_ids_set_the_signal_the_pilot_sees() {
     assert_eq!(bridge.stats().radio_reader.frames(), 0);
     assert_eq!(bridge.stats().signing.unsigned, 2);
 }
+
+/// Ten bytes announcing a 255-byte payload, sent without the key every 0.4 s, held every
+/// frame behind them until 280 more bytes came (a command's ack 1.8 s late on LoRa). A frame
+/// the router signed, inside the waiting candidate, now ends it at once: each command reaches
+/// the flight controller in the read that brought it, and each forged header is counted.
+#[test]
+fn forged_long_headers_do_not_hold_the_peers_frames_back() {
+    let mut bridge = signed_bridge();
+    let mut router = LinkSigner::new(KEY, 2, CLOCK);
+    let forged = [0xFD, 0xFF, 0, 0, 0, 255, 190, 0x1E, 0, 0];
+    for k in 0..10u8 {
+        let now = ms(400 * u64::from(k));
+        bridge.handle_radio_bytes(now, &forged);
+        let signed = router.sign(&ground_frame(k), now).unwrap();
+        bridge.handle_radio_bytes(now, signed.as_bytes());
+        let to_fc: Vec<OwnedFrame> = std::iter::from_fn(|| bridge.poll_fc_transmit(now))
+            .filter(|f| f.system_id() == 255)
+            .collect();
+        assert_eq!(to_fc.len(), 1, "frame {k} held back");
+    }
+    let stats = bridge.stats();
+    assert_eq!(stats.signing.accepted, 10);
+    assert_eq!(stats.radio_reader.partials_dropped, 10);
+}

@@ -177,7 +177,7 @@ impl Bridge {
         let comp = config.component_id;
         Ok(Self {
             fc_reader: FrameReader::new(),
-            radio_reader: FrameReader::counting_accepted(),
+            radio_reader: RadioLeg::reader(config.signing.as_ref()),
             filter: RadioFilter::new(config.profile.clone()),
             scheduler,
             quality: LinkQuality::new(config.quality, now),

@@ -230,7 +230,7 @@ impl Router {
         let profile = Profile::parse(&format!("[messages.HEARTBEAT]\nradio = {hz}\n"), "router")
             .expect("a positive rate is a valid profile");
         Ok(Self {
-            radio_reader: FrameReader::counting_accepted(),
+            radio_reader: RadioLeg::reader(config.signing.as_ref()),
             gcs_reader: FrameReader::new(),
             quality: LinkQuality::new(config.quality, now),
             monitor: LinkMonitor::new(config.monitor),

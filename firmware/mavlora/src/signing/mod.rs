@@ -22,7 +22,9 @@ mod state;
 
 pub use key::{FormatError, KeyError, SigningKey};
 pub use radio_leg::RadioLeg;
-pub use signer::{LinkSigner, MAX_AHEAD, NEW_STREAM_SLACK, Rejection, SigningStats};
+pub use signer::{
+    KeyAuthenticator, LinkSigner, MAX_AHEAD, NEW_STREAM_SLACK, Rejection, SigningStats,
+};
 pub use state::{AheadError, SigningState, StateError, StreamKey};
 
 /// Signing settings of one radio link end.

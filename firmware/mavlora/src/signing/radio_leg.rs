@@ -3,9 +3,9 @@
 //! counts radio loss only) and signed unless the link was explicitly set up unsigned; frames
 //! arriving are verified and stripped of their signature, or rejected and counted.
 
-use super::{LinkSigner, Rejection, SigningConfig, SigningState, SigningStats};
+use super::{KeyAuthenticator, LinkSigner, Rejection, SigningConfig, SigningState, SigningStats};
 use crate::time::Instant;
-use crate::wire::{OwnedFrame, Resequencer, to_v2};
+use crate::wire::{FrameReader, OwnedFrame, Resequencer, to_v2};
 
 /// One end's radio leg: version, sequence numbers and signing.
 #[derive(Debug)]
@@ -19,6 +19,20 @@ pub struct RadioLeg {
 }
 
 impl RadioLeg {
+    /// The reader of the radio's byte stream at this end: a frame counts as received only
+    /// once the leg accepts it ([`FrameReader::counting_accepted`]), and on a signed link a
+    /// waiting candidate with a frame signed by the link's key inside it is dropped at once
+    /// ([`FrameReader::with_authenticator`]).
+    pub fn reader(signing: Option<&SigningConfig>) -> FrameReader {
+        let reader = FrameReader::counting_accepted();
+        match signing {
+            Some(s) => {
+                reader.with_authenticator(std::sync::Arc::new(KeyAuthenticator(s.key.clone())))
+            }
+            None => reader,
+        }
+    }
+
     /// A leg that signs with `signing`, or passes frames unsigned when `None` (the binaries
     /// allow that only with `--unsigned`).
     pub fn new(signing: Option<&SigningConfig>) -> Self {

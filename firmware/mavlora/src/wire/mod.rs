@@ -16,7 +16,7 @@ pub use frame::{
     Frame, FrameError, IFLAG_SIGNED, MAX_FRAME_LEN, OwnedFrame, SIGNATURE_LEN, STX_V1, STX_V2,
     encode,
 };
-pub use reader::{CrcExtraFn, FrameReader, Integrity, Received};
+pub use reader::{Authenticator, CrcExtraFn, FrameReader, Integrity, Received};
 pub use resequence::Resequencer;
 pub use sender::Sender;
 pub use stats::{ReaderStats, StreamCounters, StreamId};
