@@ -476,5 +476,12 @@ fn a_program_that_fails_after_the_start_line_says_why_in_its_stop_line() {
         "{stop}"
     );
     assert!(stop.get("counters").is_none(), "{stop}");
+    // The start line says where the ground signer's replay state would live.
+    let options = &lines[0]["options"];
+    assert_eq!(options["ground_signing"], "on", "{options}");
+    assert_eq!(
+        options["ground_signing_state"], "/dev/null/no-key.ground-state",
+        "{options}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -106,6 +106,13 @@ impl Program for Options {
             (self.allow.as_ref()).map(|a| a.iter().map(ToString::to_string).collect());
         serde_json::json!({
             "ground_signing": if self.ground_key.is_some() { "on" } else { "OFF" },
+            // Where the ground signer's replay state lives: a restart without it would take
+            // captured ground frames again.
+            "ground_signing_state": self.ground_key.as_ref().map(|key| {
+                self.ground_signing_state
+                    .clone()
+                    .unwrap_or_else(|| SigningStateFile::default_path(key, "ground"))
+            }),
             "udp": self.udp.unwrap_or(UDP_PEER.into()).to_string(),
             "udp_bind": self.udp_bind.unwrap_or(UDP_BIND.into()).to_string(),
             "tcp_listen": self.tcp_listen.map(|a| a.to_string()),
