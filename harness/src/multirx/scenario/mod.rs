@@ -48,19 +48,36 @@ pub struct ModeLimits {
     pub frame_period_ms: f64,
     /// Parallel: the SLA; scan: the paper's bound, window × receivers + margin.
     pub handover_ms: f64,
+    /// Parallel: the SLA for receivers that fall silent (issue 24: three of
+    /// their frames plus one period); scan: the paper's bound plus the
+    /// configured silence timeout, which still bounds the measured one.
     pub handover_silent_ms: f64,
     /// Emulated device or board: what the frame-gap figures can hold to.
     pub device: DeviceKind,
+    /// The receivers' frame period (`[multirx.receivers] period_ms`).
+    pub receiver_period_ms: u32,
 }
 
 impl ModeLimits {
-    pub fn new(mode: Mode, config: &Config, device: DeviceKind) -> ModeLimits {
+    pub fn new(
+        mode: Mode,
+        config: &Config,
+        device: DeviceKind,
+        receiver_period_ms: u32,
+    ) -> ModeLimits {
         let period = config.frame_period.as_micros() as f64 / 1000.0;
         let window = config.scan_window.as_micros() as f64 / 1000.0;
         let silence = config.silence_timeout.as_micros() as f64 / 1000.0;
         let scan_bound = window * f64::from(config.receivers) + 500.0;
+        // Issue 24's targets for the two SBUS rates the rig plays; any other
+        // keeps the SLA from before it.
+        let silent_sla = match receiver_period_ms {
+            7 => 30.0,
+            14 => 55.0,
+            _ => 100.0,
+        };
         let (handover_ms, handover_silent_ms) = match mode {
-            Mode::Parallel => (50.0, 100.0),
+            Mode::Parallel => (50.0, silent_sla),
             Mode::Scan => (scan_bound, scan_bound + silence),
         };
         ModeLimits {
@@ -70,7 +87,21 @@ impl ModeLimits {
             handover_ms,
             handover_silent_ms,
             device,
+            receiver_period_ms,
         }
+    }
+
+    /// The shortest silence after which the device may end a receiver's link
+    /// whose line delivers `burst` frames at once (its jitter only adds to it).
+    pub fn min_silence_timeout_ms(&self, config: &Config, burst: u8) -> f64 {
+        let period = multirx_core::Duration::from_millis(u64::from(self.receiver_period_ms));
+        let timeout = multirx_core::mux::measured_silence_timeout(
+            period,
+            burst,
+            multirx_core::Duration::ZERO,
+            config.silence_timeout,
+        );
+        timeout.as_micros() as f64 / 1000.0
     }
 
     /// A measurement of MultiRX in this mode.
