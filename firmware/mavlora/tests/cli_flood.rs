@@ -8,7 +8,8 @@
 
 use std::io::Read;
 use std::net::{TcpListener, UdpSocket};
-use std::process::{Command, Stdio};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
@@ -32,6 +33,40 @@ fn rss_kb(pid: u32, key: &str) -> Option<u64> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
     let line = status.lines().find(|l| l.starts_with(key))?;
     line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// The router's peak RSS while `busy` says the load goes on, sampled every 50 ms; past
+/// [`KILL_KB`] it is killed (and `busy` is left to stop the load).
+fn peak_rss_while(router: &mut Child, busy: impl Fn() -> bool) -> u64 {
+    let pid = router.id();
+    let mut peak_kb = 0;
+    while busy() {
+        let rss = rss_kb(pid, "VmRSS:").unwrap_or(0);
+        peak_kb = peak_kb.max(rss);
+        if rss > KILL_KB {
+            let _ = router.kill();
+            break;
+        }
+        thread::sleep(Duration::from_millis(50));
+    }
+    peak_kb
+}
+
+/// Stops the router with SIGTERM: whether it exited cleanly, its log, and its last status
+/// line.
+fn stop(mut router: Child, log: &Path) -> (bool, String, String) {
+    let _ = Command::new("kill")
+        .args(["-TERM", &router.id().to_string()])
+        .status();
+    let exited_ok = router.wait().unwrap().success();
+    let log_text = std::fs::read_to_string(log).unwrap();
+    let status = log_text
+        .lines()
+        .rev()
+        .find(|l| l.contains(" status "))
+        .unwrap_or("")
+        .to_string();
+    (exited_ok, log_text, status)
 }
 
 #[test]
@@ -101,17 +136,8 @@ fn udp_flood_keeps_router_memory_bounded_and_commands_flowing() {
         }
         (sent, start.elapsed())
     });
-    let mut peak_kb = 0;
-    while !flooder.is_finished() {
-        let rss = rss_kb(pid, "VmRSS:").unwrap_or(0);
-        peak_kb = peak_kb.max(rss);
-        if rss > KILL_KB {
-            flooding.store(false, Ordering::Relaxed);
-            let _ = router.kill();
-            break;
-        }
-        thread::sleep(Duration::from_millis(50));
-    }
+    let mut peak_kb = peak_rss_while(&mut router, || !flooder.is_finished());
+    flooding.store(false, Ordering::Relaxed);
     let (sent, flood_time) = flooder.join().unwrap();
     peak_kb = peak_kb.max(rss_kb(pid, "VmHWM:").unwrap_or(0));
     draining.store(false, Ordering::Relaxed);
@@ -145,19 +171,9 @@ fn udp_flood_keeps_router_memory_bounded_and_commands_flowing() {
     }
     peak_kb = peak_kb.max(rss_kb(pid, "VmHWM:").unwrap_or(0));
 
-    let _ = Command::new("kill")
-        .args(["-TERM", &pid.to_string()])
-        .status();
-    let exited_ok = router.wait().unwrap().success();
-    let log_text = std::fs::read_to_string(&log).unwrap();
+    let (exited_ok, log_text, status) = stop(router, &log);
     let tlog = std::fs::metadata(dir.join("flood.tlog")).map_or(0, |m| m.len());
     let _ = std::fs::remove_dir_all(&dir);
-    let status = log_text
-        .lines()
-        .rev()
-        .find(|l| l.contains(" status "))
-        .unwrap_or("")
-        .to_string();
     eprintln!(
         "flood: {sent} datagrams of {} B in {flood_time:?}; router RSS {rss_before} kB before, \
          peak {peak_kb} kB (limit {RSS_LIMIT_KB} kB); command after the flood: {latency:?}; \
@@ -230,33 +246,16 @@ fn address_sweeps_and_unsigned_radio_senders_keep_router_memory_and_log_bounded(
         }
         sent
     });
-    let mut peak_kb = 0;
-    while !(sweeper.is_finished() && injector.is_finished()) {
-        let rss = rss_kb(pid, "VmRSS:").unwrap_or(0);
-        peak_kb = peak_kb.max(rss);
-        if rss > KILL_KB {
-            let _ = router.kill();
-            break;
-        }
-        thread::sleep(Duration::from_millis(50));
-    }
+    let mut peak_kb = peak_rss_while(&mut router, || {
+        !(sweeper.is_finished() && injector.is_finished())
+    });
     let sent = sweeper.join().unwrap();
     injector.join().unwrap();
     // Let the router read what is queued, then stop it.
     thread::sleep(Duration::from_millis(1500));
     peak_kb = peak_kb.max(rss_kb(pid, "VmHWM:").unwrap_or(0));
-    let _ = Command::new("kill")
-        .args(["-TERM", &pid.to_string()])
-        .status();
-    let exited_ok = router.wait().unwrap().success();
-    let log_text = std::fs::read_to_string(&log).unwrap();
+    let (exited_ok, log_text, status) = stop(router, &log);
     let _ = std::fs::remove_dir_all(&dir);
-    let status = log_text
-        .lines()
-        .rev()
-        .find(|l| l.contains(" status "))
-        .unwrap_or("")
-        .to_string();
     eprintln!(
         "sweep: {sent} datagrams from as many addresses, 60000 unsigned radio senders; router \
          RSS {rss_before} kB before, peak {peak_kb} kB (limit {SWEEP_RSS_LIMIT_KB} kB); log {} B\n{status}",

@@ -38,6 +38,7 @@ use std::collections::HashMap;
 
 use mavlink::MavlinkVersion;
 use mavlora::bridge::{Bridge, BridgeConfig};
+use mavlora::command::CommandId;
 use mavlora::compact::CompactConfig;
 use mavlora::dialect::{
     COMMAND_ACK_DATA, COMMAND_INT_DATA, COMMAND_LONG_DATA, HEARTBEAT_DATA, MISSION_ACK_DATA,
@@ -307,47 +308,13 @@ impl MissionWatch {
     }
 }
 
-/// A command as the flight controller runs it: target, command id, every parameter (bits).
-type Identity = (u8, u8, u32, [u32; 7], bool);
-
-fn identity(msg: &MavMessage) -> Option<Identity> {
-    Some(match msg {
-        MavMessage::COMMAND_LONG(c) => (
-            c.target_system,
-            c.target_component,
-            c.command as u32,
-            [
-                c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
-            ]
-            .map(f32::to_bits),
-            false,
-        ),
-        MavMessage::COMMAND_INT(c) => (
-            c.target_system,
-            c.target_component,
-            c.command as u32,
-            [
-                c.param1.to_bits(),
-                c.param2.to_bits(),
-                c.param3.to_bits(),
-                c.param4.to_bits(),
-                c.x as u32,
-                c.y as u32,
-                c.z.to_bits() ^ ((c.frame as u32) << 24),
-            ],
-            true,
-        ),
-        _ => return None,
-    })
-}
-
 /// What the ground sent and what the flight controller was given, for the command invariant.
 #[derive(Default)]
 struct CommandWatch {
     ground_in: FrameReader,
     /// Ground intents per command: sends anew, and whether any send came at all.
-    intents: HashMap<Identity, (u32, bool)>,
-    executed: HashMap<Identity, u32>,
+    intents: HashMap<CommandId, (u32, bool)>,
+    executed: HashMap<CommandId, u32>,
     /// The last command the flight controller got, for its honest ack op.
     last: Option<MavCmd>,
 }
@@ -359,7 +326,7 @@ impl CommandWatch {
             let Ok(msg) = rx.frame.decode::<MavMessage>() else {
                 continue;
             };
-            let Some(id) = identity(&msg) else {
+            let Some(id) = CommandId::of(&msg) else {
                 continue;
             };
             let anew = match &msg {
@@ -381,7 +348,7 @@ impl CommandWatch {
         let Ok(msg) = frame.decode::<MavMessage>() else {
             return;
         };
-        let Some(id) = identity(&msg) else {
+        let Some(id) = CommandId::of(&msg) else {
             return;
         };
         self.last = match &msg {
