@@ -9,7 +9,8 @@
 # the ELF section headers, not from llvm-size or binutils.
 #
 # Usage: ci/build-firmware.sh [OUT_DIR]   (default: firmware/multirx/samd21/target/dist)
-# Environment: MULTIRX_CONFIG (see firmware/multirx/samd21/README.md) is passed through.
+# Environment: MULTIRX_CONFIG (see firmware/multirx/samd21/README.md) is passed through;
+# CARGO_TARGET_DIR is honoured.
 # Then ci/check-firmware-elf.py: no panic reachable from the UART interrupts,
 # and a stack-use bound within the RAM the stack has.
 # Exit codes: 0 built, measured and checked; non-zero if a build, a measurement or a check failed.
@@ -20,7 +21,11 @@ crate="$repo/firmware/multirx/samd21"
 out="${1:-$crate/target/dist}"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
-elf="$crate/target/thumbv6m-none-eabi/release/multirx-samd21"
+# Where cargo puts the image: CARGO_TARGET_DIR if set (relative to the crate,
+# where cargo runs below), else the crate's own target folder.
+target_dir="${CARGO_TARGET_DIR:-target}"
+[[ $target_dir == /* ]] || target_dir="$crate/$target_dir"
+elf="$target_dir/thumbv6m-none-eabi/release/multirx-samd21"
 
 for layout in bare uf2; do
     features=()

@@ -31,6 +31,12 @@ impl Counter32 {
         Instant::from_micros(self.micros)
     }
 
+    /// Whether the counter read `raw` after the last [`Self::now`]: the same
+    /// as `self.at(raw) > now`, without the 64-bit arithmetic.
+    pub fn is_after_now(&self, raw: u32) -> bool {
+        raw.wrapping_sub(self.last_raw) as i32 > 0
+    }
+
     /// When the counter read `raw`, near the last [`Self::now`] (either side).
     pub fn at(&self, raw: u32) -> Instant {
         let delta = raw.wrapping_sub(self.last_raw) as i32;
@@ -58,6 +64,7 @@ mod tests {
         c.now(1_000);
         assert_eq!(c.at(990).as_micros(), 990);
         assert_eq!(c.at(1_020).as_micros(), 1_020);
+        assert!(!c.is_after_now(990) && !c.is_after_now(1_000) && c.is_after_now(1_001));
         // A stamp taken just before the counter wrapped, read just after.
         let mut c = Counter32::starting_at(u32::MAX - 100);
         c.now(50);

@@ -4,8 +4,9 @@
 mod sim;
 
 use multirx_core::decoder::SbusDecoder;
+use multirx_core::mux::{Link, joins_slice};
 use multirx_core::wire::{Flags, Footer, SbusFrame, SbusRepr};
-use multirx_core::{Config, Mode};
+use multirx_core::{Config, Duration, Instant, Mode};
 use proptest::prelude::*;
 use sim::{Cue, Loss, Sim, SimReceiver, ms};
 
@@ -84,6 +85,63 @@ proptest! {
         let tail = &frames[2..];
         prop_assert!(got.len() >= tail.len());
         prop_assert_eq!(&got[got.len() - tail.len()..], tail);
+    }
+
+    /// The firmware feeds each loop pass's queued bytes as slices gathered by
+    /// `joins_slice`: the link must keep and drop exactly the frames it keeps
+    /// and drops fed byte by byte at each byte's own stamp, pauses inside
+    /// frames included.
+    #[test]
+    fn slices_gathered_by_joins_slice_decode_as_bytes_do(
+        chunks in prop::collection::vec(
+            (any_frame(), 1usize..=25, prop::collection::vec(any::<u8>(), 0..6)),
+            1..10,
+        ),
+        gaps in prop::collection::vec(
+            prop::sample::select(vec![0u64, 120, 120, 120, 1_000, 2_999, 3_000, 3_001, 4_100, 9_000]),
+            300,
+        ),
+        passes in prop::collection::vec(any::<bool>(), 300),
+    ) {
+        // Frames (some cut short) and garbage, each byte at its own stamp.
+        let mut stream = Vec::new();
+        let mut at = Instant::ZERO;
+        for (frame, keep, garbage) in &chunks {
+            for &byte in frame.to_bytes()[..*keep].iter().chain(garbage) {
+                at += Duration::from_micros(gaps[stream.len() % gaps.len()]);
+                stream.push((at, byte));
+            }
+        }
+        let mut by_byte = Link::new(true);
+        for &(at, byte) in &stream {
+            by_byte.handle_bytes(at, &[byte], 1);
+        }
+        // A loop pass after random bytes; each pass gathers what it finds.
+        // Stamps as the firmware's timer gives them: a 32-bit µs count, here
+        // starting near its wrap.
+        let raw = |at: Instant| (at.as_micros() as u32).wrapping_add(u32::MAX - 20_000);
+        let mut sliced = Link::new(true);
+        // Before the first slice: the timer's start, as the firmware does.
+        let mut fed = raw(Instant::ZERO);
+        let mut slice: Vec<u8> = Vec::new();
+        let mut slice_at = Instant::ZERO;
+        for (i, &(at, byte)) in stream.iter().enumerate() {
+            if !slice.is_empty() && !joins_slice(fed, raw(at)) {
+                sliced.handle_bytes(slice_at, &slice, 1);
+                fed = raw(slice_at);
+                slice.clear();
+            }
+            slice.push(byte);
+            slice_at = at;
+            if passes[i % passes.len()] || i + 1 == stream.len() {
+                sliced.handle_bytes(slice_at, &slice, 1);
+                fed = raw(slice_at);
+                slice.clear();
+            }
+        }
+        prop_assert_eq!(sliced.decoder().stats(), by_byte.decoder().stats());
+        prop_assert_eq!(sliced.state(), by_byte.state());
+        prop_assert_eq!(sliced.frame(), by_byte.frame());
     }
 }
 

@@ -266,6 +266,11 @@ impl MicrosClock {
     pub fn at(&self, raw: u32) -> Instant {
         self.counter.at(raw)
     }
+
+    /// Whether the timer read `raw` after the last [`Self::now`].
+    pub fn is_after_now(&self, raw: u32) -> bool {
+        self.counter.is_after_now(raw)
+    }
 }
 
 /// The 1 MHz timer's raw count; callable from interrupts.

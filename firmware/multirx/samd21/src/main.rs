@@ -6,8 +6,10 @@
 //!   polls [`clocks::CrystalSwitch`] to move onto the crystal once it runs.
 //! - SBUS bytes from each receiver (and the IFS) arrive by RX interrupt into a
 //!   small lock-free SPSC queue per SERCOM, each stamped with the timer in the
-//!   interrupt; the main loop drains them, byte by byte at their stamps, into
-//!   [`Multiplexer::handle_receiver_bytes`] / [`Multiplexer::handle_ifs_bytes`].
+//!   interrupt; each loop pass hands the engine what a queue holds as one
+//!   slice ([`Multiplexer::handle_receiver_bytes`] /
+//!   [`Multiplexer::handle_ifs_bytes`]), split only where
+//!   [`joins_slice`] says the engine's gap check needs it.
 //!   A UART error travels the same queue as a marker, so the engine drops the
 //!   frame it belongs to ([`Multiplexer::handle_receiver_error`]).
 //! - When `now` reaches [`Multiplexer::poll_timeout`] it calls
@@ -51,6 +53,7 @@ use critical_section::Mutex;
 use heapless::Deque;
 use heapless::spsc::{Consumer, Producer, Queue};
 use multirx_core::boot::BootReport;
+use multirx_core::mux::joins_slice;
 use multirx_core::power::{POWER_ON_STAGGER, PowerSequencer};
 use multirx_core::{Duration, Event, Instant, Multiplexer, TimedEvent};
 
@@ -245,6 +248,11 @@ fn main() -> ! {
         reset_cause,
     } = Board::new(dp);
 
+    // Per input, the raw stamp the engine last got bytes at (for
+    // `joins_slice`); before any, one read before the first interrupt can
+    // stamp a byte.
+    let mut fed: [u32; RECEIVER_PORTS] = [timer_raw(); RECEIVER_PORTS];
+
     let queues = cortex_m::singleton!(
         : [Queue<RxEntry, RX_QUEUE>; RECEIVER_PORTS] = [const { Queue::new() }; RECEIVER_PORTS]
     )
@@ -282,27 +290,34 @@ fn main() -> ! {
         crystal.poll();
 
         for (port, input) in inputs.iter_mut().enumerate() {
-            let ifs = IFS && port == IFS_PORT;
-            // One byte at a time, each at its own interrupt stamp; bytes that
-            // arrived after `now` was read wait for the next pass, so the
-            // engine's time never runs backwards.
+            // What the queue holds, as few slices as the gap check allows,
+            // each fed at its last byte's stamp: one engine call per frame
+            // instead of one per byte (stamps stay raw counts until then: the
+            // 64-bit time costs more per byte). Bytes that arrived after `now`
+            // was read wait for the next pass, so the engine's time never runs
+            // backwards.
+            let mut slice = RxSlice::new();
             for _ in 0..RX_QUEUE {
                 let Some(&entry) = input.peek() else { break };
-                let at = clock.at(entry.at);
-                if at > now {
+                if clock.is_after_now(entry.at) {
                     break;
                 }
+                if entry.value == UART_ERROR || !joins_slice(fed[port], entry.at) {
+                    slice.feed(&mut mux, &clock, port, &mut fed[port]);
+                }
                 input.dequeue();
-                match (entry.value == UART_ERROR, ifs) {
+                if entry.value == UART_ERROR {
                     // Drop the frame the damaged byte belongs to.
-                    (true, true) => mux.handle_ifs_error(),
-                    (true, false) => mux.handle_receiver_error(port as u8),
-                    (false, true) => mux.handle_ifs_bytes(at, &[entry.value as u8]),
-                    (false, false) => {
-                        mux.handle_receiver_bytes(at, port as u8, &[entry.value as u8])
+                    if IFS && port == IFS_PORT {
+                        mux.handle_ifs_error();
+                    } else {
+                        mux.handle_receiver_error(port as u8);
                     }
+                } else {
+                    slice.push(entry.at, entry.value as u8);
                 }
             }
+            slice.feed(&mut mux, &clock, port, &mut fed[port]);
         }
 
         if mux.poll_timeout().is_some_and(|due| now >= due) {
@@ -345,6 +360,49 @@ fn main() -> ! {
         if mux.poll_timeout().is_some_and(|due| now < due) {
             watchdog.feed();
         }
+    }
+}
+
+/// Bytes gathered from one receive queue for one engine call.
+struct RxSlice {
+    bytes: heapless::Vec<u8, RX_QUEUE>,
+    /// The last byte's raw timer stamp.
+    at: u32,
+}
+
+impl RxSlice {
+    fn new() -> Self {
+        RxSlice {
+            bytes: heapless::Vec::new(),
+            at: 0,
+        }
+    }
+
+    /// Adds a byte stamped `at`. Never full: a pass takes at most `RX_QUEUE` bytes.
+    fn push(&mut self, at: u32, byte: u8) {
+        let _ = self.bytes.push(byte);
+        self.at = at;
+    }
+
+    /// Hands the gathered bytes to the engine at the last one's stamp, if any.
+    fn feed(
+        &mut self,
+        mux: &mut Multiplexer,
+        clock: &board::MicrosClock,
+        port: usize,
+        fed: &mut u32,
+    ) {
+        if self.bytes.is_empty() {
+            return;
+        }
+        let at = clock.at(self.at);
+        if IFS && port == IFS_PORT {
+            mux.handle_ifs_bytes(at, &self.bytes);
+        } else {
+            mux.handle_receiver_bytes(at, port as u8, &self.bytes);
+        }
+        *fed = self.at;
+        self.bytes.clear();
     }
 }
 

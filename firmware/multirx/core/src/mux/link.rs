@@ -15,6 +15,26 @@ pub const INTRA_FRAME_GAP: Duration = Duration::from_millis(3);
 use crate::time::{Duration, Instant};
 use crate::wire::SbusRepr;
 
+/// Whether a byte stamped `at` may join the slice being gathered for
+/// [`Link::handle_bytes`], when that slice is fed at its last byte's stamp.
+/// `previous` is the stamp the input's previous slice was fed at; before its
+/// first, any stamp not after the first byte's (the timer's start, say). The
+/// first byte of a slice always starts it; gather the next only while this
+/// holds, else feed the slice first. Stamps are a free-running 32-bit
+/// microsecond count (the firmware's timer, see [`crate::counter::Counter32`]),
+/// compared wrapping: cheaper per byte than [`Instant`]s, and right while they
+/// are less than 2^31 µs apart.
+///
+/// The [`INTRA_FRAME_GAP`] check compares the times of two calls, not of two
+/// bytes: a slice stretching [`INTRA_FRAME_GAP`] past the previous call would
+/// drop a partial frame that byte-by-byte feeding keeps, and one spanning a
+/// pause would hide it. Gathered this way, the decoder keeps and drops exactly
+/// what byte-by-byte feeding does, at a fraction of the calls (the firmware
+/// feeds what each receive queue holds in one call per loop pass).
+pub fn joins_slice(previous: u32, at: u32) -> bool {
+    at.wrapping_sub(previous) < INTRA_FRAME_GAP.as_micros() as u32
+}
+
 /// What MultiRX knows of an input's link, as reported in status lines.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum LinkState {

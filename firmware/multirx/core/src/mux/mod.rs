@@ -21,7 +21,7 @@
 mod link;
 mod output;
 
-pub use link::{Link, LinkState};
+pub use link::{INTRA_FRAME_GAP, Link, LinkState, joins_slice};
 pub use output::compose;
 
 use heapless::Deque;
