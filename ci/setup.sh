@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Installs what a fresh Debian machine needs to build and test everything:
 # libudev (serialport, probe-rs), Chromium (the evidence report's headless
-# browser test), Python fixtures' packages (and MAVProxy), the firmware's Rust target. Safe to run again: it skips what is already there.
+# browser test), QEMU for Arm (the firmware's cycle budget, ci/cycle-budget.py),
+# Python fixtures' packages (and MAVProxy), the firmware's Rust target. Safe to run again: it skips what is already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 need_apt=()
-for pkg in pkg-config libudev-dev chromium; do
+for pkg in pkg-config libudev-dev chromium qemu-system-arm; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
 done
 if [ ${#need_apt[@]} -gt 0 ]; then

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every test: formatting and lints, the Rust workspace (unit, property,
 # scenario and end-to-end tests over real ptys), the Python fixtures, the
-# SAMD21 firmware build with its size, the MultiRX core's and MavLora's
+# SAMD21 firmware build with its size and its cycle budget (instruction counts
+# of the core for thumbv6m under QEMU: ci/cycle-budget.py), the MultiRX core's and MavLora's
 # benchmarks, and the full emulated rig suite. Each step says when it
 # started (seconds since the first).
 #
@@ -68,12 +69,15 @@ background="nice -n 19"
 if command -v chrt > /dev/null && chrt --idle 0 true 2> /dev/null; then
     background="chrt --idle 0 nice -n 19"
 fi
-step "build the tests, benchmarks and firmware (in the background, $background; logs: target/test-build.log, target/firmware-build.log)"
+step "build the tests, benchmarks and firmware, and measure the firmware's cycle budget (in the background, $background; logs: target/test-build.log, target/firmware-build.log)"
 $background cargo build --release --locked --workspace --all-targets "${features[@]}" \
     > target/test-build.log 2>&1 &
 test_build_pid=$!
-# The firmware's own workspace and target (thumbv6m): its build and size checks.
-$background "${unlinted[@]}" bash ci/build-firmware.sh > target/firmware-build.log 2>&1 &
+# The firmware's own workspace and target (thumbv6m): its build and size checks, then the
+# core's cycle budget (its own thumbv6m crate, run on QEMU). Instruction counts do not depend
+# on how busy the machine is, so it runs niced beside the suite too.
+$background "${unlinted[@]}" bash -c 'bash ci/build-firmware.sh && python3 ci/cycle-budget.py' \
+    > target/firmware-build.log 2>&1 &
 firmware_pid=$!
 trap 'kill "$test_build_pid" "$firmware_pid" 2>/dev/null || true' EXIT
 # Real autopilots (the sitl suite, the SITL driver and fixture tests) come from ../shared
@@ -89,11 +93,11 @@ else
 fi
 step "rig suite, emulated rig (includes the real-time MavLora scenarios and the sitl suite)"
 RIG_PREBUILT=1 "${unlinted[@]}" bash ci/rig-emulated.sh --out target/rig-report
-step "firmware build and size (built beside the suite)"
+step "firmware build, size and cycle budget (built and measured beside the suite)"
 status=0
 wait "$firmware_pid" || status=$?
 cat target/firmware-build.log
-[ "$status" -eq 0 ] || { echo "the firmware build or its checks failed (log above)" >&2; exit 1; }
+[ "$status" -eq 0 ] || { echo "the firmware build, its checks or its cycle budget failed (log above)" >&2; exit 1; }
 # The fixtures' tests need no build: they run while the tests' build finishes, niced, beside
 # them. Four workers on two cores: they mostly wait on real time (subprocesses, ptys,
 # sockets); one after another they took 72 s, side by side 23 s.
