@@ -4,11 +4,12 @@
 Builds the benchmark `firmware/multirx/cycles` (multirx-core for thumbv6m-none-eabi, the
 firmware's release profile), runs it on QEMU's micro:bit machine (a Cortex-M0: the same
 ARMv6-M instructions) with one instruction per translation block and an execution trace
-(`-singlestep -d exec,nochain`), so each trace line is one executed instruction. The
-benchmark marks its regions by calling `cycles_region_start` / `cycles_region_end` and
-names them on the semihosting console; instructions between the markers are counted,
-minus the markers' own cost (the `empty` region). Each executed instruction is decoded
-from the ELF and costed at the Cortex-M0+'s documented timing (CYCLES below).
+(`-singlestep`, `-accel tcg,one-insn-per-tb=on` from QEMU 8.1; `-d exec,nochain`), so each
+trace line is one executed instruction. The benchmark marks its regions by calling
+`cycles_region_start` / `cycles_region_end` and names them on the semihosting console;
+instructions between the markers are counted, minus the markers' own cost (the `empty`
+region). Each executed instruction is decoded from the ELF and costed at the Cortex-M0+'s
+documented timing (CYCLES below).
 
 Prints per region the instructions and estimated cycles (mean and maximum over the
 measured rounds), then the steady load of RECEIVERS receivers each sending a frame every
@@ -49,7 +50,7 @@ BOOT_LINES_PER_S = 1  # the firmware repeats the boot line every second
 FRAME_REGIONS = ("frame_slice_active", "frame_slice_standby")
 
 # Cortex-M0+ instruction timings, in cycles, with zero-wait-state memory: ARM Cortex-M0+
-# Technical Reference Manual (ARM DDI 0484C), section 3.3, Table 3-1 "Cortex-M0+
+# Technical Reference Manual (ARM DDI 0484C), section 3.3, Table 3.1 "Cortex-M0+
 # instruction summary". N is the number of registers in the list (PC not counted).
 CYCLES = {
     "alu": 1,          # data processing, MOV, CMP, shifts, extends, REV, NOP, CPS
@@ -181,6 +182,17 @@ def run_benchmark():
     if not elf.is_file():
         fail(f"{elf}: no benchmark image where cargo should have put it")
     qemu = "qemu-system-arm"
+    try:
+        version = subprocess.run([qemu, "--version"], capture_output=True, text=True).stdout
+    except FileNotFoundError:
+        fail(f"{qemu} not found: install Debian's qemu-system-arm (ci/setup.sh does)")
+    # "QEMU emulator version 7.2.22 (...)": 8.1 renamed -singlestep (later removed).
+    try:
+        major, minor = (int(x) for x in version.split("version ", 1)[1].split(".")[:2])
+    except (IndexError, ValueError):
+        fail(f"cannot read {qemu}'s version from {version.strip()!r}")
+    one_insn = (["-accel", "tcg,one-insn-per-tb=on"] if (major, minor) >= (8, 1)
+                else ["-singlestep"])
     work = Path(tempfile.mkdtemp(prefix="cycle-budget-", dir=target_dir))
     trace, console = work / "trace.log", work / "console.log"
     command = [
@@ -189,7 +201,7 @@ def run_benchmark():
         "-semihosting-config", "enable=on,target=native,chardev=semihosting",
         # One instruction per translation block, blocks never chained: one trace line per
         # executed instruction, with its address.
-        "-singlestep", "-d", "exec,nochain", "-D", str(trace),
+        *one_insn, "-d", "exec,nochain", "-D", str(trace),
         "-kernel", str(elf),
     ]
     print(f"cycle-budget: running {' '.join(command)}", flush=True)
@@ -312,6 +324,8 @@ def main():
                if r not in results]
     if missing:
         fail(f"the benchmark did not measure {', '.join(missing)}")
+    if "output_period_us" not in config:
+        fail("the benchmark did not print its configuration line")
     if config.get("receivers", 0) < RECEIVERS:
         fail(f"the benchmark's configuration has {config.get('receivers')} receivers, "
              f"the budget is for {RECEIVERS} (firmware/multirx/cycles/cycles.toml)")
