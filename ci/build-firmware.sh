@@ -20,7 +20,12 @@ crate="$repo/firmware/multirx/samd21"
 out="${1:-$crate/target/dist}"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
-elf="$crate/target/thumbv6m-none-eabi/release/multirx-samd21"
+# cargo puts the image under CARGO_TARGET_DIR when it is set (absolute, or relative to
+# where this script was started), else in the crate's own target folder.
+target_dir="${CARGO_TARGET_DIR:-$crate/target}"
+[[ $target_dir == /* ]] || target_dir="$PWD/$target_dir"
+export CARGO_TARGET_DIR="$target_dir"
+elf="$target_dir/thumbv6m-none-eabi/release/multirx-samd21"
 
 for layout in bare uf2; do
     features=()

@@ -15,7 +15,11 @@
 //! without sharing a hasher implementation): the config hash over the
 //! configuration's canonical text ([`Config::write_rust_literal`], the form
 //! compiled into the firmware), the build id over the core's version, the
-//! image kind and the config hash.
+//! image kind, the config hash and the image's source ([`source_id`]: the git
+//! commit and a hash of the input files, computed by
+//! `provenance::Source` with feature `std`). Without the source, an image
+//! built from older firmware code with the same core version and config
+//! would pass the rig's identity check.
 
 use core::fmt;
 
@@ -96,8 +100,20 @@ impl Config {
     }
 }
 
-/// The build id of `kind` built from this core with a config hashing to `config_hash`.
-pub const fn build_id(kind: ImageKind, config_hash: u64) -> u64 {
+/// The source part of a build id: the commit (`unknown` outside a git tree)
+/// and the hash of the image's input files.
+pub const fn source_id(commit: &[u8], inputs_hash: u64) -> u64 {
+    Fnv1a64::new()
+        .bytes(b"source ")
+        .bytes(commit)
+        .bytes(b"\0")
+        .bytes(&inputs_hash.to_le_bytes())
+        .finish()
+}
+
+/// The build id of `kind` built from this core with a config hashing to
+/// `config_hash`, from the source [`source_id`] names.
+pub const fn build_id(kind: ImageKind, config_hash: u64, source_id: u64) -> u64 {
     Fnv1a64::new()
         .bytes(b"multirx-core ")
         .bytes(CORE_VERSION.as_bytes())
@@ -105,6 +121,7 @@ pub const fn build_id(kind: ImageKind, config_hash: u64) -> u64 {
         .bytes(kind.as_str().as_bytes())
         .bytes(b"\0")
         .bytes(&config_hash.to_le_bytes())
+        .bytes(&source_id.to_le_bytes())
         .finish()
 }
 
@@ -328,16 +345,22 @@ mod tests {
     }
 
     #[test]
-    fn build_id_names_the_image_kind_and_the_config() {
+    fn build_id_names_the_image_kind_the_config_and_the_source() {
         let h = Config::new(Mode::Parallel, 2).identity_hash();
+        let s = source_id(b"unknown", 1);
         assert_ne!(
-            build_id(ImageKind::Samd21, h),
-            build_id(ImageKind::Emulated, h)
+            build_id(ImageKind::Samd21, h, s),
+            build_id(ImageKind::Emulated, h, s)
         );
         assert_ne!(
-            build_id(ImageKind::Samd21, h),
-            build_id(ImageKind::Samd21, h ^ 1)
+            build_id(ImageKind::Samd21, h, s),
+            build_id(ImageKind::Samd21, h ^ 1, s)
         );
+        assert_ne!(
+            build_id(ImageKind::Samd21, h, s),
+            build_id(ImageKind::Samd21, h, source_id(b"unknown", 2))
+        );
+        assert_ne!(s, source_id(b"0123abc", 1));
     }
 
     #[test]

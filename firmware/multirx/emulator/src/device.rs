@@ -6,6 +6,17 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::Instant as HostInstant;
 
 use multirx_core::boot::{BootReport, ImageKind, ResetCause, build_id};
+
+/// The commit this program was built from (`unknown` outside a git tree), from `build.rs`.
+pub const SOURCE_COMMIT: &str = env!("MULTIRX_SOURCE_COMMIT");
+
+/// The build id this program reports with a config hashing to `config_hash`: the emulated
+/// image of this core, from the source `build.rs` hashed.
+pub fn emulated_build_id(config_hash: u64) -> u64 {
+    let source = u64::from_str_radix(env!("MULTIRX_SOURCE_ID"), 16)
+        .expect("build.rs writes 16 hex digits");
+    build_id(ImageKind::Emulated, config_hash, source)
+}
 use multirx_core::{Config, Instant, Multiplexer};
 
 use hostio::status::{Kind, StatusWriter};
@@ -101,7 +112,7 @@ impl Device {
         let config_hash = config.identity_hash();
         let boot = BootReport {
             at: Instant::ZERO,
-            build_id: build_id(ImageKind::Emulated, config_hash),
+            build_id: emulated_build_id(config_hash),
             config_hash,
             reset: ResetCause::Host,
             first_frame: Default::default(),
