@@ -31,6 +31,12 @@ fn main() {
         println!("cargo::rerun-if-changed={}", path.display());
     }
     println!("cargo::rerun-if-changed=build.rs");
-    println!("cargo::rustc-env=MULTIRX_EMULATOR_SOURCE_ID={:016x}", source.id());
-    println!("cargo::rustc-env=MULTIRX_EMULATOR_SOURCE_COMMIT={}", source.commit);
+    println!(
+        "cargo::rustc-env=MULTIRX_EMULATOR_SOURCE_ID={:016x}",
+        source.id()
+    );
+    println!(
+        "cargo::rustc-env=MULTIRX_EMULATOR_SOURCE_COMMIT={}",
+        source.commit
+    );
 }

@@ -242,7 +242,10 @@ mod tests {
         let err = check(Some(flashed), &now, &config_path)
             .unwrap_err()
             .to_string();
-        assert!(err.contains("build differs") && !err.contains("config differs"), "{err}");
+        assert!(
+            err.contains("build differs") && !err.contains("config differs"),
+            "{err}"
+        );
     }
 
     #[test]

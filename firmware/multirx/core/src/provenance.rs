@@ -127,7 +127,10 @@ pub fn inputs_hash(dir: &Path, inputs: &[&str], config: Option<&Path>) -> io::Re
         let mut files = Vec::new();
         collect(dir, Path::new(input), &mut files)?;
         if files.is_empty() {
-            hasher = hasher.bytes(b"missing\0").bytes(input.as_bytes()).bytes(b"\0");
+            hasher = hasher
+                .bytes(b"missing\0")
+                .bytes(input.as_bytes())
+                .bytes(b"\0");
         }
         for rel in files {
             let bytes = std::fs::read(dir.join(&rel))?;
@@ -252,7 +255,11 @@ mod tests {
         let b = a.with_extension("copy");
         let _ = std::fs::remove_dir_all(&b);
         std::fs::create_dir_all(b.join("crate/src/sub")).unwrap();
-        for f in ["crate/Cargo.toml", "crate/src/main.rs", "crate/src/sub/a.rs"] {
+        for f in [
+            "crate/Cargo.toml",
+            "crate/src/main.rs",
+            "crate/src/sub/a.rs",
+        ] {
             std::fs::copy(a.join(f), b.join(f)).unwrap();
         }
         assert_eq!(

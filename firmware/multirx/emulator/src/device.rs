@@ -13,8 +13,8 @@ pub const SOURCE_COMMIT: &str = env!("MULTIRX_SOURCE_COMMIT");
 /// The build id this program reports with a config hashing to `config_hash`: the emulated
 /// image of this core, from the source `build.rs` hashed.
 pub fn emulated_build_id(config_hash: u64) -> u64 {
-    let source = u64::from_str_radix(env!("MULTIRX_SOURCE_ID"), 16)
-        .expect("build.rs writes 16 hex digits");
+    let source =
+        u64::from_str_radix(env!("MULTIRX_SOURCE_ID"), 16).expect("build.rs writes 16 hex digits");
     build_id(ImageKind::Emulated, config_hash, source)
 }
 use multirx_core::{Config, Instant, Multiplexer};
