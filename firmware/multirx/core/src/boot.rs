@@ -198,6 +198,30 @@ impl ResetCause {
     }
 }
 
+/// How long a tap of the reset button leaves the UF2 bootloader reachable.
+///
+/// The Arduino/Adafruit UF2 bootloader waits 500 ms for a second tap after
+/// every reset but a power-on, unless the application left its quick-boot
+/// value in the last RAM word; the firmware behind it writes that value so a
+/// watchdog, panic or brown-out reset restarts the frames at once. Written
+/// at every start, it would also make every tap of the button a quick boot,
+/// and the bootloader's drive could never be opened. So after a reset-pin
+/// reset (a person at the bench) the firmware writes it only this long after
+/// start: three taps within it open the drive (the first starts the firmware
+/// at once, the second finds no quick-boot value, the third lands in the
+/// bootloader's 500 ms wait).
+pub const UF2_TAP_WINDOW: Duration = Duration::from_millis(1000);
+
+/// How long after start the firmware behind a UF2 bootloader waits before it
+/// writes the quick-boot value, by the cause of this start: at once, except
+/// after a reset-pin reset ([`UF2_TAP_WINDOW`]).
+pub const fn uf2_quick_boot_after(cause: ResetCause) -> Duration {
+    match cause {
+        ResetCause::External => UF2_TAP_WINDOW,
+        _ => Duration::ZERO,
+    }
+}
+
 /// The boot line: what the device is and how its start went.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct BootReport {
@@ -361,6 +385,20 @@ mod tests {
             build_id(ImageKind::Samd21, h, source_id(b"unknown", 2))
         );
         assert_ne!(s, source_id(b"0123abc", 1));
+    }
+
+    #[test]
+    fn only_a_reset_pin_start_delays_the_uf2_quick_boot() {
+        for cause in ResetCause::ALL {
+            let after = uf2_quick_boot_after(cause);
+            if cause == ResetCause::External {
+                // Longer than the bootloader's own 500 ms tap wait, so a person can tap thrice.
+                assert!(after > Duration::from_millis(500), "{after:?}");
+            } else {
+                // Watchdog, panic, brown-out: the next reset must not wait 500 ms.
+                assert_eq!(after, Duration::ZERO, "{cause:?}");
+            }
+        }
     }
 
     #[test]

@@ -34,6 +34,7 @@
 
 mod board;
 mod clocks;
+mod uf2;
 
 /// The configuration compiled in by `build.rs` from `MULTIRX_CONFIG`.
 mod config {
@@ -232,6 +233,9 @@ const fn port_used(port: usize) -> bool {
 
 #[entry]
 fn main() -> ! {
+    // Behind a UF2 bootloader, before anything that could hang: the next
+    // watchdog, panic or brown-out reset must not wait out its 500 ms.
+    let mut quick_boot = uf2::QuickBoot::at_reset();
     let dp = pac::Peripherals::take().expect("first and only take");
     // Watchdog, brown-out detector and clocks, in that order (see `clocks`).
     let Board {
@@ -280,6 +284,7 @@ fn main() -> ! {
     loop {
         let now = clock.now();
         crystal.poll();
+        quick_boot.poll(now);
 
         for (port, input) in inputs.iter_mut().enumerate() {
             let ifs = IFS && port == IFS_PORT;
