@@ -1,17 +1,17 @@
 //! Hashes the emulated device's source as its own build script does
-//! (`multirx_core::provenance`), so the rig knows the build id the
-//! `multirx-emu` built beside it reports: `MULTIRX_EMULATOR_SOURCE_ID` (16
-//! hex digits) and `MULTIRX_EMULATOR_SOURCE_COMMIT`.
+//! (`multirx_core::provenance::Source::emulator`), so the rig knows the build
+//! id the `multirx-emu` built beside it reports: `MULTIRX_EMULATOR_SOURCE_ID`
+//! (16 hex digits).
 
 use std::env;
 use std::path::PathBuf;
 
-use multirx_core::provenance::{EMULATOR_INPUTS, Source, git_head_files};
+use multirx_core::provenance::{EMULATOR_INPUTS, Source};
 
 fn main() {
     let dir = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("set by cargo"))
         .join("../firmware/multirx/emulator");
-    let source = match Source::of(&dir, EMULATOR_INPUTS, None) {
+    let source = match Source::emulator(&dir) {
         Ok(source) => source,
         Err(e) => {
             println!(
@@ -25,7 +25,6 @@ fn main() {
     for path in EMULATOR_INPUTS
         .iter()
         .map(|i| dir.join(i))
-        .chain(git_head_files(&dir))
         .filter(|p| p.exists())
     {
         println!("cargo::rerun-if-changed={}", path.display());
@@ -34,9 +33,5 @@ fn main() {
     println!(
         "cargo::rustc-env=MULTIRX_EMULATOR_SOURCE_ID={:016x}",
         source.id()
-    );
-    println!(
-        "cargo::rustc-env=MULTIRX_EMULATOR_SOURCE_COMMIT={}",
-        source.commit
     );
 }

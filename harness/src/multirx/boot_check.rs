@@ -11,9 +11,10 @@
 //! the firmware crate the rig file names, hashed now
 //! ([`multirx_core::provenance`], the function the firmware's build script
 //! uses), so a board still running an image of older firmware code fails;
-//! for the emulated device, the source this rig's build script hashed when
-//! the rig was built (the same cargo build builds `multirx-emu`), so a stale
-//! `multirx-emu` fails. A mismatch means a different config or source.
+//! for the emulated device, its input files as this rig's build script
+//! hashed them when the rig was built (the same cargo build builds
+//! `multirx-emu`), so a stale `multirx-emu` fails. A mismatch means a
+//! different config or source.
 
 use std::path::Path;
 use std::time::Duration;
@@ -25,8 +26,6 @@ use multirx_core::provenance::{SAMD21_INPUTS, Source};
 
 /// The source id of the `multirx-emu` built with this rig, hashed by `build.rs`.
 const EMULATOR_SOURCE_ID: &str = env!("MULTIRX_EMULATOR_SOURCE_ID");
-/// Its commit, for messages.
-const EMULATOR_SOURCE_COMMIT: &str = env!("MULTIRX_EMULATOR_SOURCE_COMMIT");
 
 /// How long after the device is up the rig waits for its boot line. The
 /// firmware and the emulated device repeat it every second.
@@ -62,7 +61,7 @@ impl Expected {
             ImageKind::Emulated,
             config,
             source_id,
-            format!("commit {EMULATOR_SOURCE_COMMIT} as this rig was built"),
+            format!("source {EMULATOR_SOURCE_ID} as this rig was built"),
         )
     }
 

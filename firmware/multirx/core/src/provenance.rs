@@ -1,7 +1,8 @@
 //! Where an image was built from, as a number for its build id
 //! ([`crate::boot::build_id`]): the git commit of the tree (or
-//! [`UNKNOWN_COMMIT`] outside one) and an FNV-1a 64 hash of the image's input
-//! files' relative paths and contents.
+//! [`UNKNOWN_COMMIT`] outside one; the emulated device leaves it out,
+//! [`Source::emulator`]) and an FNV-1a 64 hash of the image's input files'
+//! relative paths and contents.
 //!
 //! The firmware's and the emulated device's build scripts compute it when they
 //! build; the rig computes it again from the tree it runs with, so a board
@@ -20,6 +21,9 @@ use crate::boot::{Fnv1a64, source_id};
 
 /// The commit of an image built outside a git tree (a tarball, a copy).
 pub const UNKNOWN_COMMIT: &str = "unknown";
+
+/// The commit of an image named by its input files alone ([`Source::emulator`]).
+pub const UNRECORDED_COMMIT: &str = "not recorded";
 
 /// What the SAMD21 firmware is built from, relative to its crate folder
 /// (`firmware/multirx/samd21`): its own sources, layouts and lock file, and
@@ -68,6 +72,17 @@ impl Source {
         Ok(Source {
             commit: git_commit(dir),
             inputs: inputs_hash(dir, inputs, config)?,
+        })
+    }
+
+    /// The emulated device's source: its input files ([`EMULATOR_INPUTS`]) only.
+    /// The rig compiles in the id of the `multirx-emu` built beside it; with
+    /// the commit in it, every commit would rebuild the rig for nothing the
+    /// files do not already tell (a stale `multirx-emu` differs in its files).
+    pub fn emulator(dir: &Path) -> io::Result<Source> {
+        Ok(Source {
+            commit: UNRECORDED_COMMIT.to_owned(),
+            inputs: inputs_hash(dir, EMULATOR_INPUTS, None)?,
         })
     }
 

@@ -7,14 +7,13 @@ use std::time::Instant as HostInstant;
 
 use multirx_core::boot::{BootReport, ImageKind, ResetCause, build_id};
 
-/// The commit this program was built from (`unknown` outside a git tree), from `build.rs`.
-pub const SOURCE_COMMIT: &str = env!("MULTIRX_SOURCE_COMMIT");
+/// The source id of this program's input files, from `build.rs` (16 hex digits).
+pub const SOURCE_ID: &str = env!("MULTIRX_SOURCE_ID");
 
 /// The build id this program reports with a config hashing to `config_hash`: the emulated
 /// image of this core, from the source `build.rs` hashed.
 pub fn emulated_build_id(config_hash: u64) -> u64 {
-    let source =
-        u64::from_str_radix(env!("MULTIRX_SOURCE_ID"), 16).expect("build.rs writes 16 hex digits");
+    let source = u64::from_str_radix(SOURCE_ID, 16).expect("build.rs writes 16 hex digits");
     build_id(ImageKind::Emulated, config_hash, source)
 }
 use multirx_core::{Config, Instant, Multiplexer};

@@ -184,7 +184,7 @@ fn run(args: Args, json: &mut Option<StatusWriter>, last: &mut Option<Status>) -
         mode = config.mode.as_str(),
         receivers = config.receivers,
         period_ms = config.frame_period.as_millis(),
-        commit = device::SOURCE_COMMIT,
+        source = device::SOURCE_ID,
         "MultiRX emulated device running"
     );
     hostio::realtime::request("engine");
