@@ -10,6 +10,7 @@
 //! - `provenance` (feature `std`): the commit and input files a build id names;
 //! - [`power::PowerSequencer`]: receiver switch-ons staggered against inrush;
 //! - [`counter::Counter32`]: a wrapping 32-bit µs counter extended to an [`Instant`];
+//! - [`watchdog::FeedGate`]: whether the board may feed its watchdog (engine on time, FC bytes leaving);
 //! - [`board`]: how many UART inputs the board has ([`board::SAMD21_UARTS`]) and whether a config fits.
 //!
 //! The contract: no IO, no clock, no allocation, deterministic. Callers pass
@@ -31,6 +32,7 @@ pub mod power;
 pub mod provenance;
 /// Time as plain numbers: the house's one [`Instant`] and [`Duration`] (crate `timebase`).
 pub use timebase as time;
+pub mod watchdog;
 pub mod wire;
 
 pub use boot::BootReport;

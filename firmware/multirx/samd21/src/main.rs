@@ -19,7 +19,10 @@
 //! - Once the first frame is queued, and every second after, the boot line
 //!   ([`BootReport`]: build id, config hash, reset cause, boot-to-first-frame).
 //! - The watchdog is fed only after a pass that left the engine with no
-//!   overdue deadline.
+//!   overdue deadline and the flight controller's bytes moving
+//!   ([`FeedGate`]): a wedged TX resets the chip.
+//! - A receive queue that overflows leaves [`RX_OVERFLOW`] in the stream;
+//!   the engine drops the frame and reports it (`overflow <rx> <total>`).
 //!
 //! Why interrupts for RX rather than polling: a SERCOM buffers two bytes, so
 //! a polled loop would have to come round within ~240 µs (two 120 µs SBUS
@@ -53,6 +56,7 @@ use heapless::Deque;
 use heapless::spsc::{Consumer, Producer, Queue};
 use multirx_core::boot::BootReport;
 use multirx_core::power::{POWER_ON_STAGGER, PowerSequencer};
+use multirx_core::watchdog::FeedGate;
 use multirx_core::{Duration, Event, Instant, Multiplexer, TimedEvent};
 
 use board::{Board, RECEIVER_PORTS, timer_raw};
@@ -98,11 +102,19 @@ struct RxEntry {
 }
 /// Queued in place of a byte received with a parity, framing or overrun error.
 const UART_ERROR: u16 = 0x100;
+/// Queued where bytes were lost because the queue was full, before the first
+/// byte that fits again, so the engine drops the frame and counts the loss.
+const RX_OVERFLOW: u16 = 0x200;
 
 /// An SBUS input owned by its interrupt handler.
 struct RxPort<U> {
     uart: U,
     queue: Producer<'static, RxEntry>,
+    /// Bytes lost to a full queue since the last [`RX_OVERFLOW`] was queued
+    /// (saturating). A number rather than a flag: a `bool` here gave
+    /// `Option<RxPort>` a niche, and the code built around it kept a panic
+    /// path in the handler that `ci/check-firmware-elf.py` refuses.
+    lost: u16,
 }
 
 type Slot<U> = Mutex<RefCell<Option<RxPort<U>>>>;
@@ -117,7 +129,7 @@ static RX5: Slot<board::Rx5> = Mutex::new(RefCell::new(None));
 /// What an RX interrupt needs of a UART, whatever its pads.
 trait SbusRx {
     fn listen(&mut self);
-    fn service(&mut self, queue: &mut Producer<'static, RxEntry>);
+    fn service(&mut self, queue: &mut Producer<'static, RxEntry>, lost: &mut u16);
 }
 
 impl<C, D> SbusRx for Uart<C, D>
@@ -132,9 +144,10 @@ where
 
     /// Moves every received byte to `queue`. A byte with a parity or framing
     /// error, or after an overrun, becomes [`UART_ERROR`] so the engine drops
-    /// the frame it belongs to. A full queue drops bytes; the gap check in the
-    /// core's link tracking then discards the truncated frame.
-    fn service(&mut self, queue: &mut Producer<'static, RxEntry>) {
+    /// the frame it belongs to. A full queue drops bytes and counts them in
+    /// `lost`; [`RX_OVERFLOW`] then goes in ahead of the next byte that
+    /// fits, so the loss reaches the engine in its place in the stream.
+    fn service(&mut self, queue: &mut Producer<'static, RxEntry>, lost: &mut u16) {
         let errors = || Status::PERR | Status::FERR | Status::BUFOVF;
         while self.read_flags().contains(Flags::RXC) {
             let bad = self.read_status().intersects(errors());
@@ -144,11 +157,23 @@ where
                 self.clear_status(errors());
             }
             if let Ok(byte) = self.read() {
+                let at = timer_raw();
+                // The marker first, where there is room again; if this byte
+                // then finds none, the loss goes on and is marked again.
+                if *lost > 0
+                    && queue
+                        .enqueue(RxEntry {
+                            at,
+                            value: RX_OVERFLOW,
+                        })
+                        .is_ok()
+                {
+                    *lost = 0;
+                }
                 let value = if bad { UART_ERROR } else { byte.into() };
-                let _ = queue.enqueue(RxEntry {
-                    at: timer_raw(),
-                    value,
-                });
+                if *lost > 0 || queue.enqueue(RxEntry { at, value }).is_err() {
+                    *lost = lost.saturating_add(1);
+                }
             }
         }
     }
@@ -162,7 +187,7 @@ fn on_interrupt<U: SbusRx>(slot: &Slot<U>) {
         if let Ok(mut slot) = slot.borrow(cs).try_borrow_mut()
             && let Some(port) = slot.as_mut()
         {
-            port.uart.service(&mut port.queue);
+            port.uart.service(&mut port.queue, &mut port.lost);
         }
     });
 }
@@ -219,7 +244,16 @@ fn install<U: SbusRx + Send>(
         return;
     }
     uart.listen();
-    critical_section::with(|cs| slot.replace(cs, Some(RxPort { uart, queue })));
+    critical_section::with(|cs| {
+        slot.replace(
+            cs,
+            Some(RxPort {
+                uart,
+                queue,
+                lost: 0,
+            }),
+        )
+    });
     // SAFETY: the handler's slot is filled, and nothing here relies on
     // interrupts being masked (all shared state is behind critical sections
     // or in SPSC queues).
@@ -270,6 +304,7 @@ fn main() -> ! {
 
     let mut mux = Multiplexer::new(CONFIG, clock.now());
     let mut sequencer = PowerSequencer::new(POWER_ON_STAGGER);
+    let mut feed_gate = FeedGate::new(&CONFIG);
     let mut fc_queue: Deque<u8, FC_QUEUE> = Deque::new();
     let mut status_queue: Deque<u8, STATUS_QUEUE> = Deque::new();
     let mut boot = BootReport {
@@ -298,14 +333,15 @@ fn main() -> ! {
                     break;
                 }
                 input.dequeue();
-                match (entry.value == UART_ERROR, ifs) {
+                match (entry.value, ifs) {
                     // Drop the frame the damaged byte belongs to.
-                    (true, true) => mux.handle_ifs_error(),
-                    (true, false) => mux.handle_receiver_error(port as u8),
-                    (false, true) => mux.handle_ifs_bytes(at, &[entry.value as u8]),
-                    (false, false) => {
-                        mux.handle_receiver_bytes(at, port as u8, &[entry.value as u8])
-                    }
+                    (UART_ERROR, true) => mux.handle_ifs_error(),
+                    (UART_ERROR, false) => mux.handle_receiver_error(port as u8),
+                    // Bytes lost here: drop the frame, count and report it.
+                    (RX_OVERFLOW, true) => mux.handle_ifs_overflow(at),
+                    (RX_OVERFLOW, false) => mux.handle_receiver_overflow(at, port as u8),
+                    (byte, true) => mux.handle_ifs_bytes(at, &[byte as u8]),
+                    (byte, false) => mux.handle_receiver_bytes(at, port as u8, &[byte as u8]),
                 }
             }
         }
@@ -344,10 +380,11 @@ fn main() -> ! {
             }
         }
 
-        drain(&mut fc_out, &mut fc_queue);
+        let sent = drain(&mut fc_out, &mut fc_queue);
+        feed_gate.note_tx(now, sent, fc_queue.len());
         drain(&mut status_out, &mut status_queue);
 
-        if mux.poll_timeout().is_some_and(|due| now < due) {
+        if feed_gate.may_feed(now, mux.poll_timeout()) {
             watchdog.feed();
         }
     }
@@ -373,11 +410,15 @@ fn push_whole<const N: usize>(queue: &mut Deque<u8, N>, bytes: &[u8]) {
 }
 
 /// Writes queued bytes while the UART's data register has room; never waits.
-fn drain<const N: usize>(uart: &mut impl Write<u8>, queue: &mut Deque<u8, N>) {
+/// Returns how many it wrote.
+fn drain<const N: usize>(uart: &mut impl Write<u8>, queue: &mut Deque<u8, N>) -> usize {
+    let mut sent = 0;
     while let Some(&byte) = queue.front() {
         if uart.write(byte).is_err() {
             break;
         }
         queue.pop_front();
+        sent += 1;
     }
+    sent
 }
