@@ -21,10 +21,11 @@ crate="$repo/firmware/multirx/samd21"
 out="${1:-$crate/target/dist}"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
-# Where cargo puts the image: CARGO_TARGET_DIR if set (relative to the crate,
-# where cargo runs below), else the crate's own target folder.
-target_dir="${CARGO_TARGET_DIR:-target}"
-[[ $target_dir == /* ]] || target_dir="$crate/$target_dir"
+# cargo puts the image under CARGO_TARGET_DIR when it is set (absolute, or relative to
+# where this script was started), else in the crate's own target folder.
+target_dir="${CARGO_TARGET_DIR:-$crate/target}"
+[[ $target_dir == /* ]] || target_dir="$PWD/$target_dir"
+export CARGO_TARGET_DIR="$target_dir"
 elf="$target_dir/thumbv6m-none-eabi/release/multirx-samd21"
 
 for layout in bare uf2; do

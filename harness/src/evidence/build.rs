@@ -27,7 +27,7 @@ use crate::record::{now_rfc3339, sha256_file, write_atomically};
 pub const BUILD_FILE: &str = "build.json";
 
 /// A device's firmware crate: built once per config compiled in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy)]
 pub struct FirmwareCrate {
     /// Where it lives in the repository (its own workspace and lock file).
     pub dir: &'static str,
@@ -39,6 +39,9 @@ pub struct FirmwareCrate {
     pub default_config: &'static str,
     /// The environment variable the build reads the config's path from.
     pub config_env: &'static str,
+    /// Checks a built image (repository root, ELF) as the device's CI does; an image it
+    /// refuses is not an artifact.
+    pub check: fn(&Path, &Path) -> Result<()>,
 }
 
 /// The host programs a rig run needs, with the package each is in: the rig and the device
@@ -294,10 +297,12 @@ fn build_firmware(
         .arg(target_dir)
         .env(firmware.config_env, config);
     run(cmd, &format!("the firmware with {}", config.display()))?;
-    Ok(target_dir
+    let elf = target_dir
         .join(firmware.target)
         .join("release")
-        .join(firmware.bin))
+        .join(firmware.bin);
+    (firmware.check)(repo, &elf)?;
+    Ok(elf)
 }
 
 fn run(mut cmd: Command, what: &str) -> Result<()> {

@@ -1,5 +1,8 @@
 //! Built → flashed: compiles the MultiRX firmware with a mode's config baked
-//! in (as the paper did, but through the core's validation) and flashes it.
+//! in (as the paper did, but through the core's validation), checks the image
+//! as CI does (`ci/check-firmware-elf.py`: no panic reachable from the UART
+//! interrupts, a stack bound that fits) and flashes it. An image CI would
+//! refuse is never flashed.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -19,6 +22,7 @@ pub const CRATE: FirmwareCrate = FirmwareCrate {
     target: "thumbv6m-none-eabi",
     default_config: "multirx.toml",
     config_env: "MULTIRX_CONFIG",
+    check: |repo, elf| check_elf(&repo.join(CHECKER), elf).map(drop),
 };
 
 /// The configs a reproducible build compiles into firmware images, labelled by mode. A board
@@ -66,6 +70,8 @@ pub fn build(firmware: &Path, config: &Path) -> Result<FirmwareImage> {
         );
     }
     let elf = target_dir.join("thumbv6m-none-eabi/release/multirx-samd21");
+    let report = check_elf(&find_checker(firmware)?, &elf)?;
+    tracing::info!(elf = %elf.display(), "{}", report.trim());
     let (flash_bytes, ram_bytes) = sizes(&elf)?;
     Ok(FirmwareImage {
         sha256: sha256_file(&elf)?,
@@ -73,6 +79,57 @@ pub fn build(firmware: &Path, config: &Path) -> Result<FirmwareImage> {
         flash_bytes,
         ram_bytes,
     })
+}
+
+/// The image checker, relative to the repository root.
+pub const CHECKER: &str = "ci/check-firmware-elf.py";
+/// The RAM the checker's stack bound must fit, as `ci/build-firmware.sh` passes it: the
+/// ATSAMD21G18A's 32 KiB, less the static-data budget of 8 KiB.
+const CHECKER_ARGS: [&str; 4] = ["--ram-bytes", "32768", "--ram-static", "8192"];
+
+/// [`CHECKER`] in the repository holding the firmware crate at `firmware`.
+pub fn find_checker(firmware: &Path) -> Result<PathBuf> {
+    let start = firmware
+        .canonicalize()
+        .with_context(|| format!("cannot find the firmware crate {}", firmware.display()))?;
+    start
+        .ancestors()
+        .map(|dir| dir.join(CHECKER))
+        .find(|p| p.is_file())
+        .with_context(|| {
+            format!(
+                "no {CHECKER} in any folder above {}: the image cannot be checked before flashing",
+                start.display()
+            )
+        })
+}
+
+/// Runs `checker` on `elf` as CI does; its report on success, its own message as the
+/// error otherwise.
+pub fn check_elf(checker: &Path, elf: &Path) -> Result<String> {
+    let out = Command::new("python3")
+        .arg(checker)
+        .arg(elf)
+        .args(CHECKER_ARGS)
+        .output()
+        .with_context(|| format!("cannot run python3 {}", checker.display()))?;
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if !out.status.success() {
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        bail!(
+            "{} refuses {} ({}): {}{}",
+            checker.display(),
+            elf.display(),
+            out.status,
+            stderr.trim(),
+            if stdout.trim().is_empty() {
+                String::new()
+            } else {
+                format!("\n{}", stdout.trim())
+            }
+        );
+    }
+    Ok(stdout.into_owned())
 }
 
 /// Flash and static-RAM use of an ELF image, from its section headers.
@@ -121,6 +178,37 @@ mod tests {
         let (flash, ram) = sizes(&exe).unwrap();
         assert!(flash > 10_000, "{flash}");
         assert!(ram > 0 && ram < flash, "{ram}");
+    }
+
+    fn checker() -> PathBuf {
+        find_checker(Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap()
+    }
+
+    #[test]
+    fn the_build_step_refuses_an_image_the_checker_refuses_with_its_message() {
+        let dir = tempfile::tempdir().unwrap();
+        let bad = dir.path().join("multirx-samd21");
+        std::fs::write(&bad, b"not an elf").unwrap();
+        let err = check_elf(&checker(), &bad).unwrap_err().to_string();
+        assert!(
+            err.contains("check-firmware-elf.py refuses")
+                && err.contains("not a little-endian ELF32 file")
+                && err.contains(&bad.display().to_string()),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn the_checker_is_found_from_the_firmware_crate() {
+        let firmware = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/multirx/samd21");
+        assert_eq!(
+            find_checker(&firmware).unwrap(),
+            checker(),
+            "one checker for the rig and CI"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let err = find_checker(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("no ci/check-firmware-elf.py"), "{err}");
     }
 
     #[test]

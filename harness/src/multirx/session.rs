@@ -22,7 +22,6 @@ use crate::multirx::driver::status::StatusMonitor;
 use crate::multirx::driver::tx_probe;
 use crate::multirx::px4_rc_input::{FcFrame, Px4RcInput, RcReport};
 use crate::rigfile::{PortSpec, RigFile};
-use multirx_core::boot::ImageKind;
 
 /// Raw stick value pilot `rx` holds on channels 1–4, distinct per pilot so the
 /// flight controller side can tell whose sticks it is getting.
@@ -152,25 +151,31 @@ impl MultirxSession {
             links: wiring.links,
             _ptys: wiring.ptys,
         };
-        session.identify(emulated, &loaded.path)?;
+        session.identify(&section.device.setup, &loaded.path)?;
         Ok(session)
     }
 
     /// Waits for the device's output at the flight controller, then checks it is the device
     /// the rig file names: its boot line carries the image's build id and the config's hash.
-    fn identify(&mut self, emulated: bool, config_path: &Path) -> Result<()> {
+    fn identify(&mut self, setup: &DeviceSetup, config_path: &Path) -> Result<()> {
         self.fc.wait_for(
             self.started,
             Duration::from_secs(5),
             "MultiRX output",
             |_| true,
         )?;
-        let kind = if emulated {
-            ImageKind::Emulated
-        } else {
-            ImageKind::Samd21
+        let expected = match setup {
+            DeviceSetup::Emulated { .. } => boot_check::Expected::emulated(&self.config),
+            DeviceSetup::Board(board) => {
+                boot_check::Expected::board(&self.config, &board.firmware, config_path)
+                    .with_context(|| {
+                        format!(
+                            "cannot hash the firmware's inputs in {} to know which image the board must run",
+                            board.firmware.display()
+                        )
+                    })?
+            }
         };
-        let expected = boot_check::Expected::new(kind, &self.config);
         let seen = self.status.wait_for_boot(boot_check::BOOT_LINE_TIMEOUT);
         let boot = boot_check::check(seen, &expected, config_path)?;
         tracing::info!(

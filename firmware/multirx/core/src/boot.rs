@@ -15,7 +15,11 @@
 //! without sharing a hasher implementation): the config hash over the
 //! configuration's canonical text ([`Config::write_rust_literal`], the form
 //! compiled into the firmware), the build id over the core's version, the
-//! image kind and the config hash.
+//! image kind, the config hash and the image's source ([`source_id`]: the git
+//! commit and a hash of the input files, computed by
+//! `provenance::Source` with feature `std`). Without the source, an image
+//! built from older firmware code with the same core version and config
+//! would pass the rig's identity check.
 
 use core::fmt;
 
@@ -96,8 +100,20 @@ impl Config {
     }
 }
 
-/// The build id of `kind` built from this core with a config hashing to `config_hash`.
-pub const fn build_id(kind: ImageKind, config_hash: u64) -> u64 {
+/// The source part of a build id: the commit (`unknown` outside a git tree)
+/// and the hash of the image's input files.
+pub const fn source_id(commit: &[u8], inputs_hash: u64) -> u64 {
+    Fnv1a64::new()
+        .bytes(b"source ")
+        .bytes(commit)
+        .bytes(b"\0")
+        .bytes(&inputs_hash.to_le_bytes())
+        .finish()
+}
+
+/// The build id of `kind` built from this core with a config hashing to
+/// `config_hash`, from the source [`source_id`] names.
+pub const fn build_id(kind: ImageKind, config_hash: u64, source_id: u64) -> u64 {
     Fnv1a64::new()
         .bytes(b"multirx-core ")
         .bytes(CORE_VERSION.as_bytes())
@@ -105,6 +121,7 @@ pub const fn build_id(kind: ImageKind, config_hash: u64) -> u64 {
         .bytes(kind.as_str().as_bytes())
         .bytes(b"\0")
         .bytes(&config_hash.to_le_bytes())
+        .bytes(&source_id.to_le_bytes())
         .finish()
 }
 
@@ -178,6 +195,30 @@ impl ResetCause {
         } else {
             ResetCause::Unknown
         }
+    }
+}
+
+/// How long a tap of the reset button leaves the UF2 bootloader reachable.
+///
+/// The Arduino/Adafruit UF2 bootloader waits 500 ms for a second tap after
+/// every reset but a power-on, unless the application left its quick-boot
+/// value in the last RAM word; the firmware behind it writes that value so a
+/// watchdog, panic or brown-out reset restarts the frames at once. Written
+/// at every start, it would also make every tap of the button a quick boot,
+/// and the bootloader's drive could never be opened. So after a reset-pin
+/// reset (a person at the bench) the firmware writes it only this long after
+/// start: three taps within it open the drive (the first starts the firmware
+/// at once, the second finds no quick-boot value, the third lands in the
+/// bootloader's 500 ms wait).
+pub const UF2_TAP_WINDOW: Duration = Duration::from_millis(1000);
+
+/// How long after start the firmware behind a UF2 bootloader waits before it
+/// writes the quick-boot value, by the cause of this start: at once, except
+/// after a reset-pin reset ([`UF2_TAP_WINDOW`]).
+pub const fn uf2_quick_boot_after(cause: ResetCause) -> Duration {
+    match cause {
+        ResetCause::External => UF2_TAP_WINDOW,
+        _ => Duration::ZERO,
     }
 }
 
@@ -328,16 +369,36 @@ mod tests {
     }
 
     #[test]
-    fn build_id_names_the_image_kind_and_the_config() {
+    fn build_id_names_the_image_kind_the_config_and_the_source() {
         let h = Config::new(Mode::Parallel, 2).identity_hash();
+        let s = source_id(b"unknown", 1);
         assert_ne!(
-            build_id(ImageKind::Samd21, h),
-            build_id(ImageKind::Emulated, h)
+            build_id(ImageKind::Samd21, h, s),
+            build_id(ImageKind::Emulated, h, s)
         );
         assert_ne!(
-            build_id(ImageKind::Samd21, h),
-            build_id(ImageKind::Samd21, h ^ 1)
+            build_id(ImageKind::Samd21, h, s),
+            build_id(ImageKind::Samd21, h ^ 1, s)
         );
+        assert_ne!(
+            build_id(ImageKind::Samd21, h, s),
+            build_id(ImageKind::Samd21, h, source_id(b"unknown", 2))
+        );
+        assert_ne!(s, source_id(b"0123abc", 1));
+    }
+
+    #[test]
+    fn only_a_reset_pin_start_delays_the_uf2_quick_boot() {
+        for cause in ResetCause::ALL {
+            let after = uf2_quick_boot_after(cause);
+            if cause == ResetCause::External {
+                // Longer than the bootloader's own 500 ms tap wait, so a person can tap thrice.
+                assert!(after > Duration::from_millis(500), "{after:?}");
+            } else {
+                // Watchdog, panic, brown-out: the next reset must not wait 500 ms.
+                assert_eq!(after, Duration::ZERO, "{cause:?}");
+            }
+        }
     }
 
     #[test]

@@ -9,6 +9,7 @@
 //! <micros> link <rx> off|silent|failsafe|acquiring|up
 //! <micros> active <rx>|none
 //! <micros> ifs on|off
+//! <micros> overflow <rx>|ifs <total>
 //! <micros> boot build <hex> config <hex> reset <cause> first-frame-us <n>
 //! ```
 //!
@@ -32,6 +33,10 @@ pub enum Event {
     Active { rx: Option<u8> },
     /// The independent fail-safe system started or stopped overriding channels.
     Ifs { overriding: bool },
+    /// Bytes from receiver `rx` (`None`: the IFS input) were lost between the
+    /// UART and the engine (the board's queue was full); `total` such losses on
+    /// that input so far. The frame they belonged to was dropped.
+    Overflow { rx: Option<u8>, total: u32 },
 }
 
 /// An event and when it happened.
@@ -49,6 +54,11 @@ impl fmt::Display for Event {
             Event::Active { rx: Some(rx) } => write!(f, "active {rx}"),
             Event::Active { rx: None } => write!(f, "active none"),
             Event::Ifs { overriding } => write!(f, "ifs {}", on_off(overriding)),
+            Event::Overflow {
+                rx: Some(rx),
+                total,
+            } => write!(f, "overflow {rx} {total}"),
+            Event::Overflow { rx: None, total } => write!(f, "overflow ifs {total}"),
         }
     }
 }
@@ -66,7 +76,7 @@ fn on_off(on: bool) -> &'static str {
 
 /// A status line that is not one of ours.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[error("not a MultiRX status line (expected `<micros> power|link|active|ifs ...`)")]
+#[error("not a MultiRX status line (expected `<micros> power|link|active|ifs|overflow ...`)")]
 pub struct StatusLineError;
 
 impl TimedEvent {
@@ -96,6 +106,13 @@ impl TimedEvent {
             },
             "ifs" => Event::Ifs {
                 overriding: on(next()?)?,
+            },
+            "overflow" => Event::Overflow {
+                rx: match next()? {
+                    "ifs" => None,
+                    w => Some(rx(w)?),
+                },
+                total: next()?.parse().map_err(|_| StatusLineError)?,
             },
             _ => return Err(StatusLineError),
         };
@@ -146,6 +163,20 @@ mod tests {
             StatusLine::Event(TimedEvent {
                 at: Instant::from_micros(7),
                 event: Event::Active { rx: Some(1) },
+            }),
+            StatusLine::Event(TimedEvent {
+                at: Instant::from_micros(8),
+                event: Event::Overflow {
+                    rx: Some(3),
+                    total: 12,
+                },
+            }),
+            StatusLine::Event(TimedEvent {
+                at: Instant::from_micros(9),
+                event: Event::Overflow {
+                    rx: None,
+                    total: u32::MAX,
+                },
             }),
             StatusLine::Boot(BootReport {
                 at: Instant::from_micros(41_000),

@@ -7,8 +7,10 @@
 //! - [`mux::Multiplexer`]: the engine deciding who is in control and what the flight controller gets;
 //! - [`event::TimedEvent`]: power, link and control changes, and their status-line form;
 //! - [`boot::BootReport`]: the boot line (build id, config hash, reset cause, boot-to-first-frame);
+//! - `provenance` (feature `std`): the commit and input files a build id names;
 //! - [`power::PowerSequencer`]: receiver switch-ons staggered against inrush;
 //! - [`counter::Counter32`]: a wrapping 32-bit µs counter extended to an [`Instant`];
+//! - [`watchdog::FeedGate`]: whether the board may feed its watchdog (engine on time, FC bytes leaving);
 //! - [`board`]: how many UART inputs the board has ([`board::SAMD21_UARTS`]) and whether a config fits.
 //!
 //! The contract: no IO, no clock, no allocation, deterministic. Callers pass
@@ -26,8 +28,11 @@ pub mod decoder;
 pub mod event;
 pub mod mux;
 pub mod power;
+#[cfg(any(test, feature = "std"))]
+pub mod provenance;
 /// Time as plain numbers: the house's one [`Instant`] and [`Duration`] (crate `timebase`).
 pub use timebase as time;
+pub mod watchdog;
 pub mod wire;
 
 pub use boot::BootReport;

@@ -6,6 +6,16 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::Instant as HostInstant;
 
 use multirx_core::boot::{BootReport, ImageKind, ResetCause, build_id};
+
+/// The source id of this program's input files, from `build.rs` (16 hex digits).
+pub const SOURCE_ID: &str = env!("MULTIRX_SOURCE_ID");
+
+/// The build id this program reports with a config hashing to `config_hash`: the emulated
+/// image of this core, from the source `build.rs` hashed.
+pub fn emulated_build_id(config_hash: u64) -> u64 {
+    let source = u64::from_str_radix(SOURCE_ID, 16).expect("build.rs writes 16 hex digits");
+    build_id(ImageKind::Emulated, config_hash, source)
+}
 use multirx_core::{Config, Instant, Multiplexer};
 
 use hostio::status::{Kind, StatusWriter};
@@ -101,7 +111,7 @@ impl Device {
         let config_hash = config.identity_hash();
         let boot = BootReport {
             at: Instant::ZERO,
-            build_id: build_id(ImageKind::Emulated, config_hash),
+            build_id: emulated_build_id(config_hash),
             config_hash,
             reset: ResetCause::Host,
             first_frame: Default::default(),

@@ -24,7 +24,6 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use hostio::status::StatusWriter;
 use multirx_core::Config;
-use multirx_core::boot::{ImageKind, build_id};
 use serde::Serialize;
 
 use device::{Device, Status, StatusJson};
@@ -132,7 +131,7 @@ fn run(args: Args, json: &mut Option<StatusWriter>, last: &mut Option<Status>) -
                 receivers: config.receivers,
                 frame_period_ms: config.frame_period.as_millis(),
                 config_hash: format!("{hash:016x}"),
-                build_id: format!("{:016x}", build_id(ImageKind::Emulated, hash)),
+                build_id: format!("{:016x}", device::emulated_build_id(hash)),
                 rx: &args.receivers,
                 fc: &args.fc,
                 status: args.status.as_deref(),
@@ -185,6 +184,7 @@ fn run(args: Args, json: &mut Option<StatusWriter>, last: &mut Option<Status>) -
         mode = config.mode.as_str(),
         receivers = config.receivers,
         period_ms = config.frame_period.as_millis(),
+        source = device::SOURCE_ID,
         "MultiRX emulated device running"
     );
     hostio::realtime::request("engine");

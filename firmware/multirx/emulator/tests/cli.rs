@@ -156,7 +156,12 @@ fn forwards_the_active_receiver_and_reports_power() {
     assert_eq!(boot.config_hash, hash, "{text}");
     assert_eq!(
         boot.build_id,
-        multirx_core::boot::build_id(multirx_core::boot::ImageKind::Emulated, hash)
+        multirx_core::boot::build_id(
+            multirx_core::boot::ImageKind::Emulated,
+            hash,
+            // The same source id build.rs compiled into the program.
+            u64::from_str_radix(env!("MULTIRX_SOURCE_ID"), 16).unwrap()
+        )
     );
     assert!(boot.first_frame.as_millis() < 50, "{boot}");
     drop(rx1);

@@ -21,7 +21,10 @@
 //! - Once the first frame is queued, and every second after, the boot line
 //!   ([`BootReport`]: build id, config hash, reset cause, boot-to-first-frame).
 //! - The watchdog is fed only after a pass that left the engine with no
-//!   overdue deadline.
+//!   overdue deadline and the flight controller's bytes moving
+//!   ([`FeedGate`]): a wedged TX resets the chip.
+//! - A receive queue that overflows leaves [`RX_OVERFLOW`] in the stream;
+//!   the engine drops the frame and reports it (`overflow <rx> <total>`).
 //!
 //! Why interrupts for RX rather than polling: a SERCOM buffers two bytes, so
 //! a polled loop would have to come round within ~240 µs (two 120 µs SBUS
@@ -36,6 +39,7 @@
 
 mod board;
 mod clocks;
+mod uf2;
 
 /// The configuration compiled in by `build.rs` from `MULTIRX_CONFIG`.
 mod config {
@@ -55,6 +59,7 @@ use heapless::spsc::{Consumer, Producer, Queue};
 use multirx_core::boot::BootReport;
 use multirx_core::mux::joins_slice;
 use multirx_core::power::{POWER_ON_STAGGER, PowerSequencer};
+use multirx_core::watchdog::FeedGate;
 use multirx_core::{Duration, Event, Instant, Multiplexer, TimedEvent};
 
 use board::{Board, RECEIVER_PORTS, timer_raw};
@@ -100,11 +105,19 @@ struct RxEntry {
 }
 /// Queued in place of a byte received with a parity, framing or overrun error.
 const UART_ERROR: u16 = 0x100;
+/// Queued where bytes were lost because the queue was full, before the first
+/// byte that fits again, so the engine drops the frame and counts the loss.
+const RX_OVERFLOW: u16 = 0x200;
 
 /// An SBUS input owned by its interrupt handler.
 struct RxPort<U> {
     uart: U,
     queue: Producer<'static, RxEntry>,
+    /// Bytes lost to a full queue since the last [`RX_OVERFLOW`] was queued
+    /// (saturating). A number rather than a flag: a `bool` here gave
+    /// `Option<RxPort>` a niche, and the code built around it kept a panic
+    /// path in the handler that `ci/check-firmware-elf.py` refuses.
+    lost: u16,
 }
 
 type Slot<U> = Mutex<RefCell<Option<RxPort<U>>>>;
@@ -119,7 +132,7 @@ static RX5: Slot<board::Rx5> = Mutex::new(RefCell::new(None));
 /// What an RX interrupt needs of a UART, whatever its pads.
 trait SbusRx {
     fn listen(&mut self);
-    fn service(&mut self, queue: &mut Producer<'static, RxEntry>);
+    fn service(&mut self, queue: &mut Producer<'static, RxEntry>, lost: &mut u16);
 }
 
 impl<C, D> SbusRx for Uart<C, D>
@@ -134,9 +147,10 @@ where
 
     /// Moves every received byte to `queue`. A byte with a parity or framing
     /// error, or after an overrun, becomes [`UART_ERROR`] so the engine drops
-    /// the frame it belongs to. A full queue drops bytes; the gap check in the
-    /// core's link tracking then discards the truncated frame.
-    fn service(&mut self, queue: &mut Producer<'static, RxEntry>) {
+    /// the frame it belongs to. A full queue drops bytes and counts them in
+    /// `lost`; [`RX_OVERFLOW`] then goes in ahead of the next byte that
+    /// fits, so the loss reaches the engine in its place in the stream.
+    fn service(&mut self, queue: &mut Producer<'static, RxEntry>, lost: &mut u16) {
         let errors = || Status::PERR | Status::FERR | Status::BUFOVF;
         while self.read_flags().contains(Flags::RXC) {
             let bad = self.read_status().intersects(errors());
@@ -146,11 +160,23 @@ where
                 self.clear_status(errors());
             }
             if let Ok(byte) = self.read() {
+                let at = timer_raw();
+                // The marker first, where there is room again; if this byte
+                // then finds none, the loss goes on and is marked again.
+                if *lost > 0
+                    && queue
+                        .enqueue(RxEntry {
+                            at,
+                            value: RX_OVERFLOW,
+                        })
+                        .is_ok()
+                {
+                    *lost = 0;
+                }
                 let value = if bad { UART_ERROR } else { byte.into() };
-                let _ = queue.enqueue(RxEntry {
-                    at: timer_raw(),
-                    value,
-                });
+                if *lost > 0 || queue.enqueue(RxEntry { at, value }).is_err() {
+                    *lost = lost.saturating_add(1);
+                }
             }
         }
     }
@@ -164,7 +190,7 @@ fn on_interrupt<U: SbusRx>(slot: &Slot<U>) {
         if let Ok(mut slot) = slot.borrow(cs).try_borrow_mut()
             && let Some(port) = slot.as_mut()
         {
-            port.uart.service(&mut port.queue);
+            port.uart.service(&mut port.queue, &mut port.lost);
         }
     });
 }
@@ -221,7 +247,16 @@ fn install<U: SbusRx + Send>(
         return;
     }
     uart.listen();
-    critical_section::with(|cs| slot.replace(cs, Some(RxPort { uart, queue })));
+    critical_section::with(|cs| {
+        slot.replace(
+            cs,
+            Some(RxPort {
+                uart,
+                queue,
+                lost: 0,
+            }),
+        )
+    });
     // SAFETY: the handler's slot is filled, and nothing here relies on
     // interrupts being masked (all shared state is behind critical sections
     // or in SPSC queues).
@@ -235,6 +270,9 @@ const fn port_used(port: usize) -> bool {
 
 #[entry]
 fn main() -> ! {
+    // Behind a UF2 bootloader, before anything that could hang: the next
+    // watchdog, panic or brown-out reset must not wait out its 500 ms.
+    let mut quick_boot = uf2::QuickBoot::at_reset();
     let dp = pac::Peripherals::take().expect("first and only take");
     // Watchdog, brown-out detector and clocks, in that order (see `clocks`).
     let Board {
@@ -274,6 +312,7 @@ fn main() -> ! {
 
     let mut mux = Multiplexer::new(CONFIG, clock.now());
     let mut sequencer = PowerSequencer::new(POWER_ON_STAGGER);
+    let mut feed_gate = FeedGate::new(&CONFIG);
     let mut fc_queue: Deque<u8, FC_QUEUE> = Deque::new();
     let mut status_queue: Deque<u8, STATUS_QUEUE> = Deque::new();
     let mut boot = BootReport {
@@ -288,6 +327,7 @@ fn main() -> ! {
     loop {
         let now = clock.now();
         crystal.poll();
+        quick_boot.poll(now);
 
         for (port, input) in inputs.iter_mut().enumerate() {
             // What the queue holds, as few slices as the gap check allows,
@@ -302,19 +342,22 @@ fn main() -> ! {
                 if clock.is_after_now(entry.at) {
                     break;
                 }
-                if entry.value == UART_ERROR || !joins_slice(fed[port], entry.at) {
+                let marker = entry.value == UART_ERROR || entry.value == RX_OVERFLOW;
+                if marker || !joins_slice(fed[port], entry.at) {
                     slice.feed(&mut mux, &clock, port, &mut fed[port]);
                 }
                 input.dequeue();
-                if entry.value == UART_ERROR {
+                let ifs = IFS && port == IFS_PORT;
+                match (entry.value, ifs) {
                     // Drop the frame the damaged byte belongs to.
-                    if IFS && port == IFS_PORT {
-                        mux.handle_ifs_error();
-                    } else {
-                        mux.handle_receiver_error(port as u8);
+                    (UART_ERROR, true) => mux.handle_ifs_error(),
+                    (UART_ERROR, false) => mux.handle_receiver_error(port as u8),
+                    // Bytes lost here: drop the frame, count and report it.
+                    (RX_OVERFLOW, true) => mux.handle_ifs_overflow(clock.at(entry.at)),
+                    (RX_OVERFLOW, false) => {
+                        mux.handle_receiver_overflow(clock.at(entry.at), port as u8)
                     }
-                } else {
-                    slice.push(entry.at, entry.value as u8);
+                    (byte, _) => slice.push(entry.at, byte as u8),
                 }
             }
             slice.feed(&mut mux, &clock, port, &mut fed[port]);
@@ -354,10 +397,11 @@ fn main() -> ! {
             }
         }
 
-        drain(&mut fc_out, &mut fc_queue);
+        let sent = drain(&mut fc_out, &mut fc_queue);
+        feed_gate.note_tx(now, sent, fc_queue.len());
         drain(&mut status_out, &mut status_queue);
 
-        if mux.poll_timeout().is_some_and(|due| now < due) {
+        if feed_gate.may_feed(now, mux.poll_timeout()) {
             watchdog.feed();
         }
     }
@@ -426,11 +470,15 @@ fn push_whole<const N: usize>(queue: &mut Deque<u8, N>, bytes: &[u8]) {
 }
 
 /// Writes queued bytes while the UART's data register has room; never waits.
-fn drain<const N: usize>(uart: &mut impl Write<u8>, queue: &mut Deque<u8, N>) {
+/// Returns how many it wrote.
+fn drain<const N: usize>(uart: &mut impl Write<u8>, queue: &mut Deque<u8, N>) -> usize {
+    let mut sent = 0;
     while let Some(&byte) = queue.front() {
         if uart.write(byte).is_err() {
             break;
         }
         queue.pop_front();
+        sent += 1;
     }
+    sent
 }

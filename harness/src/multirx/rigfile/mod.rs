@@ -2,7 +2,8 @@
 //!
 //! Each MultiRX config the section names is read and checked once, at load
 //! ([`LoadedConfig`]: its mode, its receivers against the ports, and for a board
-//! [`multirx_core::board::SAMD21_UARTS`]).
+//! [`multirx_core::board::SAMD21_UARTS`] and its throttle channel's neutral, named
+//! explicitly: [`multirx_core::Config::from_toml_for_bench`]).
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -435,8 +436,10 @@ impl Checker<'_> {
             }
         })?;
         let parsed = match setup {
+            // Real hardware flies the neutral when nobody is in control: its throttle must be
+            // chosen for the flight controller, not left at mid-stick by default.
             DeviceSetup::Board(_) => {
-                multirx_core::Config::from_toml_for_board(&text, multirx_core::board::SAMD21_UARTS)
+                multirx_core::Config::from_toml_for_bench(&text, multirx_core::board::SAMD21_UARTS)
             }
             DeviceSetup::Emulated { .. } => multirx_core::Config::from_toml(&text),
         };

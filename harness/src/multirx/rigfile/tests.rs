@@ -34,11 +34,17 @@ fn load(text: &str) -> Result<RigFile, RigFileError> {
     RigFile::from_str_with(text, "/r/rigs/t.toml", &configs_next_to_good)
 }
 
-/// The MultiRX configs [`GOOD`] names, as if on disk next to it.
+/// The MultiRX configs [`GOOD`] names, as if on disk next to it (with the throttle's
+/// neutral that a board rig needs).
 fn configs_next_to_good(path: &Path) -> io::Result<String> {
+    const THROTTLE: &str = "[neutral]\nthrottle_channel = 3\nthrottle = 992\n";
     match path.to_str() {
-        Some("/r/rigs/multirx/parallel.toml") => Ok("mode = \"parallel\"\nreceivers = 2\n".into()),
-        Some("/r/rigs/multirx/scan.toml") => Ok("mode = \"scan\"\nreceivers = 2\n".into()),
+        Some("/r/rigs/multirx/parallel.toml") => {
+            Ok(format!("mode = \"parallel\"\nreceivers = 2\n{THROTTLE}"))
+        }
+        Some("/r/rigs/multirx/scan.toml") => {
+            Ok(format!("mode = \"scan\"\nreceivers = 2\n{THROTTLE}"))
+        }
         _ => Err(io::ErrorKind::NotFound.into()),
     }
 }
@@ -112,7 +118,10 @@ fn good_file_loads_with_defaults_and_absolute_paths() {
     assert_eq!(scan.path, Path::new("/r/rigs/multirx/scan.toml"));
     assert_eq!(
         scan.config,
-        multirx_core::Config::new(multirx_core::Mode::Scan, 2)
+        multirx_core::Config {
+            throttle_channel: Some(2),
+            ..multirx_core::Config::new(multirx_core::Mode::Scan, 2)
+        }
     );
     assert_eq!(m.ports.receivers, [PortSpec::Pty, PortSpec::Pty]);
     assert_eq!(m.ports.ifs, None);
@@ -274,6 +283,37 @@ fn a_config_too_large_for_the_board_names_its_file_and_key() {
 }
 
 #[test]
+fn a_bench_config_must_name_its_throttle_neutral_and_an_emulated_one_need_not() {
+    let board = replace("kind = \"emulated\"", "kind = \"board\"");
+    let default_neutral = |p: &Path| -> io::Result<String> {
+        configs_next_to_good(p).map(|t| {
+            t.replace(
+                "throttle_channel = 3\nthrottle = 992\n",
+                "values = [992, 992, 992, 992, 1811, 992, 992, 992, 992, 172, 992, 992, 992, 992, 992, 992]\n",
+            )
+        })
+    };
+    // The emulated rig keeps flying the default neutral.
+    RigFile::from_str_with(GOOD, "/r/rigs/t.toml", &default_neutral).unwrap();
+    let err = RigFile::from_str_with(&board, "/r/rigs/t.toml", &default_neutral).unwrap_err();
+    assert!(
+        matches!(&err, RigFileError::Config { field, .. } if field == "multirx.device.configs.parallel"),
+        "{err:?}"
+    );
+    let shown = err.to_string();
+    assert!(
+        shown.starts_with("/r/rigs/multirx/parallel.toml:3:2: neutral.throttle_channel: "),
+        "{shown}"
+    );
+    assert!(
+        shown.ends_with("(multirx.device.configs.parallel in /r/rigs/t.toml)"),
+        "{shown}"
+    );
+    // Named, it loads.
+    RigFile::from_str_with(&board, "/r/rigs/t.toml", &configs_next_to_good).unwrap();
+}
+
+#[test]
 fn config_errors_are_located_in_the_config_or_at_its_key() {
     // Receivers that do not match the ports.
     let three = |p: &Path| -> io::Result<String> {
@@ -292,7 +332,7 @@ fn config_errors_are_located_in_the_config_or_at_its_key() {
     let err = RigFile::from_str_with(GOOD, "/r/rigs/t.toml", &bad).unwrap_err();
     assert!(
         err.to_string().starts_with(
-            "/r/rigs/multirx/parallel.toml:5:1: link.silence_timeout_ms: 5 is outside 20..=1000"
+            "/r/rigs/multirx/parallel.toml:8:1: link.silence_timeout_ms: 5 is outside 20..=1000"
         ),
         "{err}"
     );

@@ -21,12 +21,24 @@
 //! channel = 5
 //! auto_loiter = 1811
 //!
-//! [neutral]
+//! [neutral]                # what the flight controller gets while no receiver is active
 //! values = [992, 992, 992, 992, 1811, 992, 992, 992, 992, 172, 992, 992, 992, 992, 992, 992]
+//! throttle_channel = 3     # the channel your flight controller reads as throttle (AETR: 3)
+//! throttle = 992           # its neutral: mid-stick holds altitude only in a hold mode
 //!
 //! [ifs]
 //! channels = [5]           # channels the independent fail-safe system may override
 //! ```
+//!
+//! The default neutral is 992 (mid-stick) on every channel, throttle
+//! included. That is safe only when the flight controller maps
+//! `flight_mode.auto_loiter` on `flight_mode.channel` to a position/altitude
+//! hold (PX4 Hold, ArduPilot Loiter), where mid throttle means "hold
+//! altitude"; in a manual or stabilised mode it is about half thrust. Name the
+//! throttle channel and its neutral (`neutral.throttle_channel`,
+//! `neutral.throttle`) for your flight controller;
+//! [`Config::from_toml_for_bench`], which the rig uses for a board, refuses a
+//! file that does not.
 
 use serde::Deserialize;
 
@@ -99,6 +111,8 @@ struct FlightModeSection {
 #[serde(deny_unknown_fields)]
 struct NeutralSection {
     values: Option<Vec<u16>>,
+    throttle_channel: Option<u8>,
+    throttle: Option<u16>,
 }
 
 #[derive(Deserialize, Default)]
@@ -189,6 +203,31 @@ impl Config {
                 )
             })?;
         }
+        match (file.neutral.throttle_channel, file.neutral.throttle) {
+            (Some(ch), Some(value)) => {
+                let index = channel_index(ch).ok_or_else(|| {
+                    invalid(
+                        "neutral.throttle_channel",
+                        format!("{ch} is outside 1..=16"),
+                    )
+                })?;
+                config.throttle_channel = Some(index);
+                config.neutral[usize::from(index)] = value;
+            }
+            (None, None) => {}
+            (Some(_), None) => {
+                return Err(invalid(
+                    "neutral.throttle_channel",
+                    "given without neutral.throttle, its neutral value".into(),
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(invalid(
+                    "neutral.throttle",
+                    "given without neutral.throttle_channel, the channel it is for".into(),
+                ));
+            }
+        }
         for ch in file.ifs.channels {
             let index = channel_index(ch)
                 .ok_or_else(|| invalid("ifs.channels", format!("{ch} is outside 1..=16")))?;
@@ -212,6 +251,38 @@ impl Config {
                 message: format!("receivers: {e}"),
             }
         })?;
+        Ok(config)
+    }
+}
+
+impl Config {
+    /// [`Config::from_toml_for_board`] for a run on real hardware: the file
+    /// must also name the throttle channel's neutral (`[neutral]
+    /// throttle_channel` and `throttle`), since the default, mid-stick on
+    /// every channel, is safe only with a flight controller that flies the
+    /// auto-loiter value as a hold (module doc). Refused at `[neutral]` if the
+    /// file has that section, else at its first line.
+    pub fn from_toml_for_bench(text: &str, uarts: u8) -> Result<Config, ConfigFileError> {
+        let config = Config::from_toml_for_board(text, uarts)?;
+        if config.throttle_channel.is_none() {
+            let field = "neutral.throttle_channel";
+            let (line, column) = locate(text, field);
+            return Err(ConfigFileError::Invalid {
+                line,
+                column,
+                field: field.into(),
+                message: format!(
+                    "{field}: a run on real hardware needs the throttle channel's neutral named \
+                     (e.g. [neutral] throttle_channel = 3, throttle = 992): the default, {} on every \
+                     channel, is mid throttle, which holds altitude only if the flight controller \
+                     flies flight_mode.auto_loiter = {} on channel {} as a position/altitude hold, \
+                     and is about half thrust in a manual or stabilised mode",
+                    super::RAW_CENTER,
+                    config.auto_loiter_value,
+                    config.flight_mode_channel + 1
+                ),
+            });
+        }
         Ok(config)
     }
 }
@@ -271,6 +342,54 @@ mod tests {
         assert_eq!(&c.pilot_values[..2], &[300, 600]);
         assert_eq!(c.no_receiver_value, 100);
         assert!(c.ifs_channels.contains(4) && c.ifs_channels.contains(5));
+    }
+
+    #[test]
+    fn the_throttle_neutral_is_named_with_its_channel() {
+        let text =
+            "mode = \"scan\"\nreceivers = 2\n[neutral]\nthrottle_channel = 3\nthrottle = 172\n";
+        let c = Config::from_toml(text).unwrap();
+        assert_eq!(c.throttle_channel, Some(2));
+        assert_eq!(c.neutral[2], 172);
+        assert_eq!(c.neutral[0], crate::config::RAW_CENTER);
+        // On the bench too.
+        assert_eq!(Config::from_toml_for_bench(text, 6).unwrap(), c);
+
+        let half = "mode = \"scan\"\nreceivers = 2\n[neutral]\nthrottle_channel = 3\n";
+        assert_eq!(
+            Config::from_toml(half).unwrap_err().to_string(),
+            "4:1: neutral.throttle_channel: given without neutral.throttle, its neutral value"
+        );
+        let clash =
+            "mode = \"scan\"\nreceivers = 2\n[neutral]\nthrottle_channel = 5\nthrottle = 992\n";
+        let err = Config::from_toml(clash).unwrap_err().to_string();
+        assert!(
+            err.contains("neutral.throttle_channel") && err.contains("flight-mode"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_bench_config_without_the_throttle_neutral_is_refused_at_its_line() {
+        // The default neutral, mid-stick, flies; it is only refused for real hardware.
+        let text = "mode = \"scan\"\nreceivers = 2\n\n[neutral]\nvalues = [992, 992, 992, 992, 1811, 992, 992, 992, 992, 172, 992, 992, 992, 992, 992, 992]\n";
+        assert!(Config::from_toml_for_board(text, 6).is_ok());
+        let err = Config::from_toml_for_bench(text, 6).unwrap_err();
+        let shown = err.to_string();
+        assert!(
+            shown.starts_with("4:2: neutral.throttle_channel: "),
+            "{shown}"
+        );
+        assert!(
+            shown.contains("channel 5") && shown.contains("1811"),
+            "{shown}"
+        );
+        // No [neutral] at all: the file's first line.
+        let err = Config::from_toml_for_bench("mode = \"scan\"\nreceivers = 2\n", 6).unwrap_err();
+        assert!(
+            err.to_string().starts_with("1:1: neutral.throttle_channel"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -38,6 +38,7 @@ impl Config {
         )?;
         writeln!(out, "    auto_loiter_value: {},", self.auto_loiter_value)?;
         writeln!(out, "    neutral: {:?},", self.neutral)?;
+        writeln!(out, "    throttle_channel: {:?},", self.throttle_channel)?;
         writeln!(
             out,
             "    ifs_channels: multirx_core::config::ChannelSet({:#06x}),",

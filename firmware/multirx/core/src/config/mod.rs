@@ -121,8 +121,18 @@ pub struct Config {
     pub flight_mode_channel: u8,
     /// Flight-mode channel value that selects auto-loiter (hold position).
     pub auto_loiter_value: u16,
-    /// Channel values sent while no receiver is active (neutral sticks).
+    /// Channel values sent while no receiver is active (neutral sticks). 992
+    /// (mid-stick) on every channel by default, throttle included: that holds
+    /// the aircraft only if the flight controller flies the auto-loiter value
+    /// of the flight-mode channel as a position/altitude hold, where mid
+    /// throttle means "keep altitude". In a manual or stabilised mode mid
+    /// throttle is about half thrust. So the throttle's neutral is named
+    /// apart ([`Config::throttle_channel`]), and a bench run requires it.
     pub neutral: Channels,
+    /// The channel the flight controller reads as throttle, when the config
+    /// file names it with its neutral (`[neutral] throttle_channel`,
+    /// `throttle`); `None` when it leaves the throttle at the default neutral.
+    pub throttle_channel: Option<u8>,
     /// Channels the independent fail-safe system may override.
     pub ifs_channels: ChannelSet,
 }
@@ -151,6 +161,7 @@ impl Config {
             flight_mode_channel: 4,
             auto_loiter_value: RAW_MAX,
             neutral: [RAW_CENTER; 16],
+            throttle_channel: None,
             ifs_channels: ChannelSet::EMPTY,
         }
     }
@@ -206,6 +217,21 @@ impl Config {
                 channel: self.flight_mode_channel + 1,
                 other: "the pilot channel",
             });
+        }
+        if let Some(throttle) = self.throttle_channel {
+            range("neutral.throttle_channel", u32::from(throttle) + 1, 1, 16)?;
+            for (channel, other) in [
+                (self.pilot_channel, "the pilot channel"),
+                (self.flight_mode_channel, "the flight-mode channel"),
+            ] {
+                if throttle == channel {
+                    return Err(ConfigError::ChannelClash {
+                        field: "neutral.throttle_channel",
+                        channel: throttle + 1,
+                        other,
+                    });
+                }
+            }
         }
         if self.ifs_channels.contains(self.pilot_channel) {
             return Err(ConfigError::ChannelClash {

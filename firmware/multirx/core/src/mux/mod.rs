@@ -43,6 +43,8 @@ pub struct MuxStats {
     pub control_changes: u32,
     /// Events dropped because nobody polled them in time.
     pub events_dropped: u32,
+    /// Times bytes were lost between an input's UART and the engine, all inputs.
+    pub rx_overflows: u32,
 }
 
 /// Scan mode while nobody is in control: which receiver we listen to, until when.
@@ -64,6 +66,8 @@ pub struct Multiplexer {
     pending_output: Option<SbusRepr>,
     events: Deque<TimedEvent, EVENT_CAPACITY>,
     stats: MuxStats,
+    /// Overflows per input: receivers, then the IFS.
+    overflows: [u32; MAX_RECEIVERS + 1],
 }
 
 impl Multiplexer {
@@ -79,6 +83,7 @@ impl Multiplexer {
             pending_output: None,
             events: Deque::new(),
             stats: MuxStats::default(),
+            overflows: [0; MAX_RECEIVERS + 1],
             config,
         };
         match mux.config.mode {
@@ -140,6 +145,32 @@ impl Multiplexer {
         if rx < self.config.receivers {
             self.links[usize::from(rx)].abort_frame();
         }
+    }
+
+    /// Bytes from receiver `rx` were lost before they reached the engine (the
+    /// board's receive queue was full), between the bytes already handed in
+    /// and the next: the frame in progress is dropped, as for a UART error,
+    /// and the loss is counted ([`MuxStats::rx_overflows`]) and reported
+    /// ([`Event::Overflow`]), so it is never silent.
+    pub fn handle_receiver_overflow(&mut self, now: Instant, rx: u8) {
+        if rx < self.config.receivers {
+            self.links[usize::from(rx)].abort_frame();
+            self.count_overflow(now, Some(rx));
+        }
+    }
+
+    /// Bytes from the IFS input were lost; see [`Self::handle_receiver_overflow`].
+    pub fn handle_ifs_overflow(&mut self, now: Instant) {
+        self.ifs.abort_frame();
+        self.count_overflow(now, None);
+    }
+
+    fn count_overflow(&mut self, now: Instant, rx: Option<u8>) {
+        let slot = &mut self.overflows[rx.map_or(MAX_RECEIVERS, usize::from)];
+        *slot = slot.wrapping_add(1);
+        let total = *slot;
+        self.stats.rx_overflows = self.stats.rx_overflows.wrapping_add(1);
+        self.push_event(now, Event::Overflow { rx, total });
     }
 
     /// The IFS input's UART reported an error; see [`Self::handle_receiver_error`].
@@ -304,5 +335,60 @@ impl Multiplexer {
         }
         // Cannot fail: we just made room.
         let _ = self.events.push_back(timed);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Mode;
+    use crate::time::Instant;
+
+    #[test]
+    fn a_receive_queue_overflow_drops_the_frame_and_is_counted_and_reported() {
+        // One frame brings a link up, so any frame accepted shows.
+        let config = Config {
+            acquire_frames: 1,
+            ..Config::new(Mode::Parallel, 2)
+        };
+        let mut mux = Multiplexer::new(config, Instant::ZERO);
+        let a = SbusRepr {
+            channels: [500; 16],
+            ..SbusRepr::default()
+        }
+        .to_bytes();
+        let b = SbusRepr {
+            channels: [1500; 16],
+            ..SbusRepr::default()
+        }
+        .to_bytes();
+        let t = Instant::from_millis(1);
+        // The board lost the end of `a` and the start of `b`: what is left
+        // looks like one frame, with no quiet gap to give it away.
+        mux.handle_receiver_bytes(t, 1, &a[..10]);
+        mux.handle_receiver_overflow(t, 1);
+        mux.handle_receiver_bytes(t, 1, &b[10..]);
+        assert_eq!(
+            mux.link(1).frame(),
+            None,
+            "a frame spliced across lost bytes was accepted"
+        );
+        // The next whole frame, after the receiver's quiet gap, is taken.
+        mux.handle_receiver_bytes(t + crate::time::Duration::from_millis(5), 1, &b);
+        assert_eq!(mux.link(1).frame().map(|f| f.channels[0]), Some(1500));
+
+        mux.handle_receiver_overflow(t, 1);
+        mux.handle_ifs_overflow(t);
+        // A receiver beyond the config is not counted.
+        mux.handle_receiver_overflow(t, 5);
+        assert_eq!(mux.stats().rx_overflows, 3);
+        let overflows: heapless::Vec<(Option<u8>, u32), 8> =
+            core::iter::from_fn(|| mux.poll_event())
+                .filter_map(|e| match e.event {
+                    Event::Overflow { rx, total } => Some((rx, total)),
+                    _ => None,
+                })
+                .collect();
+        assert_eq!(overflows, [(Some(1), 1), (Some(1), 2), (None, 1)]);
     }
 }

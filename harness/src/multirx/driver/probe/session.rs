@@ -1,7 +1,8 @@
 //! The probe-rs session behind [`ProbeDriver::flash`]: find and open the probe, attach,
-//! check BOOTPROT, download with read-back, restart.
+//! check the device id and BOOTPROT, download with read-back, restart; each step under
+//! its time limit ([`run_steps`]).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -10,15 +11,29 @@ use probe_rs::probe::DebugProbeSelector;
 use probe_rs::probe::list::Lister;
 use probe_rs::{MemoryInterface, Permissions};
 
-use super::{Flashed, ProbeDriver, SAMD21_USER_ROW, check_bootprot, lowest_load_address};
+use super::{
+    Flashed, ProbeDriver, SAMD21_DSU_DID, SAMD21_USER_ROW, Steps, check_bootprot, check_device_id,
+    limits, lowest_load_address, run_steps,
+};
 use crate::multirx::rigfile::ProbeSelector;
 
 /// See [`ProbeDriver::flash`].
 pub(super) fn flash(driver: &ProbeDriver, elf: &Path) -> Result<Flashed> {
+    let selector = driver.selector.clone();
+    let chip = driver.chip.clone();
+    let elf: PathBuf = elf.to_path_buf();
+    let label = format!("{}", driver.selector);
+    run_steps(&label, move |steps| {
+        flash_steps(steps, &selector, &chip, &elf)
+    })
+}
+
+fn flash_steps(steps: &Steps, selector: &ProbeSelector, chip: &str, elf: &Path) -> Result<Flashed> {
     let started = Instant::now();
+    steps.step("listing and opening the probe", limits::ATTACH);
     let lister = Lister::new();
     let probes = lister.list_all();
-    let probe = match &driver.selector {
+    let probe = match selector {
         ProbeSelector::Auto => match probes.as_slice() {
             [] => bail!(
                 "no debug probe found (is it plugged in, and may this user open it? see udev rules for probe-rs)"
@@ -48,15 +63,29 @@ pub(super) fn flash(driver: &ProbeDriver, elf: &Path) -> Result<Flashed> {
             })?
         }
     };
-    let name = probe.get_name();
+    let name = format!("{} ({selector})", probe.get_name());
+    steps.probe(&name);
+    steps.step(&format!("attaching to {chip}"), limits::ATTACH);
     let mut session = probe
-        .attach(driver.chip.as_str(), Permissions::default())
-        .with_context(|| format!("probe {name} cannot attach to {}", driver.chip))?;
+        .attach(chip, Permissions::default())
+        .with_context(|| format!("probe {name} cannot attach to {chip}"))?;
+    steps.step("reading the device id (DSU DID)", limits::READ);
+    let did = session
+        .core(0)
+        .and_then(|mut core| core.read_word_32(SAMD21_DSU_DID))
+        .with_context(|| format!("probe {name}: cannot read the chip's device id"))?;
+    let id = check_device_id(&name, did)?;
+    tracing::info!(probe = %name, did = format!("{did:#010x}"), chip = %id.describe(), "chip identified");
+    steps.step("reading the NVM user row (BOOTPROT)", limits::READ);
     let user_row = session
         .core(0)
         .and_then(|mut core| core.read_word_32(SAMD21_USER_ROW))
-        .context("cannot read the chip's NVM user row (BOOTPROT)")?;
+        .with_context(|| format!("probe {name}: cannot read the chip's NVM user row (BOOTPROT)"))?;
     check_bootprot(elf, lowest_load_address(elf)?, user_row)?;
+    steps.step(
+        &format!("writing and verifying {}", elf.display()),
+        limits::DOWNLOAD,
+    );
     let mut options = DownloadOptions::default();
     options.verify = true;
     probe_rs::flashing::download_file_with_options(
@@ -67,14 +96,15 @@ pub(super) fn flash(driver: &ProbeDriver, elf: &Path) -> Result<Flashed> {
     )
     .with_context(|| {
         format!(
-            "flashing {} failed (written and read back: a verify error means the flash does not hold the image)",
+            "flashing {} through {name} failed (written and read back: a verify error means the flash does not hold the image)",
             elf.display()
         )
     })?;
+    steps.step("restarting the chip", limits::RESET);
     session
         .core(0)
         .and_then(|mut core| core.reset())
-        .context("cannot restart the chip after flashing")?;
+        .with_context(|| format!("probe {name}: cannot restart the chip after flashing"))?;
     Ok(Flashed {
         probe: name,
         duration: started.elapsed(),
