@@ -116,6 +116,8 @@ pub struct GcsMock {
     download: Option<Download>,
     timeout: Duration,
     retries: u32,
+    /// Each repeated item request counts against `retries`, as a timeout does (MAVSDK).
+    mavsdk_retries: bool,
     /// The last plan it started uploading, by type (what the vehicle should end up with).
     pub last_upload: Option<(MavMissionType, Vec<MISSION_ITEM_INT_DATA>)>,
     /// Uploads it cancelled itself.
@@ -150,6 +152,7 @@ impl GcsMock {
             download: None,
             timeout: Duration::from_millis(1500),
             retries: 5,
+            mavsdk_retries: false,
             last_upload: None,
             cancels: 0,
             result: None,
@@ -193,6 +196,14 @@ impl GcsMock {
     /// Every `PARAM_SET` sent, with its echo.
     pub fn param_sets(&self) -> &[ParamSet] {
         &self.params.sets
+    }
+
+    /// The same ground station counting retries as MAVSDK's mission transfer does: each
+    /// request for an item it already sent is one of its `retries` (the first send of an item
+    /// counts as one too), so a vehicle side that asks again while it waits uses them up.
+    pub fn with_mavsdk_retry_counting(mut self) -> Self {
+        self.mavsdk_retries = true;
+        self
     }
 
     /// The same ground station with the mission protocol's per-step `timeout` and `retries`
@@ -525,6 +536,7 @@ impl GcsMock {
         {
             self.result = Some((a.mavtype, now));
         }
+        let (limit, mavsdk) = (self.retries, self.mavsdk_retries);
         let Some(up) = &mut self.upload else { return };
         match msg {
             MavMessage::MISSION_REQUEST_INT(r)
@@ -534,7 +546,15 @@ impl GcsMock {
                     return;
                 };
                 if up.last != Some(r.seq) {
-                    up.retries = 0;
+                    up.retries = u32::from(mavsdk);
+                } else if mavsdk {
+                    if up.retries >= limit {
+                        self.upload = None;
+                        self.result =
+                            Some((MavMissionResult::MAV_MISSION_OPERATION_CANCELLED, now));
+                        return;
+                    }
+                    up.retries += 1;
                 }
                 up.last = Some(r.seq);
                 up.at = now;
