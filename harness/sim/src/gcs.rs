@@ -198,9 +198,12 @@ impl GcsMock {
         &self.params.sets
     }
 
-    /// The same ground station counting retries as MAVSDK's mission transfer does: each
-    /// request for an item it already sent is one of its `retries` (the first send of an item
-    /// counts as one too), so a vehicle side that asks again while it waits uses them up.
+    /// The same ground station counting retries as MAVSDK's mission transfer
+    /// (`MavlinkMissionTransferClient::UploadWorkItem`) does: the count and each item sent
+    /// count as one of its `retries`, a request for a new item starts them again, a request
+    /// for an item it already sent is one more, and a timeout while it waits for a request or
+    /// the ack is one more without sending anything (only the count is repeated). With 5
+    /// retries of 0.5 s it gives up 2.5 s after its last send, without telling the vehicle.
     pub fn with_mavsdk_retry_counting(mut self) -> Self {
         self.mavsdk_retries = true;
         self
@@ -385,7 +388,8 @@ impl GcsMock {
             items,
             last: None,
             at: now,
-            retries: 0,
+            // MAVSDK counts the first count it sends as one of its tries.
+            retries: u32::from(self.mavsdk_retries),
         });
         self.result = None;
         self.send(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
@@ -633,6 +637,11 @@ impl GcsMock {
         }
         up.retries += 1;
         up.at = now;
+        // MAVSDK only counts a timeout while it waits for a request or the ack: it repeats
+        // nothing but its count.
+        if self.mavsdk_retries && up.last.is_some() {
+            return;
+        }
         let msg = match up.last {
             None => MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
                 count: up.items.len() as u16,
