@@ -116,6 +116,8 @@ pub struct GcsMock {
     download: Option<Download>,
     timeout: Duration,
     retries: u32,
+    /// Each repeated item request counts against `retries`, as a timeout does (MAVSDK).
+    mavsdk_retries: bool,
     /// The last plan it started uploading, by type (what the vehicle should end up with).
     pub last_upload: Option<(MavMissionType, Vec<MISSION_ITEM_INT_DATA>)>,
     /// Uploads it cancelled itself.
@@ -150,6 +152,7 @@ impl GcsMock {
             download: None,
             timeout: Duration::from_millis(1500),
             retries: 5,
+            mavsdk_retries: false,
             last_upload: None,
             cancels: 0,
             result: None,
@@ -193,6 +196,17 @@ impl GcsMock {
     /// Every `PARAM_SET` sent, with its echo.
     pub fn param_sets(&self) -> &[ParamSet] {
         &self.params.sets
+    }
+
+    /// The same ground station counting retries as MAVSDK's mission transfer
+    /// (`MavlinkMissionTransferClient::UploadWorkItem`) does: the count and each item sent
+    /// count as one of its `retries`, a request for a new item starts them again, a request
+    /// for an item it already sent is one more, and a timeout while it waits for a request or
+    /// the ack is one more without sending anything (only the count is repeated). With 5
+    /// retries of 0.5 s it gives up 2.5 s after its last send, without telling the vehicle.
+    pub fn with_mavsdk_retry_counting(mut self) -> Self {
+        self.mavsdk_retries = true;
+        self
     }
 
     /// The same ground station with the mission protocol's per-step `timeout` and `retries`
@@ -374,7 +388,8 @@ impl GcsMock {
             items,
             last: None,
             at: now,
-            retries: 0,
+            // MAVSDK counts the first count it sends as one of its tries.
+            retries: u32::from(self.mavsdk_retries),
         });
         self.result = None;
         self.send(&MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
@@ -525,6 +540,7 @@ impl GcsMock {
         {
             self.result = Some((a.mavtype, now));
         }
+        let (limit, mavsdk) = (self.retries, self.mavsdk_retries);
         let Some(up) = &mut self.upload else { return };
         match msg {
             MavMessage::MISSION_REQUEST_INT(r)
@@ -534,7 +550,15 @@ impl GcsMock {
                     return;
                 };
                 if up.last != Some(r.seq) {
-                    up.retries = 0;
+                    up.retries = u32::from(mavsdk);
+                } else if mavsdk {
+                    if up.retries >= limit {
+                        self.upload = None;
+                        self.result =
+                            Some((MavMissionResult::MAV_MISSION_OPERATION_CANCELLED, now));
+                        return;
+                    }
+                    up.retries += 1;
                 }
                 up.last = Some(r.seq);
                 up.at = now;
@@ -613,6 +637,11 @@ impl GcsMock {
         }
         up.retries += 1;
         up.at = now;
+        // MAVSDK only counts a timeout while it waits for a request or the ack: it repeats
+        // nothing but its count.
+        if self.mavsdk_retries && up.last.is_some() {
+            return;
+        }
         let msg = match up.last {
             None => MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
                 count: up.items.len() as u16,

@@ -202,19 +202,42 @@ pub fn frames(
     out
 }
 
-/// The router's status poll in packed mode: a frame of the transfer with no item (see
-/// [`super::relay`]: the bridge answers with what it misses, "busy" or its ack).
+/// The router's status poll: a frame of the transfer with no item (see [`super::relay`]: the
+/// bridge answers with what it misses, "busy" or its ack). Once the router holds the whole
+/// plan it names the plan too (`plan`: the CRC's low 24 bits, as [`super::plan::plan_part`]),
+/// in the first data bytes: the transfer's count left before the ground had sent every item,
+/// so its id cannot carry the CRC the bridge checks the assembled plan against.
 // `..Default::default()` on a full literal: the dialect may grow.
 #[allow(clippy::needless_update)]
-pub fn poll(id: u32, count: u16, vehicle: (u8, u8), mission_type: MavMissionType) -> MavMessage {
+pub fn poll(
+    id: u32,
+    count: u16,
+    vehicle: (u8, u8),
+    mission_type: MavMissionType,
+    plan: Option<u32>,
+) -> MavMessage {
+    let mut data = [0u8; MAX_DATA];
+    if let Some(plan) = plan {
+        data[..4].copy_from_slice(&(PLAN_NAMED | (plan & 0x00FF_FFFF)).to_le_bytes());
+    }
     MavMessage::MAVLORA_MISSION_ITEMS(MAVLORA_MISSION_ITEMS_DATA {
         opaque_id: id,
         count,
         target_system: vehicle.0,
         target_component: vehicle.1,
         mission_type,
+        data,
         ..Default::default()
     })
+}
+
+/// Marks a poll's data as naming the plan (a poll without it has all-zero data).
+const PLAN_NAMED: u32 = 1 << 24;
+
+/// The plan a poll names (the CRC's low 24 bits), if it names one.
+pub fn poll_plan(p: &MAVLORA_MISSION_ITEMS_DATA) -> Option<u32> {
+    let word = u32::from_le_bytes([p.data[0], p.data[1], p.data[2], p.data[3]]);
+    (p.items == 0 && word & !0x00FF_FFFF == PLAN_NAMED).then_some(word & 0x00FF_FFFF)
 }
 
 /// Bytes `items` take as standard frames: one unsigned MAVLink 2 `MISSION_ITEM_INT` each

@@ -11,8 +11,11 @@
 //!   for each missing run, `MISSION_REQUEST_PARTIAL_LIST{start_index, end_index}` (both
 //!   included; selective repair); the items the tail of the stream lost are requested when
 //!   nothing arrived for one retransmission timeout, or at the router's poll.
-//! - All items in: their CRC must match the transfer id (no item of another plan mixed in),
-//!   else all are requested again. Then the wire leg runs.
+//! - All items in: their CRC must match the plan the transfer names (no item of another
+//!   plan mixed in), else all are requested again; then the wire leg runs. A transfer id
+//!   carries the plan's CRC part, or 0 there when the router started streaming before the
+//!   ground had sent the whole plan: then the router's poll names the plan once it has it,
+//!   and the bridge waits for that poll.
 //! - The router's status poll (a `MAVLORA_MISSION_ITEMS` without items, which also opens a
 //!   transfer the bridge never saw) comes behind everything the router sent before it: every
 //!   missing item is requested, however recently asked (the request or its answer was lost),
@@ -170,6 +173,10 @@ enum Radio {
         heard: Instant,
         /// Repair rounds since the last progress.
         rounds: u32,
+        /// The plan's CRC part the assembled items must match: the id's, or (an id whose plan
+        /// part is 0: the router started streaming before the ground had sent every item)
+        /// the one its poll names once it holds the whole plan.
+        plan: Option<u32>,
     },
     /// All items in, the wire leg runs.
     Forwarding {
@@ -346,17 +353,21 @@ impl MissionRelay {
     /// The router's status poll of transfer `id`, answered by state: every missing item
     /// requested, "busy" (`MISSION_REQUEST_INT{seq = count}`: all here, the autopilot is
     /// taking them) or the same ack again. Returns false if `id` is not the current transfer.
-    fn answer_poll(&mut self, now: Instant, id: u32) -> bool {
+    fn answer_poll(&mut self, now: Instant, id: u32, named: Option<u32>) -> bool {
         match &mut self.radio {
             Radio::Receiving {
                 id: current,
                 heard,
                 horizon,
                 slots,
+                plan,
                 ..
             } if *current == id => {
                 debug!(id, %now, "router polls the transfer");
                 *heard = now;
+                if plan_part(id) == 0 && named.is_some() {
+                    *plan = named;
+                }
                 // The router polls once its whole stream has left and the radio keeps order:
                 // whatever is missing now was lost (the items or our requests), none of it is
                 // still on the way. Ask for all of it, however recently asked; the answer also
@@ -473,6 +484,7 @@ impl MissionRelay {
             requested: BTreeMap::new(),
             heard: now,
             rounds: 0,
+            plan: (plan_part(id) != 0).then_some(plan_part(id)),
         };
         true
     }
@@ -492,11 +504,19 @@ impl MissionRelay {
         self.stats.radio_packed_frames += 1;
         if p.items == 0 {
             // No item: the router's status poll (it opens the transfer if nothing else did).
-            if !self.answer_poll(now, p.opaque_id)
-                && self.open(now, from, p.count, p.mission_type, p.opaque_id)
+            let named = pack::poll_plan(p);
+            if !self.answer_poll(now, p.opaque_id, named)
+                && (!self.open(now, from, p.count, p.mission_type, p.opaque_id)
+                    || !self.answer_poll(now, p.opaque_id, named))
             {
-                self.answer_poll(now, p.opaque_id);
-                self.check_complete(now);
+                return;
+            }
+            // The poll may have named the plan the last thing missing: then the autopilot is
+            // taking it, and the router hears so at once.
+            let receiving = matches!(self.radio, Radio::Receiving { .. });
+            self.check_complete(now);
+            if receiving && matches!(self.radio, Radio::Forwarding { .. }) {
+                self.answer_poll(now, p.opaque_id, None);
             }
             return;
         }
@@ -667,6 +687,7 @@ impl MissionRelay {
             slots,
             horizon,
             requested,
+            plan,
             ..
         } = &mut self.radio
         else {
@@ -675,8 +696,15 @@ impl MissionRelay {
         if slots.iter().any(Option::is_none) {
             return;
         }
+        let expected = match (*id, *plan) {
+            // A transfer without an id (not our router's): nothing to check against.
+            (0, _) => None,
+            (_, Some(plan)) => Some(plan),
+            // Every item is here, the plan not named yet: the router's poll names it.
+            (_, None) => return,
+        };
         let items: Vec<_> = slots.iter().flatten().cloned().collect();
-        if *id != 0 && plan_hash(*mission_type, &items) & 0x00FF_FFFF != plan_part(*id) {
+        if expected.is_some_and(|plan| plan_hash(*mission_type, &items) & 0x00FF_FFFF != plan) {
             warn!(
                 id = *id,
                 "assembled plan does not match the transfer id, asking again"
@@ -905,11 +933,16 @@ impl MissionRelay {
             mission_type,
             heard,
             rounds,
+            slots,
             ..
         } = &mut self.radio
             && now >= *heard + self.rtt.rto()
         {
-            if *rounds >= self.config.radio_attempts {
+            if slots.iter().all(Option::is_some) {
+                // Only the plan's name is missing: the router polls until it gets an answer,
+                // and nothing here is lost that a repair could bring.
+                *heard = now;
+            } else if *rounds >= self.config.radio_attempts {
                 warn!(id = *id, "mission transfer over the radio abandoned");
                 self.stats.failed += 1;
                 let give_up = ack(

@@ -365,7 +365,7 @@ fn packed(items: &[MISSION_ITEM_INT_DATA], generation: u8) -> Vec<MavMessage> {
 
 fn packed_poll(items: &[MISSION_ITEM_INT_DATA], generation: u8) -> MavMessage {
     let id = transfer_id(generation, plan_hash(MISSION, items));
-    pack::poll(id, items.len() as u16, (1, 1), MISSION)
+    pack::poll(id, items.len() as u16, (1, 1), MISSION, None)
 }
 
 /// Packed frames name their transfer and the plan's size: a bridge that lost the count
@@ -638,4 +638,65 @@ fn a_mavlink1_autopilot_gets_missions_only() {
     );
     wire_upload(&mut r, 1, ms(20));
     assert_eq!(r.stats().unsupported, 1);
+}
+
+/// The router starts streaming before the ground has sent the whole plan: the count's id
+/// then has plan part 0 and the poll behind the last item names the plan. With every item in,
+/// the bridge waits for that name and checks the assembled plan against it: an item of
+/// another plan mixed in has every item asked for again; the right plan goes to the
+/// autopilot and the router hears "busy" at once.
+#[test]
+fn a_plan_named_by_the_poll_is_uploaded_only_once_the_poll_matches_it() {
+    let items = plan(&(0..12).map(|x| 500 + 9_000 * x).collect::<Vec<_>>());
+    let id = transfer_id(4, 0);
+    let count = MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+        count: items.len() as u16,
+        target_system: 1,
+        opaque_id: id,
+        ..Default::default()
+    });
+    let frames = |xs: &[MISSION_ITEM_INT_DATA]| {
+        pack::frames(id, items.len() as u16, (1, 1), MISSION, xs, 60)
+    };
+    let mut other = items.clone();
+    other[3].x += 1;
+    let mut r = MissionRelay::new(MissionConfig::default());
+    r.handle_radio(ms(0), ROUTER, &count);
+    for f in frames(&other) {
+        r.handle_radio(ms(10), ROUTER, &f);
+    }
+    assert!(
+        fc_out(&mut r).is_empty(),
+        "every item here, the plan not named yet"
+    );
+    // its timer finds nothing lost and never gives the transfer up while it waits
+    for t in (500..30_000).step_by(500) {
+        r.handle_timeout(ms(t));
+    }
+    assert!(requested(&radio_out(&mut r)).is_empty());
+    let named = pack::poll(
+        id,
+        items.len() as u16,
+        (1, 1),
+        MISSION,
+        Some(plan_hash(MISSION, &items) & 0x00FF_FFFF),
+    );
+    r.handle_radio(ms(30_000), ROUTER, &named);
+    assert_eq!(r.stats().plan_mismatches, 1);
+    assert_eq!(requested(&radio_out(&mut r)), (0..12).collect::<Vec<u16>>());
+    assert!(fc_out(&mut r).is_empty());
+    for f in frames(&items) {
+        r.handle_radio(ms(30_100), ROUTER, &f);
+    }
+    let got = wire_upload(&mut r, 12, ms(30_300));
+    assert!(super::super::plan::same_plan(&got, &items));
+    // the autopilot's ACCEPTED, and the same again for the router's next poll
+    r.handle_radio(ms(30_400), ROUTER, &named);
+    let out = radio_out(&mut r);
+    assert!(
+        out.len() == 2
+            && out.iter().all(|m| matches!(m, MavMessage::MISSION_ACK(a)
+                if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED && a.opaque_id == id)),
+        "{out:?}"
+    );
 }

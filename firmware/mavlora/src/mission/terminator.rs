@@ -5,17 +5,20 @@
 //! opens a transfer (a count from the same ground again starts it over from item 0, except a
 //! repeat before any item came, which is our lost request; a count from another ground while
 //! one uploads is refused with `MAV_MISSION_DENIED`, as autopilots refuse a second partner);
-//! the router requests every item over the local link. With the plan in, the ground waits for
-//! the vehicle's answer on its own timeouts: the router does not on its own request an item
-//! it already has, since a ground station may count each repeated request against its
+//! the router asks for the items as the radio takes them (cut through: the next while no item
+//! frame waits to leave, and at the latest [`HOLD_MAX`] after the ground's last send) and
+//! for the plan's last [`HELD_ITEMS`] only once the bridge misses nothing sent before them,
+//! so the ground's wait for the vehicle's answer after its last item is short whatever the
+//! plan's size and the radio's losses. With the plan in, the ground waits for the vehicle's
+//! answer on its own timeouts: the router does not on its own request an item it already has, since a ground station may count each repeated request against its
 //! retries (MAVSDK does, and then gives up without a word while the vehicle takes the plan;
 //! it sends nothing while it waits). A ground that resends its last item when its timer
 //! fires (the protocol's retry; QGroundControl, pymavlink scripts, SDKs with 0.5 s × 3) has
 //! shown its period: from then on it is asked for that item again at 4/5 of it
 //! ([`KEEPALIVE_SHARE`]), so its timer never fires again while the radio leg works, and it
 //! spent one retry of its own. The ground is told what the vehicle answered, never anything
-//! the router made up: ACCEPTED only for the bridge's ack naming this transfer (its id
-//! carries the plan's CRC, which the bridge checked), and no other `MISSION_ACK` of the
+//! the router made up: ACCEPTED only for the bridge's ack naming this transfer, once the
+//! ground has sent every item (the bridge checked the plan against the poll's name), and no other `MISSION_ACK` of the
 //! vehicle reaches a ground while it uploads that type (an autopilot's ack to something
 //! else, `opaque_id` 0 as ArduPilot's always are, would read as the upload's answer). A
 //! `MISSION_ACK` with an error from the ground cancels the transfer. Legacy `MISSION_ITEM`
@@ -26,14 +29,16 @@
 //! business: they pass through, and so do the items of a partial write and the vehicle's
 //! requests and acks for them (see [`MissionTerminator::from_vehicle`]).
 //!
-//! Radio leg: `MISSION_COUNT{opaque_id = transfer id}` and every item, one behind the other
-//! (no round trip per item), packed several to a frame ([`super::pack`]) unless
+//! Radio leg: `MISSION_COUNT{opaque_id = transfer id}` as soon as the ground's count comes
+//! (the id's plan part is 0: the plan is not known yet), then every item as it comes, one
+//! behind the other (no round trip per item), packed several to a frame ([`super::pack`]) unless
 //! [`TerminatorConfig::pack_bytes`] is `None`, each frame paced at its own length on the
 //! radio; the bridge asks for the lost ones by range. A status poll goes right behind the
 //! stream (and behind each batch of repairs): the radio keeps order, so when the poll arrives
 //! every frame before it has arrived or is lost, and the bridge answers with what it misses,
-//! "busy" or its ack (see [`super::relay`]). The poll is an item frame without items, packed
-//! or not (the bridge knows it for a poll even if it never saw the transfer; a count always
+//! "busy" or its ack (see [`super::relay`]); once the plan is complete the poll names it (the
+//! low 24 bits of its CRC, [`pack::poll`]), and the bridge checks what it assembled against
+//! that name. The poll is an item frame without items, packed or not (the bridge knows it for a poll even if it never saw the transfer; a count always
 //! starts a transfer there). While the bridge stays silent the poll is repeated at a timeout
 //! that follows the round trip measured from polls to their answers (RFC 6298; Karn's rule:
 //! only a poll answered while it was the only one out, by a request that did not cross our
@@ -41,8 +46,8 @@
 //! [`TerminatorConfig::poll_max`]); before any is measured the timeout is the time two of
 //! the largest stream frames take at the paced rate plus [`super::MARGIN`], within
 //! [`TerminatorConfig::poll_min`] and [`TerminatorConfig::poll_initial`]. A request for an
-//! item sent again less than the shortest measured round trip ago crossed that copy and is
-//! not answered twice.
+//! item sent again less than the shortest measured round trip ago (before one is measured,
+//! the unmeasured poll timeout) crossed that copy and is not answered twice.
 
 use crate::time::Duration;
 use std::collections::VecDeque;
@@ -119,6 +124,22 @@ pub const KEEPALIVE_SHARE: (u32, u32) = (4, 5);
 const KEEPALIVE_MIN: Duration = Duration::from_millis(100);
 const KEEPALIVE_MAX: Duration = Duration::from_secs(10);
 
+/// The ground's last items are asked for only once the bridge holds everything before them
+/// (each asked for anyway, one at a time, when the ground has waited [`HOLD_MAX`]): the ground
+/// then waits for the vehicle's answer no longer than a few frames and a poll take, even
+/// when the radio lost part of the plan (MAVSDK gives up 2.5 s after its last send).
+pub const HELD_ITEMS: u16 = 5;
+
+/// The longest a ground waits for our next request while the radio is busy or we hold the
+/// plan's tail back: the protocol's default step timeout (a ground that resends sooner is
+/// asked at once).
+pub const HOLD_MAX: Duration = Duration::from_millis(1500);
+
+/// Items held back of a plan of `count`: never the only one.
+fn held(count: u16) -> u16 {
+    HELD_ITEMS.min(count.saturating_sub(1))
+}
+
 /// Unanswered polls after which the poll timeout starts doubling: a fade that swallows a
 /// poll or its answer is not congestion, the next poll should follow one round trip later (a
 /// poll is ~22 bytes); a bridge silent for longer is polled less and less often.
@@ -160,20 +181,23 @@ pub struct TerminatorStats {
 #[derive(Debug)]
 enum State {
     Idle,
-    Collecting {
-        ground: (u8, u8),
-        vehicle: (u8, u8),
-        mission_type: MavMissionType,
-        count: u16,
-        items: Vec<MISSION_ITEM_INT_DATA>,
-        asked_at: Instant,
-        asks: u32,
-    },
+    /// An upload in progress: the ground's items come in and stream over the radio.
     Relaying {
         ground: (u8, u8),
         vehicle: (u8, u8),
         mission_type: MavMissionType,
+        /// Items in the plan (the ground's count).
+        count: u16,
+        /// The ground's items so far, in order: the whole plan once `plan` is set.
         items: Vec<MISSION_ITEM_INT_DATA>,
+        /// Items put into stream frames; the rest wait to fill one.
+        framed: usize,
+        /// Items whose first copy has left for the radio.
+        first_sent: usize,
+        /// Our request for the next item, out to the ground: when, and how often asked.
+        asked: Option<(Instant, u32)>,
+        /// The plan's CRC part, once the ground has sent every item.
+        plan: Option<u32>,
         id: u32,
         /// When the last of our frames left, or the bridge last spoke.
         quiet_since: Instant,
@@ -194,6 +218,14 @@ enum State {
         keepalive: Option<Duration>,
         /// When we last asked for the last item again.
         asked_again: Option<Instant>,
+        /// The bridge showed it holds every item sent before the plan's tail: the ground is
+        /// asked for the rest of it.
+        released: bool,
+        /// A poll went behind what was sent when the tail was held back.
+        hold_polled: bool,
+        /// The bridge asked for items since our latest poll left (its answer to a poll lists
+        /// the missing runs lowest first: a run above them is no news that all is there).
+        repaired_since_poll: bool,
     },
     Done {
         ground: (u8, u8),
@@ -288,6 +320,19 @@ impl MissionTerminator {
     /// The round trip to the bridge, as measured from polls.
     pub fn rtt(&self) -> &RttEstimator {
         &self.rtt
+    }
+
+    /// A request for an item sent less than this long ago crossed that copy: the shortest
+    /// round trip measured, or before one is, the round trip of the largest frame at the
+    /// paced rate (a poll's answer can cross a repair queued behind that poll).
+    fn crossing_window(&self) -> Duration {
+        if self.stats.poll_rtt_samples > 0 {
+            return self.min_rtt;
+        }
+        match self.config.pace_bytes_per_s.filter(|r| *r > 0) {
+            Some(rate) if self.largest_frame > 0 => unmeasured_timeout(self.largest_frame, rate),
+            _ => Duration::ZERO,
+        }
     }
 
     /// Poll timeout with no poll unanswered: the measured one, or before any is measured
@@ -441,19 +486,13 @@ impl MissionTerminator {
         c: &MISSION_COUNT_DATA,
     ) {
         let busy = match &self.state {
-            State::Collecting {
+            State::Relaying {
                 ground: g,
                 mission_type,
                 count,
                 items,
                 ..
-            } => Some((*g, *mission_type, Some((*count, items.is_empty())))),
-            State::Relaying {
-                ground: g,
-                mission_type,
-                items,
-                ..
-            } => Some((*g, *mission_type, (items.is_empty()).then_some((0, true)))),
+            } => Some((*g, *mission_type, (*count, items.is_empty()))),
             _ => None,
         };
         if let Some((g, t, fresh)) = busy {
@@ -477,28 +516,80 @@ impl MissionTerminator {
             }
             // The same count again before any item came (or an empty plan's while the
             // vehicle has not answered): our answer was lost, not a new plan.
-            if t == c.mission_type && fresh == Some((c.count, true)) {
-                if let State::Collecting { .. } = self.state {
-                    self.advance(now);
-                }
+            if t == c.mission_type && fresh == (c.count, true) {
+                self.ask_again(now);
                 return;
             }
             self.stats.restarts += 1;
             self.cancel_radio();
         }
         self.end_op(ground, c.mission_type);
-        info!(count = c.count, mission_type = ?c.mission_type, "mission upload from the ground");
         self.stats.uploads += 1;
-        self.state = State::Collecting {
+        // Generation 0 would make the id 0, which names no transfer.
+        self.generation = self.generation.wrapping_add(1).max(1);
+        // The plan part is 0: the count leaves before the plan is known, and the poll names
+        // the plan once the ground has sent it all.
+        let id = transfer_id(self.generation, 0);
+        self.recent.push_back(id);
+        if self.recent.len() > 16 {
+            self.recent.pop_front();
+        }
+        info!(count = c.count, mission_type = ?c.mission_type, id, "mission upload from the ground");
+        self.stream
+            .push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
+                count: c.count,
+                target_system: vehicle.0,
+                target_component: vehicle.1,
+                mission_type: c.mission_type,
+                opaque_id: id,
+                ..Default::default()
+            }));
+        self.state = State::Relaying {
             ground,
             vehicle,
             mission_type: c.mission_type,
             count: c.count,
             items: Vec::with_capacity(c.count.into()),
-            asked_at: now,
-            asks: 0,
+            framed: 0,
+            first_sent: 0,
+            asked: None,
+            plan: None,
+            released: false,
+            hold_polled: false,
+            repaired_since_poll: false,
+            id,
+            quiet_since: now,
+            polls_unanswered: 0,
+            poll_sent: now,
+            sent_at: vec![None; usize::from(c.count)],
+            heard: now,
+            streamed: false,
+            ground_sent: now,
+            keepalive: None,
+            asked_again: None,
         };
         self.advance(now);
+    }
+
+    /// Asks the ground for the next item again now (our request or its answer was lost, or
+    /// the ground's own timer fired while we waited for the radio: a new request restarts
+    /// any ground's timer).
+    fn ask_again(&mut self, now: Instant) {
+        if let State::Relaying {
+            ground,
+            vehicle,
+            mission_type,
+            count,
+            items,
+            asked,
+            ..
+        } = &mut self.state
+            && items.len() < usize::from(*count)
+        {
+            *asked = Some((now, asked.map_or(1, |(_, n)| n)));
+            let next = request(*ground, items.len() as u16, *mission_type);
+            self.to_ground.push_back((*vehicle, next));
+        }
     }
 
     fn ground_item(&mut self, now: Instant, from: (u8, u8), item: &MISSION_ITEM_INT_DATA) -> bool {
@@ -508,36 +599,33 @@ impl MissionTerminator {
             return false;
         }
         match &mut self.state {
-            State::Collecting {
-                ground,
-                vehicle,
-                mission_type,
-                items,
-                ..
-            } if *ground == from && item.mission_type == *mission_type => {
-                let next = items.len() as u16;
-                if item.seq == next {
-                    items.push(item.clone());
-                    self.advance(now);
-                } else if next.checked_sub(1) == Some(item.seq) {
-                    // Our request for the next one was lost: ask again now.
-                    let again = request(*ground, next, *mission_type);
-                    self.to_ground.push_back((*vehicle, again));
-                }
-                true
-            }
-            // The ground's own retry of its last item: the vehicle has not answered yet.
             State::Relaying {
                 ground,
                 mission_type,
+                count,
                 items,
+                asked,
                 ground_sent,
                 keepalive,
                 asked_again,
+                hold_polled,
                 ..
             } if *ground == from && item.mission_type == *mission_type => {
-                if items.len().checked_sub(1) == Some(usize::from(item.seq)) {
-                    // Unasked (not the answer to our request again): the ground's own
+                let next = items.len();
+                let complete = next == usize::from(*count);
+                if !complete && usize::from(item.seq) == next {
+                    items.push(item.clone());
+                    *asked = None;
+                    *ground_sent = now;
+                    *hold_polled = false;
+                    self.advance(now);
+                } else if !complete && next.checked_sub(1) == Some(usize::from(item.seq)) {
+                    // Our request for the next one was lost, or we held it back while the
+                    // radio was busy and the ground's timer fired: ask for it now.
+                    self.ask_again(now);
+                } else if complete && next.checked_sub(1) == Some(usize::from(item.seq)) {
+                    // The ground's own retry of its last item: the vehicle has not answered
+                    // yet. Unasked (not the answer to our request again): the ground's own
                     // timeout fired, and it retries by resending. That shows its period.
                     let unasked = asked_again.is_none_or(|at| at < *ground_sent);
                     if keepalive.is_none() && unasked {
@@ -584,19 +672,22 @@ impl MissionTerminator {
             return false;
         }
         match &self.state {
-            State::Collecting {
+            State::Relaying {
                 ground,
                 vehicle,
                 mission_type,
                 count,
+                items,
                 ..
-            } if *ground == from && *mission_type == t => {
+            } if *ground == from && *mission_type == t && items.len() < usize::from(*count) => {
                 warn!(
                     seq,
                     "legacy MISSION_ITEM in a mission upload refused (MISSION_ITEM_INT only)"
                 );
                 self.stats.refused += 1;
                 let (g, v, count) = (*ground, *vehicle, *count);
+                // The bridge has the count and perhaps items already: it must drop them.
+                self.cancel_radio();
                 self.to_ground
                     .push_back((v, ack(g, MavMissionResult::MAV_MISSION_UNSUPPORTED, t, 0)));
                 self.state = State::Done {
@@ -642,12 +733,7 @@ impl MissionTerminator {
     /// Whether `ground` is uploading a plan of type `t` (collecting or relaying it).
     fn uploading(&self, ground: (u8, u8), t: MavMissionType) -> bool {
         match &self.state {
-            State::Collecting {
-                ground: g,
-                mission_type,
-                ..
-            }
-            | State::Relaying {
+            State::Relaying {
                 ground: g,
                 mission_type,
                 ..
@@ -660,12 +746,7 @@ impl MissionTerminator {
     /// type, if any, is over and the vehicle must not get it.
     fn ground_moved_on(&mut self, ground: (u8, u8), t: MavMissionType) {
         let current = match &self.state {
-            State::Collecting {
-                ground: g,
-                mission_type,
-                ..
-            }
-            | State::Relaying {
+            State::Relaying {
                 ground: g,
                 mission_type,
                 ..
@@ -704,12 +785,7 @@ impl MissionTerminator {
                 && now.saturating_duration_since(o.at) < OP_IDLE
         });
         let uploading = match &self.state {
-            State::Collecting {
-                ground,
-                mission_type,
-                ..
-            }
-            | State::Relaying {
+            State::Relaying {
                 ground,
                 mission_type,
                 ..
@@ -755,72 +831,91 @@ impl MissionTerminator {
         self.poll_pending = false;
     }
 
-    /// Asks the ground for the next item, or starts the radio leg with all of them.
-    // `..Default::default()` on full literals: the dialect may grow.
-    #[allow(clippy::needless_update)]
+    /// Frames the items that wait (a packed frame once it is full, all of them once the plan
+    /// is complete), names the plan once complete, and asks the ground for the next item
+    /// while no frame waits to leave: the ground's requests follow the radio's progress, so
+    /// the ground never waits long for the next (MAVSDK gives up 2.5 s after its last send,
+    /// without a word, and a whole plan takes longer than that over LoRa), and its last item
+    /// is asked for only when little but that item is left to send.
     fn advance(&mut self, now: Instant) {
-        let State::Collecting {
+        let State::Relaying {
             ground,
             vehicle,
             mission_type,
             count,
             items,
-            asked_at,
-            asks,
+            framed,
+            asked,
+            plan,
+            id,
+            released,
+            hold_polled,
+            first_sent,
+            ..
         } = &mut self.state
         else {
             return;
         };
-        if items.len() < usize::from(*count) {
-            *asked_at = now;
-            *asks = 1;
-            let next = request(*ground, items.len() as u16, *mission_type);
-            self.to_ground.push_back((*vehicle, next));
+        let complete = items.len() == usize::from(*count);
+        let remaining = *count - items.len() as u16;
+        let hold = remaining > 0 && remaining <= held(*count) && !*released;
+        if *framed < items.len() {
+            let run = &items[*framed..];
+            let mut frames = item_frames(&self.config, *id, *vehicle, *mission_type, *count, run);
+            if !complete && !hold && self.config.pack_bytes.is_some() {
+                // The last frame may have room for the items still to come.
+                frames.pop();
+            }
+            let n: usize = frames.iter().map(items_in).sum();
+            *framed += n;
+            self.stats.items_streamed += n as u64;
+            self.stream.extend(frames);
+        }
+        if complete {
+            if plan.is_none() {
+                *plan = Some(plan_hash(*mission_type, items) & 0x00FF_FFFF);
+                info!(
+                    count = items.len(),
+                    id = *id,
+                    "plan from the ground complete, a poll behind its stream names it"
+                );
+                // A poll right behind the stream: a lost tail is asked for one round trip
+                // later, and the bridge learns what plan it must have assembled.
+                self.poll_pending = !items.is_empty();
+            }
             return;
         }
-        let (ground, vehicle, mission_type) = (*ground, *vehicle, *mission_type);
-        let items = std::mem::take(items);
-        self.generation = self.generation.wrapping_add(1);
-        let id = transfer_id(self.generation, plan_hash(mission_type, &items));
-        self.recent.push_back(id);
-        if self.recent.len() > 16 {
-            self.recent.pop_front();
+        if hold {
+            // Everything asked for so far is on its way: a poll behind it, and the bridge's
+            // answer tells whether it all arrived.
+            if !*hold_polled {
+                *hold_polled = true;
+                self.poll_pending = true;
+            }
+            return;
         }
-        info!(
-            count = items.len(),
-            id, "plan from the ground complete, streaming it over the radio"
-        );
-        self.stream
-            .push_back(MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                count: items.len() as u16,
-                target_system: vehicle.0,
-                target_component: vehicle.1,
-                mission_type,
-                opaque_id: id,
-                ..Default::default()
-            }));
-        let count = items.len();
-        let frames = item_frames(&self.config, id, vehicle, mission_type, &items, &items);
-        self.stream.extend(frames);
-        // A poll right behind the stream: a lost tail is asked for one round trip later.
-        self.poll_pending = !items.is_empty();
-        self.stats.items_streamed += items.len() as u64;
-        self.state = State::Relaying {
-            ground,
-            vehicle,
-            mission_type,
-            items,
-            id,
-            quiet_since: now,
-            polls_unanswered: 0,
-            poll_sent: now,
-            sent_at: vec![None; count],
-            heard: now,
-            streamed: false,
-            ground_sent: now,
-            keepalive: None,
-            asked_again: None,
-        };
+        // Repairs waiting do not hold the ground up: only items not sent once do.
+        if asked.is_none() && *first_sent == *framed {
+            *asked = Some((now, 1));
+            let next = request(*ground, items.len() as u16, *mission_type);
+            self.to_ground.push_back((*vehicle, next));
+        }
+    }
+
+    /// Whether the plan's tail is held back (see [`HELD_ITEMS`]).
+    fn holding(&self) -> bool {
+        match &self.state {
+            State::Relaying {
+                count,
+                items,
+                released,
+                ..
+            } => {
+                let remaining = *count - items.len() as u16;
+                remaining > 0 && remaining <= held(*count) && !*released
+            }
+            _ => false,
+        }
     }
 
     /// A mission message from the radio. Returns whether it was taken (else the caller
@@ -894,7 +989,9 @@ impl MissionTerminator {
         let State::Relaying {
             vehicle,
             mission_type,
+            count,
             items,
+            framed,
             id,
             sent_at,
             ..
@@ -905,15 +1002,40 @@ impl MissionTerminator {
         if t != *mission_type {
             return;
         }
+        let nothing_lower = match &self.state {
+            State::Relaying {
+                repaired_since_poll,
+                ..
+            } => !*repaired_since_poll && self.stream.is_empty(),
+            _ => false,
+        };
+        if self.holding()
+            && nothing_lower
+            && usize::from(start) >= *framed
+            && *framed == items.len()
+        {
+            // The bridge misses nothing we sent: the ground's tail now.
+            debug!(
+                start,
+                "the bridge holds everything sent, asking the ground for the rest"
+            );
+            if let State::Relaying { released, .. } = &mut self.state {
+                *released = true;
+            }
+            self.bridge_heard(now, true);
+            self.advance(now);
+            return;
+        }
         // Not what still waits to leave, nor what left less than the shortest round trip
         // ago (the request was sent before that copy could have arrived).
         let waiting = |seq: usize| self.stream.iter().any(|m| covers(m, seq));
-        let crossed = |seq: usize| {
-            sent_at[seq].is_some_and(|t| now.saturating_duration_since(t) < self.min_rtt)
-        };
+        let window = self.crossing_window();
+        let crossed =
+            |seq: usize| sent_at[seq].is_some_and(|t| now.saturating_duration_since(t) < window);
         let mut crossed_any = false;
         let mut runs: Vec<(usize, usize)> = Vec::new();
-        let last = items.len().min(usize::from(end) + 1);
+        // Items not framed yet have not been sent: they go with the stream.
+        let last = (*framed).min(usize::from(end) + 1);
         for seq in usize::from(start)..last {
             if waiting(seq) {
                 continue;
@@ -935,7 +1057,7 @@ impl MissionTerminator {
                 *id,
                 *vehicle,
                 *mission_type,
-                items,
+                *count,
                 &items[a..=b],
             ));
         }
@@ -950,6 +1072,13 @@ impl MissionTerminator {
         if !repairs.is_empty() {
             // ...and a poll behind them.
             self.poll_pending = true;
+            if let State::Relaying {
+                repaired_since_poll,
+                ..
+            } = &mut self.state
+            {
+                *repaired_since_poll = true;
+            }
         }
         for (k, frame) in repairs.into_iter().enumerate() {
             self.stream.insert(at + k, frame);
@@ -962,6 +1091,7 @@ impl MissionTerminator {
             vehicle,
             mission_type,
             items,
+            plan,
             id,
             ..
         } = &self.state
@@ -972,6 +1102,12 @@ impl MissionTerminator {
         if opaque_id != *id {
             self.stats.stale_acks += 1;
             debug!(opaque_id, "ack for an older transfer dropped");
+            return;
+        }
+        if result == MavMissionResult::MAV_MISSION_ACCEPTED && plan.is_none() {
+            // The bridge cannot hold a plan the ground has not finished sending.
+            warn!(opaque_id, "ACCEPTED for a plan not complete yet, dropped");
+            self.stats.stale_acks += 1;
             return;
         }
         let (g, v, t, n) = (*ground, *vehicle, *mission_type, items.len() as u16);
@@ -1015,11 +1151,12 @@ impl MissionTerminator {
             quiet_since,
             heard,
             streamed,
+            plan,
             ..
         } = &mut self.state
         {
             *quiet_since = now;
-            if outstanding == 0 && !*streamed {
+            if outstanding == 0 && !*streamed && plan.is_some() {
                 *streamed = true;
                 *heard = (*heard).max(now);
             }
@@ -1039,14 +1176,15 @@ impl MissionTerminator {
         let State::Relaying {
             vehicle,
             mission_type,
-            items,
+            count,
+            plan,
             id,
             ..
         } = &self.state
         else {
             return None;
         };
-        Some(pack::poll(*id, items.len() as u16, *vehicle, *mission_type))
+        Some(pack::poll(*id, *count, *vehicle, *mission_type, *plan))
     }
 
     /// When something is due.
@@ -1059,19 +1197,28 @@ impl MissionTerminator {
 
     fn state_timeout(&self) -> Option<Instant> {
         let outstanding = self.outstanding();
+        let holding = self.holding();
         match &self.state {
-            State::Collecting { asked_at, .. } => Some(*asked_at + self.config.ground_timeout),
             State::Relaying {
                 quiet_since,
                 polls_unanswered,
                 ground_sent,
                 keepalive,
+                asked,
+                plan,
+                hold_polled,
                 ..
             } => {
-                let poll =
-                    (outstanding == 0).then(|| *quiet_since + self.poll_after(*polls_unanswered));
+                let ground = asked.map(|(at, _)| at + self.config.ground_timeout);
+                // Polls once the whole plan is streaming, or its tail is held back: before,
+                // the stream is not over.
+                let poll = (outstanding == 0 && (plan.is_some() || (holding && *hold_polled)))
+                    .then(|| *quiet_since + self.poll_after(*polls_unanswered));
                 let ask = keepalive.map(|k| *ground_sent + k);
-                poll.into_iter().chain(ask).min()
+                // However busy the radio, the ground is asked for its next item before it
+                // has waited longer than it may.
+                let release = (plan.is_none() && asked.is_none()).then(|| *ground_sent + HOLD_MAX);
+                [ground, poll, ask, release].into_iter().flatten().min()
             }
             _ => None,
         }
@@ -1082,41 +1229,58 @@ impl MissionTerminator {
     #[allow(clippy::needless_update)]
     pub fn handle_timeout(&mut self, now: Instant) {
         let outstanding = self.outstanding();
+        let holding = self.holding();
         let poll_after = match &self.state {
             State::Relaying {
                 polls_unanswered, ..
             } => self.poll_after(*polls_unanswered),
             _ => Duration::ZERO,
         };
-        match &mut self.state {
-            State::Collecting {
-                ground,
-                vehicle,
-                mission_type,
-                items,
-                asked_at,
-                asks,
-                ..
-            } if now >= *asked_at + self.config.ground_timeout => {
-                if *asks >= self.config.ground_attempts {
-                    // As an autopilot does when an upload stalls: the ground is told.
-                    warn!("the ground stopped sending its items, upload dropped");
-                    self.stats.failed += 1;
-                    let cancelled = ack(
-                        *ground,
-                        MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
-                        *mission_type,
-                        0,
-                    );
-                    self.to_ground.push_back((*vehicle, cancelled));
-                    self.state = State::Idle;
-                    return;
-                }
-                *asks += 1;
-                *asked_at = now;
-                let again = request(*ground, items.len() as u16, *mission_type);
-                self.to_ground.push_back((*vehicle, again));
+        if let State::Relaying {
+            asked: None,
+            plan: None,
+            ground_sent,
+            ..
+        } = &self.state
+            && now >= *ground_sent + HOLD_MAX
+        {
+            // The ground has waited as long as it may for our next request (the radio
+            // busy with repairs, or the tail held back): one more item.
+            debug!("the ground waited long enough, asking for one more item");
+            self.ask_again(now);
+        }
+        if let State::Relaying {
+            ground,
+            vehicle,
+            mission_type,
+            items,
+            asked: Some((at, asks)),
+            ..
+        } = &mut self.state
+            && now >= *at + self.config.ground_timeout
+        {
+            if *asks >= self.config.ground_attempts {
+                // As an autopilot does when an upload stalls: the ground is told, and the
+                // bridge drops what it has of the plan.
+                warn!("the ground stopped sending its items, upload dropped");
+                self.stats.failed += 1;
+                let cancelled = ack(
+                    *ground,
+                    MavMissionResult::MAV_MISSION_OPERATION_CANCELLED,
+                    *mission_type,
+                    0,
+                );
+                self.to_ground.push_back((*vehicle, cancelled));
+                self.cancel_radio();
+                self.state = State::Idle;
+                return;
             }
+            *asks += 1;
+            *at = now;
+            let again = request(*ground, items.len() as u16, *mission_type);
+            self.to_ground.push_back((*vehicle, again));
+        }
+        match &mut self.state {
             State::Relaying {
                 ground,
                 vehicle,
@@ -1128,8 +1292,10 @@ impl MissionTerminator {
                 ground_sent,
                 keepalive,
                 asked_again,
+                plan,
+                hold_polled,
                 ..
-            } => {
+            } if plan.is_some() || (holding && *hold_polled) => {
                 if let Some(k) = keepalive
                     && now >= *ground_sent + *k
                     && let Some(last) = items.len().checked_sub(1)
@@ -1184,9 +1350,11 @@ impl MissionTerminator {
                 if let State::Relaying {
                     polls_unanswered,
                     poll_sent,
+                    repaired_since_poll,
                     ..
                 } = &mut self.state
                 {
+                    *repaired_since_poll = false;
                     self.stats.polls += 1;
                     *polls_unanswered += 1;
                     *poll_sent = now;
@@ -1196,12 +1364,26 @@ impl MissionTerminator {
             None => return None,
         };
         self.in_queue += 1;
-        if let State::Relaying { sent_at, .. } = &mut self.state {
+        let mut new_items = false;
+        if let State::Relaying {
+            sent_at,
+            first_sent,
+            ..
+        } = &mut self.state
+        {
             for (seq, at) in sent_at.iter_mut().enumerate() {
                 if covers(&msg, seq) {
                     *at = Some(now);
+                    if seq >= *first_sent {
+                        *first_sent = seq + 1;
+                        new_items = true;
+                    }
                 }
             }
+        }
+        if new_items {
+            // The stream has room for the ground's next items.
+            self.advance(now);
         }
         let len = radio_len(&msg) + u64::from(self.config.frame_extra_bytes);
         self.largest_frame = self.largest_frame.max(len);
@@ -1219,15 +1401,24 @@ fn item_frames(
     id: u32,
     vehicle: (u8, u8),
     mission_type: MavMissionType,
-    plan: &[MISSION_ITEM_INT_DATA],
+    count: u16,
     run: &[MISSION_ITEM_INT_DATA],
 ) -> Vec<MavMessage> {
     match config.pack_bytes {
-        Some(cap) => pack::frames(id, plan.len() as u16, vehicle, mission_type, run, cap),
+        Some(cap) => pack::frames(id, count, vehicle, mission_type, run, cap),
         None => run
             .iter()
             .map(|i| MavMessage::MISSION_ITEM_INT(to_vehicle(i, vehicle)))
             .collect(),
+    }
+}
+
+/// Items a stream frame carries.
+fn items_in(msg: &MavMessage) -> usize {
+    match msg {
+        MavMessage::MISSION_ITEM_INT(_) => 1,
+        MavMessage::MAVLORA_MISSION_ITEMS(p) => usize::from(p.items),
+        _ => 0,
     }
 }
 

@@ -475,8 +475,9 @@ fn a_range_request_is_answered_ahead_of_the_stream_without_what_waits_or_crossed
     let sent = items_of(&out);
     assert!(!sent.is_empty() && sent.len() < 40, "{}", sent.len());
     let last_sent = sent.last().unwrap().0;
-    // the bridge asks for everything: only what already left comes again, first
-    m.from_radio(t + Duration::from_millis(10), &range(0, 39));
+    // the bridge asks for everything, a round trip later (a request sooner would have
+    // crossed those frames): only what already left comes again, first
+    m.from_radio(t + Duration::from_millis(600), &range(0, 39));
     let later = t + Duration::from_millis(2000);
     let next = radio_out(&mut m, later);
     let again: Vec<u16> = items_of(&next[..1]).iter().map(|(s, _)| *s).collect();
@@ -598,4 +599,138 @@ fn an_item_numbered_65535_neither_panics_nor_counts() {
         &bridge_ack(id, MavMissionResult::MAV_MISSION_ACCEPTED, MISSION),
     );
     assert!(m.from_ground(ms(4), GROUND, 1, &item(u16::MAX, 0, MISSION)));
+}
+
+/// The ground's items requested so far (from what the terminator sent it).
+fn requests_in(msgs: &[MavMessage]) -> Vec<u16> {
+    msgs.iter()
+        .filter_map(|m| match m {
+            MavMessage::MISSION_REQUEST_INT(r) => Some(r.seq),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A ground that answers each request at once and never resends (MAVSDK, which counts every
+/// repeated request against its 5 tries and gives up 2.5 s after its last send, without a
+/// word) uploads a 100-item survey over a LoRa-paced radio leg whose bridge never answers:
+/// it is asked for the next item as the radio takes the plan, never left waiting longer
+/// than [`HOLD_MAX`], and not asked for its last items before the stream is nearly out.
+#[test]
+fn a_silent_ground_is_asked_for_its_items_as_the_radio_takes_them() {
+    let config = TerminatorConfig {
+        pace_bytes_per_s: Some(683),
+        ..TerminatorConfig::default()
+    };
+    let mut m = MissionTerminator::new(config);
+    let xs = survey(100);
+    m.from_ground(ms(0), GROUND, 1, &count(100, MISSION));
+    let (mut asked_at, mut longest, mut last_frame_left) = (0u64, 0u64, 0u64);
+    let mut t = 0;
+    let mut asked_last_at = None;
+    while t < 60_000 && asked_last_at.is_none() {
+        m.handle_timeout(ms(t));
+        let out = radio_out(&mut m, ms(t));
+        if !items_of(&out).is_empty() {
+            last_frame_left = t;
+        }
+        // The ground answers at once, and may be asked again at once.
+        while let seqs = requests_in(&ground_out(&mut m))
+            && !seqs.is_empty()
+        {
+            for seq in seqs {
+                longest = longest.max(t - asked_at);
+                asked_at = t;
+                if seq == 99 {
+                    asked_last_at = Some(t);
+                }
+                m.from_ground(ms(t), GROUND, 1, &item(seq, xs[usize::from(seq)], MISSION));
+            }
+        }
+        t = m
+            .poll_timeout()
+            .map_or(t + 10, |d| d.as_millis().max(t + 1));
+    }
+    assert!(
+        longest <= HOLD_MAX.as_millis(),
+        "the ground waited {longest} ms"
+    );
+    let asked_last_at = asked_last_at.expect("the last item is asked for");
+    // A 100-item survey is ~5 LoRa frames of ~0.9 s each at this pace: the last item is not
+    // asked for before the first four have left.
+    let frames_left = 4 * 224 * 1000 / 683;
+    assert!(
+        asked_last_at >= frames_left,
+        "last item asked for at {asked_last_at} ms, stream out at {last_frame_left} ms"
+    );
+}
+
+/// The bridge's answer to a poll lists the missing runs lowest first, one request each: a run
+/// above what was sent (the tail held back) releases the tail only when nothing lower was
+/// asked for since the poll left. Regression: a repair and the tail in one answer released
+/// the tail at once, and it queued behind seconds of repairs while the ground's timer ran.
+#[test]
+fn the_tail_is_asked_for_once_the_bridge_misses_nothing_sent() {
+    let mut m = MissionTerminator::new(TerminatorConfig::default());
+    let xs: Vec<i32> = (0..10).collect();
+    m.from_ground(ms(0), GROUND, 1, &count(10, MISSION));
+    let mut asked = Vec::new();
+    for _ in 0..10 {
+        let seqs = requests_in(&ground_out(&mut m));
+        if seqs.is_empty() {
+            break;
+        }
+        for seq in seqs {
+            asked.push(seq);
+            m.from_ground(ms(0), GROUND, 1, &item(seq, xs[usize::from(seq)], MISSION));
+        }
+        radio_out(&mut m, ms(0));
+    }
+    assert_eq!(asked, (0..5).collect::<Vec<u16>>(), "items 5..=9 held back");
+    let out = radio_out(&mut m, ms(0));
+    assert!(polls_of(&out) <= 1);
+    // the poll's answer: items 2..=3 lost, and the tail it never got
+    m.from_radio(ms(100), &range(2, 3));
+    m.from_radio(ms(100), &range(5, 9));
+    assert!(requests_in(&ground_out(&mut m)).is_empty(), "repairs first");
+    let out = radio_out(&mut m, ms(100));
+    assert_eq!(
+        items_of(&out).iter().map(|i| i.0).collect::<Vec<_>>(),
+        vec![2, 3]
+    );
+    assert_eq!(polls_of(&out), 1, "a poll behind the repairs");
+    // the next poll's answer: only the tail
+    m.from_radio(ms(200), &range(5, 9));
+    assert_eq!(requests_in(&ground_out(&mut m)), vec![5]);
+}
+
+/// A held tail with no word from the bridge: each time the ground has waited [`HOLD_MAX`]
+/// it is asked for one more item, so a ground that waits silently never times out.
+#[test]
+fn a_held_tail_is_asked_for_item_by_item_while_the_bridge_is_silent() {
+    let mut m = MissionTerminator::new(TerminatorConfig::default());
+    m.from_ground(ms(0), GROUND, 1, &count(8, MISSION));
+    let mut asked = Vec::new();
+    let mut t = 0;
+    while t < 30_000 && asked.len() < 8 {
+        m.handle_timeout(ms(t));
+        radio_out(&mut m, ms(t));
+        while let seqs = requests_in(&ground_out(&mut m))
+            && !seqs.is_empty()
+        {
+            for seq in seqs {
+                asked.push((seq, t));
+                m.from_ground(ms(t), GROUND, 1, &item(seq, i32::from(seq), MISSION));
+            }
+        }
+        t = m
+            .poll_timeout()
+            .map_or(t + 10, |d| d.as_millis().max(t + 1));
+    }
+    let tail: Vec<_> = asked[3..].iter().map(|(_, at)| *at).collect();
+    assert_eq!(asked.len(), 8, "{asked:?}");
+    assert_eq!(asked[2].1, 0, "the head at once: {asked:?}");
+    for pair in tail.windows(2) {
+        assert_eq!(pair[1] - pair[0], HOLD_MAX.as_millis(), "{asked:?}");
+    }
 }

@@ -170,56 +170,92 @@ fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
     use crate::dialect::MISSION_ITEM_INT_DATA;
     let mut r = router();
     let mut gcs = Sender::new(255, 190, MavlinkVersion::V2);
+    let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
     let count = MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
         count: 3,
         target_system: 1,
         target_component: 1,
         ..Default::default()
     });
-    r.handle_gcs_bytes(ms(0), gcs.frame(&count).as_bytes());
-    let mut t = 0;
-    // the router asks the ground for every item itself, as the vehicle (1, 1)
-    for seq in 0..3u16 {
-        let asked: Vec<_> = gcs_out(&mut r)
-            .into_iter()
-            .filter(|f| f.message_id() == ids::MISSION_REQUEST_INT)
-            .collect();
-        assert_eq!(asked.len(), 1, "item {seq}");
-        assert_eq!((asked[0].system_id(), asked[0].component_id()), (1, 1));
-        assert!(
-            r.poll_radio_transmit(ms(t), usize::MAX).is_none(),
-            "nothing on the radio before the plan is complete"
-        );
-        t += 10;
-        let item = MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
+    let item = |seq: u16| {
+        MavMessage::MISSION_ITEM_INT(MISSION_ITEM_INT_DATA {
             seq,
             target_system: 1,
             target_component: 1,
             x: i32::from(seq),
             ..Default::default()
-        });
-        r.handle_gcs_bytes(ms(t), gcs.frame(&item).as_bytes());
+        })
+    };
+    let asked = |r: &mut Router| -> Vec<u16> {
+        gcs_out(r)
+            .into_iter()
+            .filter(|f| f.message_id() == ids::MISSION_REQUEST_INT)
+            .map(|f| {
+                // the router asks the ground for every item itself, as the vehicle (1, 1)
+                assert_eq!((f.system_id(), f.component_id()), (1, 1));
+                match f.decode::<MavMessage>().unwrap() {
+                    MavMessage::MISSION_REQUEST_INT(q) => q.seq,
+                    other => panic!("{other:?}"),
+                }
+            })
+            .collect()
+    };
+    let mission = |m: &MavMessage| {
+        matches!(
+            m,
+            MavMessage::MISSION_COUNT(_)
+                | MavMessage::MISSION_ITEM_INT(_)
+                | MavMessage::MAVLORA_MISSION_ITEMS(_)
+        )
+    };
+    r.handle_gcs_bytes(ms(0), gcs.frame(&count).as_bytes());
+    // The count leaves at once: the plan streams while the ground sends it.
+    let mut radio: Vec<MavMessage> = radio_out(&mut r, ms(0))
+        .into_iter()
+        .filter(mission)
+        .collect();
+    assert_eq!(asked(&mut r), vec![0]);
+    r.handle_gcs_bytes(ms(10), gcs.frame(&item(0)).as_bytes());
+    // The tail (items 1 and 2) is held back: item 0 goes out with a poll behind it.
+    let mut t = 10;
+    while radio
+        .iter()
+        .filter(|m| matches!(m, MavMessage::MAVLORA_MISSION_ITEMS(p) if p.items == 0))
+        .count()
+        < 1
+    {
+        t += 50;
+        radio.extend(radio_out(&mut r, ms(t)).into_iter().filter(mission));
+    }
+    assert!(asked(&mut r).is_empty(), "the tail waits for the bridge");
+    // The bridge answers the poll: it misses only the tail. The ground is asked for it.
+    let tail = MavMessage::MISSION_REQUEST_PARTIAL_LIST(
+        crate::dialect::MISSION_REQUEST_PARTIAL_LIST_DATA {
+            start_index: 1,
+            end_index: 2,
+            target_system: 255,
+            target_component: 191,
+            ..Default::default()
+        },
+    );
+    r.handle_radio_bytes(ms(t), bridge.frame(&tail).as_bytes());
+    for seq in 1..3u16 {
+        assert_eq!(asked(&mut r), vec![seq]);
+        t += 10;
+        r.handle_gcs_bytes(ms(t), gcs.frame(&item(seq)).as_bytes());
     }
     // paced at the radio budget: collect over a few seconds
-    let mut radio = Vec::new();
     for step in 0..100 {
-        let now = ms(t + step * 50);
-        r.handle_timeout(now);
         radio.extend(
-            std::iter::from_fn(|| r.poll_radio_transmit(now, usize::MAX))
-                .map(|f| f.decode::<MavMessage>().unwrap())
-                .filter(|m| {
-                    matches!(
-                        m,
-                        MavMessage::MISSION_COUNT(_)
-                            | MavMessage::MISSION_ITEM_INT(_)
-                            | MavMessage::MAVLORA_MISSION_ITEMS(_)
-                    )
-                }),
+            radio_out(&mut r, ms(t + step * 50))
+                .into_iter()
+                .filter(mission),
         );
     }
+    t += 5000;
     assert!(matches!(&radio[0], MavMessage::MISSION_COUNT(c) if c.count == 3 && c.opaque_id != 0));
-    // items packed several to a frame (the frame behind them without items is a poll)
+    // items packed several to a frame (the frames without items are polls; the last one
+    // names the plan, which the count could not)
     let seqs: Vec<u16> = radio[1..]
         .iter()
         .flat_map(|m| match m {
@@ -233,14 +269,23 @@ fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
         })
         .collect();
     assert_eq!(
-        &seqs[..3],
+        &seqs[..],
         &[0, 1, 2],
-        "streamed without waiting for requests"
+        "each item streamed once, without waiting for requests"
+    );
+    let named = radio.iter().rev().find_map(|m| match m {
+        MavMessage::MAVLORA_MISSION_ITEMS(p) if p.items == 0 => {
+            Some(crate::mission::pack::poll_plan(p))
+        }
+        _ => None,
+    });
+    assert!(
+        matches!(named, Some(Some(_))),
+        "the last poll names the plan"
     );
     assert_eq!(known::message_name(44), Some("MISSION_COUNT"));
     // The bridge asks for items 1..=2 again by range: the router answers, the ground never
     // sees the request.
-    let mut bridge = Sender::new(1, 191, MavlinkVersion::V2);
     let range = MavMessage::MISSION_REQUEST_PARTIAL_LIST(
         crate::dialect::MISSION_REQUEST_PARTIAL_LIST_DATA {
             start_index: 1,
@@ -250,7 +295,7 @@ fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
             ..Default::default()
         },
     );
-    let now = ms(t + 5000);
+    let now = ms(t);
     r.handle_radio_bytes(now, bridge.frame(&range).as_bytes());
     assert!(
         gcs_out(&mut r)

@@ -211,6 +211,19 @@ pub fn upload(
     relay: bool,
     ground: Option<(Duration, u32)>,
 ) -> Result<Upload> {
+    let gcs = ground.map(|(timeout, retries)| {
+        GcsMock::new(Instant::ZERO).with_mission_timeouts(timeout, retries)
+    });
+    upload_with(radios, setup, relay, gcs)
+}
+
+/// As [`upload`], with this ground station (`None`: the world's, the spec's timeouts).
+pub fn upload_with(
+    radios: &Radios,
+    setup: &RadioSetup,
+    relay: bool,
+    ground: Option<GcsMock>,
+) -> Result<Upload> {
     let preset = setup.preset.resolve()?;
     let mut fc =
         Px4Fc::new(PX4_NORMAL, Instant::ZERO, radios.seed).with_flight(Flight::Route(Route::PAPER));
@@ -229,8 +242,8 @@ pub fn upload(
         None
     };
     let mut w = World::new(fc, mavlora, Some(setup))?;
-    if let Some((timeout, retries)) = ground {
-        w.gcs = GcsMock::new(Instant::ZERO).with_mission_timeouts(timeout, retries);
+    if let Some(gcs) = ground {
+        w.gcs = gcs;
     }
     w.run_until(secs(WARM_UP_S));
     let start = w.now;
