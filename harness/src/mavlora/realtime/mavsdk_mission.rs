@@ -65,11 +65,9 @@ fn plan(d: &mut Declarations) -> Script {
             "median of MAVSDK's upload_mission calls that succeeded (call to result, {ITEMS} \
              items); NaN when none did"
         ))),
-        upload_max_s: d.declare(
-            spec("mavsdk_mission_upload_max_s", "s").describe(format!(
-                "slowest of MAVSDK's upload_mission calls that succeeded ({ITEMS} items)"
-            )),
-        ),
+        upload_max_s: d.declare(spec("mavsdk_mission_upload_max_s", "s").describe(format!(
+            "slowest of MAVSDK's upload_mission calls that succeeded ({ITEMS} items)"
+        ))),
     };
     Box::new(move |ctx, defaults| run(ctx, defaults, &m))
 }
@@ -130,11 +128,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     for why in &verdict.disagreements {
         ctx.log(format!("disagreement: {why}"));
     }
-    let succeeded: Vec<f64> = uploads
-        .iter()
-        .filter(|u| u.ok)
-        .map(|u| u.seconds)
-        .collect();
+    let succeeded: Vec<f64> = uploads.iter().filter(|u| u.ok).map(|u| u.seconds).collect();
     let times = Percentiles::of(&succeeded);
     ctx.log(format!(
         "{} of {} uploads succeeded; the autopilot accepted {} plans; {} item requests, {} \
@@ -146,10 +140,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
         report.fc.duplicate_items
     ));
     ctx.record(m.disagreements, verdict.disagreements.len() as f64);
-    ctx.record(
-        m.success_ratio,
-        succeeded.len() as f64 / f64::from(UPLOADS),
-    );
+    ctx.record(m.success_ratio, succeeded.len() as f64 / f64::from(UPLOADS));
     ctx.record(m.upload_p50_s, times.p50);
     ctx.record(m.upload_max_s, times.max);
     m.unsigned.record(ctx, &[&report])?;
@@ -236,10 +227,6 @@ mod tests {
         let v = judge(&uploads[..1], &[(30, 999)]);
         assert_eq!(v.disagreements.len(), 2, "{:?}", v.disagreements);
         assert!(v.disagreements[1].contains("no upload sent"));
-        assert!(
-            judge(&[upload(0, false)], &[])
-                .disagreements
-                .is_empty()
-        );
+        assert!(judge(&[upload(0, false)], &[]).disagreements.is_empty());
     }
 }
