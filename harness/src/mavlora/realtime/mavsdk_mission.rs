@@ -9,7 +9,7 @@
 //! Each upload is a plan of its own (shifted coordinates) and the flight-controller fixture
 //! names every plan it accepts by its CRC, so MAVSDK's answer to each upload is checked
 //! against what the vehicle took: they must never disagree. How many uploads succeed is
-//! recorded without a limit: ten uploads cannot show 99 %; the engine simulation
+//! recorded without a limit: twenty uploads cannot show 99 %; the engine simulation
 //! `mavsdk_uploads_at_ten_percent_bursty_loss_succeed_and_never_disagree` checks that on 100
 //! seeds.
 
@@ -27,11 +27,11 @@ const SCENARIO_NAME: &str = "mavsdk_mission";
 
 pub const SCENARIO: Scenario = Scenario {
     name: SCENARIO_NAME,
-    summary: "MAVSDK 4.1 (the real library) uploads 10 plans of 30 items through bridge and router over SiK with 10 % bursty loss: its answer and the plan the autopilot took never disagree",
+    summary: "MAVSDK 4.1 (the real library) uploads 20 plans of 30 items through bridge and router over SiK with 10 % bursty loss: its answer and the plan the autopilot took never disagree",
     plan,
 };
 
-const UPLOADS: u32 = 10;
+const UPLOADS: u32 = 20;
 const ITEMS: u32 = 30;
 
 struct Measured {
