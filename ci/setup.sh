@@ -2,7 +2,7 @@
 # Installs what a fresh Debian machine needs to build and test everything:
 # libudev (serialport, probe-rs), Chromium (the evidence report's headless
 # browser test), QEMU for Arm (the firmware's cycle budget, ci/cycle-budget.py),
-# Python fixtures' packages (and MAVProxy), the firmware's Rust target. Safe to run again: it skips what is already there.
+# Python fixtures' packages (MAVSDK among them; and MAVProxy), the firmware's Rust target. Safe to run again: it skips what is already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -18,7 +18,7 @@ if [ ${#need_apt[@]} -gt 0 ]; then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
 fi
 
-if ! python3 -c "import serial, pymavlink, pytest, xdist" 2>/dev/null; then
+if ! python3 -c "import serial, pymavlink, pytest, xdist, mavsdk" 2>/dev/null; then
     echo "setup: pip install -r fixtures/requirements.txt"
     python3 -m pip install -q --disable-pip-version-check -r fixtures/requirements.txt
 fi

@@ -1,7 +1,7 @@
 //! The real-time MavLora scenarios end to end: the real `mavlora-bridge` and
-//! `mavlora-router`, pymavlink fixtures, the radio emulator on pty pairs.
-//! Every measurement must pass. Needs `python3` with pymavlink 2.4 and
-//! pyserial (fixtures/requirements.txt): fails, not skips, without.
+//! `mavlora-router`, pymavlink fixtures (and MAVSDK), the radio emulator on pty pairs.
+//! Every measurement must pass. Needs `python3` with pymavlink 2.4, pyserial and
+//! mavsdk (fixtures/requirements.txt): fails, not skips, without.
 //! One scenario at a time (a lock), so they do not share the CPU with each other.
 
 use std::path::{Path, PathBuf};
@@ -100,6 +100,13 @@ fn table_ii_compact_and_limit_filter_bandwidth() {
 #[test]
 fn mission_upload_over_lossy_sik_arrives_intact() {
     run("mission");
+}
+
+/// MAVSDK itself (`mavsdk` 4.1.0 of fixtures/requirements.txt) as the ground station: fails,
+/// not skips, without it.
+#[test]
+fn mavsdk_uploads_agree_with_the_vehicle_over_lossy_sik() {
+    run("mavsdk_mission");
 }
 
 /// At 10 % bursty loss each way a ground station retrying after 1.5 s alone

@@ -1,5 +1,5 @@
 //! Short real-time MavLora scenarios: the real `mavlora-bridge` and
-//! `mavlora-router` between a pymavlink PX4 and a pymavlink ground station,
+//! `mavlora-router` between a pymavlink PX4 and a pymavlink ground station (or MAVSDK),
 //! over the radio emulator on pty pairs, on the wall clock
 //! ([`MavloraSession`]). They check what the virtual-clock runs cannot: that
 //! the programs, their serial and UDP IO and their timers meet the SLAs when
@@ -10,6 +10,8 @@
 //! - [`ardupilot`]: an ArduPilot-like autopilot (MAVLink 1, stream requests ignored)
 //!   through compact and limiting + filtering: budgets, position rate, commands;
 //! - [`mission`]: a mission upload through the relay over SiK with bursty loss;
+//! - [`mavsdk_mission`]: MAVSDK itself uploading plan after plan over the same radio: its
+//!   answer and the plan the autopilot took never disagree;
 //! - [`c2_latency`]: command-to-ack latency over SiK with bursty loss (SORA
 //!   TMPR: < 3 s for medium robustness);
 //! - [`radio_silence`]: 10 s of silence both ways, then telemetry and commands
@@ -28,6 +30,7 @@ pub mod ardupilot;
 pub mod c2_latency;
 pub mod fc_reboot_mission;
 pub mod ground_hijack;
+pub mod mavsdk_mission;
 pub mod mission;
 pub mod outage;
 pub mod radio_silence;
@@ -62,6 +65,7 @@ pub fn scenarios() -> Vec<Scenario> {
         table_ii::SCENARIO,
         ardupilot::SCENARIO,
         mission::SCENARIO,
+        mavsdk_mission::SCENARIO,
         c2_latency::SCENARIO,
         radio_silence::SCENARIO,
         outage::BRIDGE_CRASH,

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use super::report::{ExitRecord, GCS_PHASE_FAILED, LinkNotice, ProgramStatus, SessionReport};
-use super::{Result, SessionError, SessionOptions, Variant};
+use super::{Ground, Result, SessionError, SessionOptions, Variant};
 use crate::clock::Mono;
 use crate::driver::fixture::{Fixture, FixtureError};
 use crate::driver::process::Process;
@@ -246,7 +246,10 @@ impl MavloraSession {
 
     pub fn finish(mut self) -> Result<SessionReport> {
         let dir = self.options.out_dir.clone();
-        let budget = self.options.gcs.budget();
+        let budget = match &self.options.ground {
+            Ground::Pymavlink => self.options.gcs.budget(),
+            Ground::Mavsdk(plan) => plan.budget(),
+        };
         let Some(gcs_status) = self.gcs.wait_exit(budget)? else {
             self.stop_all();
             return Err(SessionError::GcsTimeout {
@@ -257,7 +260,7 @@ impl MavloraSession {
         // The summary is its last line; the reader sees it before EOF.
         let gcs = self.gcs.summary(Duration::from_secs(2))?;
         let mut exits = vec![ExitRecord {
-            name: "mavlora_gcs".into(),
+            name: self.gcs.name().to_string(),
             status: Some(gcs_status),
             accepted: vec![GCS_PHASE_FAILED],
             log: self.gcs.log_path().to_path_buf(),
@@ -523,6 +526,58 @@ fn start_gcs(
     radio: &Arc<RadioEmulator>,
     link: Option<&Bridged>,
 ) -> Result<Fixture<GcsEvent, RadioCounters>> {
+    let (name, command) = match &options.ground {
+        Ground::Pymavlink => ("mavlora_gcs", pymavlink_gcs(options, radio, link)),
+        Ground::Mavsdk(plan) => {
+            let Some(link) = link else {
+                return Err(anyhow::anyhow!(
+                    "MAVSDK as the ground station needs the router (a bridged session)"
+                )
+                .into());
+            };
+            if link.gcs_key.is_some() {
+                return Err(anyhow::anyhow!(
+                    "mavsdk_gcs.py does not sign: no --ground-key with MAVSDK as the ground station"
+                )
+                .into());
+            }
+            let mut command = Command::new(&options.python);
+            command
+                .arg(options.fixtures_dir.join("mavsdk_gcs.py"))
+                .args(["--udp", &format!("127.0.0.1:{}", link.gcs_port)])
+                .args(["--uploads", &plan.uploads.to_string()])
+                .args(["--items", &plan.items.to_string()])
+                .args(["--pause", &plan.pause_s.to_string()])
+                .args(["--settle", &plan.settle_s.to_string()])
+                // Within the session's wait for telemetry, so its own error line (which
+                // names what it waited for) comes first.
+                .args([
+                    "--connect-timeout",
+                    &(options.ready_timeout.as_secs_f64() - 2.0)
+                        .max(1.0)
+                        .to_string(),
+                ]);
+            ("mavsdk_gcs", command)
+        }
+    };
+    // Each line carries the radio's counters when it was read, so a
+    // rate taken from the radio covers the GCS's own window.
+    let counters = radio.clone();
+    let gcs = Fixture::start_with(name, command, &options.out_dir.join("gcs.log"), move || {
+        (
+            counters.stats(Direction::Downlink),
+            counters.stats(Direction::Uplink),
+        )
+    })?;
+    Ok(gcs)
+}
+
+/// `mavlora_gcs.py` on the options' plan.
+fn pymavlink_gcs(
+    options: &SessionOptions,
+    radio: &Arc<RadioEmulator>,
+    link: Option<&Bridged>,
+) -> Command {
     let p = &options.gcs;
     let mut command = Command::new(&options.python);
     command.arg(options.fixtures_dir.join("mavlora_gcs.py"));
@@ -544,21 +599,7 @@ fn start_gcs(
     if let Some(key) = link.and_then(|l| l.gcs_key.as_ref()) {
         command.arg("--key").arg(key);
     }
-    // Each line carries the radio's counters when it was read, so a
-    // rate taken from the radio covers the GCS's own window.
-    let counters = radio.clone();
-    let gcs = Fixture::start_with(
-        "mavlora_gcs",
-        command,
-        &options.out_dir.join("gcs.log"),
-        move || {
-            (
-                counters.stats(Direction::Downlink),
-                counters.stats(Direction::Uplink),
-            )
-        },
-    )?;
-    Ok(gcs)
+    command
 }
 
 /// The log of a program's `n`th start: `<stem>.<ext>`, then `<stem>-<n>.<ext>`.

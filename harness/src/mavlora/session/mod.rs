@@ -5,6 +5,9 @@
 //!   mavlora_fc.py                      side A │ side B                      mavlora_gcs.py
 //! ```
 //!
+//! The ground station is `mavlora_gcs.py` on its plan, or MAVSDK itself ([`Ground::Mavsdk`],
+//! `mavsdk_gcs.py`, behind the router only), which speaks the same event lines.
+//!
 //! [`Variant::Transparent`] is the paper's "no companion computer" case: the
 //! flight controller's serial port straight on the drone radio and the ground
 //! station straight on the ground radio's serial port. No router either: the
@@ -34,8 +37,8 @@ pub use crate::driver::radio_emulator::End;
 pub(crate) use chain::Bridged;
 pub use chain::{GcsLine, MavloraSession, Program, RadioCounters};
 pub use options::{
-    FcProfile, GcsPlan, SessionDefaults, SessionOptions, Variant, sik_with_independent_loss,
-    sik_with_loss,
+    FcProfile, GcsPlan, Ground, MavsdkPlan, SessionDefaults, SessionOptions, Variant,
+    sik_with_independent_loss, sik_with_loss,
 };
 pub use report::{ExitRecord, GCS_PHASE_FAILED, LinkNotice, ProgramStatus, SessionReport};
 

@@ -105,6 +105,35 @@ impl GcsPlan {
     }
 }
 
+/// Which program plays the ground station behind the router.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Ground {
+    /// `mavlora_gcs.py` (pymavlink) on [`SessionOptions::gcs`].
+    Pymavlink,
+    /// `mavsdk_gcs.py`: MAVSDK itself, uploading plans with its own timeouts and retries.
+    Mavsdk(MavsdkPlan),
+}
+
+/// What `mavsdk_gcs.py` does: `uploads` plans of `items` waypoints, one after the other.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MavsdkPlan {
+    pub uploads: u32,
+    pub items: u32,
+    /// Seconds between one upload's end and the next.
+    pub pause_s: f64,
+    /// Seconds it stays after the last upload (a plan MAVSDK gave up on may still land).
+    pub settle_s: f64,
+}
+
+impl MavsdkPlan {
+    /// Longest the plan can take: MAVSDK gives up on an upload by itself (0.5 s × 5 per step,
+    /// 2.5 s after its last item), so 30 s an upload is far beyond it; and start-up.
+    pub fn budget(&self) -> Duration {
+        let uploads = f64::from(self.uploads) * (30.0 + self.pause_s);
+        Duration::from_secs_f64(uploads + self.settle_s + 20.0)
+    }
+}
+
 /// Everything one session needs; the lead maps the rig file onto this.
 #[derive(Debug, Clone)]
 pub struct SessionOptions {
@@ -129,6 +158,8 @@ pub struct SessionOptions {
     /// `--link-quality-period` of both ends (s); `None`: derived from the budget.
     pub link_quality_period: Option<f64>,
     pub fc_profile: FcProfile,
+    /// The ground station: `mavlora_gcs.py` on [`Self::gcs`], or MAVSDK.
+    pub ground: Ground,
     pub gcs: GcsPlan,
     /// Logs, summaries and the router's tlog go here.
     pub out_dir: PathBuf,
@@ -196,6 +227,7 @@ impl SessionDefaults {
             burst: burst_of(radio),
             link_quality_period: None,
             fc_profile: FcProfile::Normal,
+            ground: Ground::Pymavlink,
             gcs: GcsPlan::default(),
             out_dir: out_dir.to_path_buf(),
             ready_timeout: Duration::from_secs(15),
