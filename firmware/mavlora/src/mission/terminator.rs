@@ -544,6 +544,7 @@ impl MissionTerminator {
                 target_component: vehicle.1,
                 mission_type: c.mission_type,
                 opaque_id: id,
+                ..Default::default()
             }));
         self.state = State::Relaying {
             ground,
