@@ -91,15 +91,20 @@ pub fn measured_silence_timeout(
     jitter: Duration,
     configured: Duration,
 ) -> Duration {
-    let period = period.as_micros();
-    let held = u64::from(burst.saturating_sub(1));
-    let jitter = jitter
-        .as_micros()
-        .clamp(period / JITTER_FLOOR_DIVISOR, period / 2);
-    let us = (MISSED_FRAMES + held)
+    let us = |d: Duration| u32::try_from(d.as_micros()).unwrap_or(u32::MAX);
+    Duration::from_micros(timeout_us(us(period), burst, us(jitter)).into()).min(configured)
+}
+
+/// [`measured_silence_timeout`] in microseconds, before the configured
+/// ceiling. 32-bit arithmetic: the M0+ has no divider, and 64-bit division is
+/// a library call several times as long.
+fn timeout_us(period: u32, burst: u8, jitter: u32) -> u32 {
+    let held = u32::from(burst.saturating_sub(1));
+    let jitter = jitter.clamp(period / JITTER_FLOOR_DIVISOR as u32, period / 2);
+    (MISSED_FRAMES as u32 + held)
         .saturating_mul(period)
-        .saturating_add(jitter + SILENCE_MARGIN.as_micros());
-    Duration::from_micros(us).min(configured)
+        .saturating_add(jitter)
+        .saturating_add(SILENCE_MARGIN.as_micros() as u32)
 }
 
 /// A receiver's frame period, measured from the intervals between its frames.
@@ -110,7 +115,10 @@ struct FramePeriod {
     len: u8,
     next: u8,
     /// Peak distance of an interval from a whole number of periods, µs.
-    jitter_us: u64,
+    jitter_us: u32,
+    /// The period, once measured: worked out once per frame, since the
+    /// engine asks for deadlines many times per output period.
+    period_us: Option<u32>,
 }
 
 impl FramePeriod {
@@ -120,6 +128,7 @@ impl FramePeriod {
             len: 0,
             next: 0,
             jitter_us: 0,
+            period_us: None,
         }
     }
 
@@ -128,13 +137,13 @@ impl FramePeriod {
         self.samples[usize::from(self.next)] = us;
         self.next = (self.next + 1) % PERIOD_SAMPLES as u8;
         self.len = (self.len + 1).min(PERIOD_SAMPLES as u8);
-        if let Some(period) = self.period_us() {
+        self.period_us = self.median();
+        if let Some(period) = self.period_us.filter(|p| *p > 0) {
             // A two-frame gap is two missed frames, not jitter: measure from
             // the nearest whole number of periods.
-            let us = u64::from(us);
-            let n = ((us + period / 2) / period).max(1);
-            let deviation = us.abs_diff(n * period);
-            let decayed = self.jitter_us - self.jitter_us / JITTER_DECAY;
+            let n = (us.saturating_add(period / 2) / period).max(1);
+            let deviation = us.abs_diff(n.saturating_mul(period));
+            let decayed = self.jitter_us - self.jitter_us / JITTER_DECAY as u32;
             self.jitter_us = decayed.max(deviation);
         }
     }
@@ -142,14 +151,14 @@ impl FramePeriod {
     /// The upper median of the intervals, once there are enough: one late
     /// frame or one gap cannot move it, bursts never reach it (see
     /// [`BURST_SPACING`]).
-    fn period_us(&self) -> Option<u64> {
+    fn median(&self) -> Option<u32> {
         if self.len < PERIOD_MIN_SAMPLES {
             return None;
         }
         let mut sorted = self.samples;
         let sorted = &mut sorted[..usize::from(self.len)];
         sorted.sort_unstable();
-        Some(u64::from(sorted[sorted.len() / 2]))
+        Some(sorted[sorted.len() / 2])
     }
 }
 
@@ -209,6 +218,9 @@ pub struct Link {
     /// Frames in the newest delivery (frames closer than [`BURST_SPACING`]).
     burst: u8,
     period: FramePeriod,
+    /// The measured silence timeout before the configured ceiling, µs, worked
+    /// out with each frame ([`timeout_us`]).
+    timeout_us: Option<u32>,
 }
 
 impl Link {
@@ -228,6 +240,7 @@ impl Link {
             good_run: 0,
             burst: 0,
             period: FramePeriod::new(),
+            timeout_us: None,
         }
     }
 
@@ -314,6 +327,10 @@ impl Link {
             // The first frame, or the first after a silence: no interval.
             None => self.burst = 1,
         }
+        self.timeout_us = self
+            .period
+            .period_us
+            .map(|p| timeout_us(p, self.burst, self.period.jitter_us));
         self.last_frame_at = Some(now);
         if frame.flags.failsafe {
             self.good_run = 0;
@@ -333,7 +350,9 @@ impl Link {
 
     /// The receiver's frame period as measured on this input, once measured.
     pub fn frame_period(&self) -> Option<Duration> {
-        self.period.period_us().map(Duration::from_micros)
+        self.period
+            .period_us
+            .map(|p| Duration::from_micros(p.into()))
     }
 
     /// How long this link may stay silent after its last frame: [`MISSED_FRAMES`]
@@ -344,15 +363,9 @@ impl Link {
     /// for a 7 ms receiver, 47.7-50 ms for a 14 ms one. `configured` until the period is
     /// measured, and never more than it.
     pub fn silence_timeout(&self, configured: Duration) -> Duration {
-        match self.period.period_us() {
-            Some(period) => measured_silence_timeout(
-                Duration::from_micros(period),
-                self.burst,
-                Duration::from_micros(self.period.jitter_us),
-                configured,
-            ),
-            None => configured,
-        }
+        self.timeout_us.map_or(configured, |us| {
+            Duration::from_micros(us.into()).min(configured)
+        })
     }
 
     /// When silence would end this link, if it has one to lose; `configured`
