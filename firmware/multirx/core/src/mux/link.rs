@@ -72,7 +72,10 @@ const PERIOD_MIN_SAMPLES: u8 = 2;
 /// Jitter is held at its peak and forgets it by 1/64 per interval (about half
 /// a second at 7 ms): a receiver that was jittery a moment ago keeps the
 /// tolerance it needed, a steady one earns a tighter one back slowly.
-const JITTER_DECAY: u64 = 64;
+const JITTER_DECAY_SHIFT: u32 = 6;
+
+/// Intervals between two workings-out of the median once the ring is full.
+const MEDIAN_EVERY: u8 = 8;
 
 /// Jitter allowed whatever was measured, as a fraction of the period: a
 /// healthy 7 ms receiver's frames arrive 6-9 ms apart (issue 24), up to 2 ms
@@ -99,8 +102,19 @@ pub fn measured_silence_timeout(
 /// ceiling. 32-bit arithmetic: the M0+ has no divider, and 64-bit division is
 /// a library call several times as long.
 fn timeout_us(period: u32, burst: u8, jitter: u32) -> u32 {
+    timeout_us_within(period, burst, jitter, jitter_bounds(period))
+}
+
+/// The jitter a period allows, at least and at most (see [`timeout_us`]).
+fn jitter_bounds(period: u32) -> (u32, u32) {
+    (period / JITTER_FLOOR_DIVISOR as u32, period / 2)
+}
+
+/// [`timeout_us`] with the period's [`jitter_bounds`] already worked out (a
+/// division by 3 is a library call on the M0+: once per median, not per frame).
+fn timeout_us_within(period: u32, burst: u8, jitter: u32, (floor, ceiling): (u32, u32)) -> u32 {
     let held = u32::from(burst.saturating_sub(1));
-    let jitter = jitter.clamp(period / JITTER_FLOOR_DIVISOR as u32, period / 2);
+    let jitter = jitter.clamp(floor, ceiling);
     (MISSED_FRAMES as u32 + held)
         .saturating_mul(period)
         .saturating_add(jitter)
@@ -119,6 +133,8 @@ struct FramePeriod {
     /// The period, once measured: worked out once per frame, since the
     /// engine asks for deadlines many times per output period.
     period_us: Option<u32>,
+    /// [`jitter_bounds`] of `period_us`.
+    bounds: (u32, u32),
 }
 
 impl FramePeriod {
@@ -129,6 +145,7 @@ impl FramePeriod {
             next: 0,
             jitter_us: 0,
             period_us: None,
+            bounds: (0, 0),
         }
     }
 
@@ -137,13 +154,23 @@ impl FramePeriod {
         self.samples[usize::from(self.next)] = us;
         self.next = (self.next + 1) % PERIOD_SAMPLES as u8;
         self.len = (self.len + 1).min(PERIOD_SAMPLES as u8);
-        self.period_us = self.median();
+        // The median moves slowly: once the ring is full it is worked out
+        // again every [`MEDIAN_EVERY`] intervals, not with every frame (the
+        // sort is most of a frame's cost on the M0+).
+        if self.len < PERIOD_SAMPLES as u8 || self.next % MEDIAN_EVERY == 0 {
+            self.period_us = self.median();
+            self.bounds = self.period_us.map_or((0, 0), jitter_bounds);
+        }
         if let Some(period) = self.period_us.filter(|p| *p > 0) {
             // A two-frame gap is two missed frames, not jitter: measure from
-            // the nearest whole number of periods.
-            let n = (us.saturating_add(period / 2) / period).max(1);
-            let deviation = us.abs_diff(n.saturating_mul(period));
-            let decayed = self.jitter_us - self.jitter_us / JITTER_DECAY as u32;
+            // the nearest whole number of periods (by subtraction: intervals
+            // are a few periods at most, and the M0+ has no divider).
+            let mut whole = period;
+            while us > whole.saturating_add(period / 2) && whole < u32::MAX - period {
+                whole += period;
+            }
+            let deviation = us.abs_diff(whole);
+            let decayed = self.jitter_us - (self.jitter_us >> JITTER_DECAY_SHIFT);
             self.jitter_us = decayed.max(deviation);
         }
     }
@@ -210,10 +237,12 @@ pub struct Link {
     last_frame_at: Option<Instant>,
     up_since: Option<Instant>,
     last_byte_at: Option<Instant>,
-    /// The line's latest sign of life: a byte, a UART error, bytes lost to a
-    /// full queue. Garbage after the last frame is a receiver still talking
-    /// (a damaged stretch, a noisy line), not one that stopped.
-    heard_at: Option<Instant>,
+    /// The line's latest sign of life (a byte, a UART error, bytes lost to a
+    /// full queue) plus the measured silence timeout: garbage after the last
+    /// frame is a receiver still talking (a damaged stretch, a noisy line), not
+    /// one that stopped. Kept as an instant so that the deadlines the engine
+    /// asks for many times per output period cost an addition and a minimum.
+    quiet_until: Option<Instant>,
     good_run: u8,
     /// Frames in the newest delivery (frames closer than [`BURST_SPACING`]).
     burst: u8,
@@ -236,7 +265,7 @@ impl Link {
             last_frame_at: None,
             up_since: None,
             last_byte_at: None,
-            heard_at: None,
+            quiet_until: None,
             good_run: 0,
             burst: 0,
             period: FramePeriod::new(),
@@ -289,8 +318,15 @@ impl Link {
     pub fn handle_line_error(&mut self, now: Instant) {
         self.decoder.abort_frame();
         if self.is_powered() {
-            self.heard_at = Some(now);
+            self.heard(now);
         }
+    }
+
+    /// The line showed life at `now`.
+    fn heard(&mut self, now: Instant) {
+        self.quiet_until = self
+            .timeout_us
+            .map(|us| now + Duration::from_micros(us.into()));
     }
 
     /// Feeds bytes read from the input at `now`.
@@ -307,12 +343,13 @@ impl Link {
             self.decoder.abort_frame();
         }
         self.last_byte_at = Some(now);
-        self.heard_at = Some(now);
         for &byte in bytes {
             if let Some(frame) = self.decoder.push(byte) {
                 self.handle_frame(now, frame, acquire_frames);
             }
         }
+        // After the frames: they may have measured the timeout anew.
+        self.heard(now);
     }
 
     fn handle_frame(&mut self, now: Instant, frame: SbusRepr, acquire_frames: u8) {
@@ -330,7 +367,7 @@ impl Link {
         self.timeout_us = self
             .period
             .period_us
-            .map(|p| timeout_us(p, self.burst, self.period.jitter_us));
+            .map(|p| timeout_us_within(p, self.burst, self.period.jitter_us, self.period.bounds));
         self.last_frame_at = Some(now);
         if frame.flags.failsafe {
             self.good_run = 0;
@@ -377,10 +414,11 @@ impl Link {
     pub fn silence_deadline(&self, configured: Duration) -> Option<Instant> {
         match self.state {
             LinkState::Off | LinkState::Silent => None,
+            // Life is heard at the last frame's bytes at the latest, so
+            // `quiet_until` is never before the last frame plus the timeout.
             _ => self.last_frame_at.map(|at| {
-                let timeout = self.silence_timeout(configured);
-                let heard = self.heard_at.filter(|h| *h > at).unwrap_or(at);
-                (heard + timeout).min(at + configured).max(at + timeout)
+                let ceiling = at + configured;
+                self.quiet_until.map_or(ceiling, |quiet| quiet.min(ceiling))
             }),
         }
     }
