@@ -107,7 +107,14 @@ fn timeout_us(period: u32, burst: u8, jitter: u32) -> u32 {
 
 /// The jitter a period allows, at least and at most (see [`timeout_us`]).
 fn jitter_bounds(period: u32) -> (u32, u32) {
-    (period / JITTER_FLOOR_DIVISOR as u32, period / 2)
+    // A third by multiplication where it is exact enough (never below a
+    // third): division is a library call on the M0+.
+    let floor = if period < 1 << 16 {
+        (period * 21_846) >> 16
+    } else {
+        period / JITTER_FLOOR_DIVISOR as u32
+    };
+    (floor, period / 2)
 }
 
 /// [`timeout_us`] with the period's [`jitter_bounds`] already worked out (a
@@ -115,10 +122,11 @@ fn jitter_bounds(period: u32) -> (u32, u32) {
 fn timeout_us_within(period: u32, burst: u8, jitter: u32, (floor, ceiling): (u32, u32)) -> u32 {
     let held = u32::from(burst.saturating_sub(1));
     let jitter = jitter.clamp(floor, ceiling);
-    (MISSED_FRAMES as u32 + held)
-        .saturating_mul(period)
-        .saturating_add(jitter)
-        .saturating_add(SILENCE_MARGIN.as_micros() as u32)
+    // Plain multiplication (a checked one takes a 64-bit library call on the
+    // M0+): a period longer than a second is no receiver's, and is capped.
+    (MISSED_FRAMES as u32 + held) * period.min(1_000_000)
+        + jitter.min(1_000_000)
+        + SILENCE_MARGIN.as_micros() as u32
 }
 
 /// A receiver's frame period, measured from the intervals between its frames.
