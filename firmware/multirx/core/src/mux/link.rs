@@ -74,9 +74,6 @@ const PERIOD_MIN_SAMPLES: u8 = 2;
 /// tolerance it needed, a steady one earns a tighter one back slowly.
 const JITTER_DECAY_SHIFT: u32 = 6;
 
-/// Intervals between two workings-out of the median once the ring is full.
-const MEDIAN_EVERY: u8 = 8;
-
 /// Jitter allowed whatever was measured, as a fraction of the period: a
 /// healthy 7 ms receiver's frames arrive 6-9 ms apart (issue 24), up to 2 ms
 /// late, and the third frame of a two-frame gap (the rig's stutter fault) is as
@@ -134,6 +131,9 @@ fn timeout_us_within(period: u32, burst: u8, jitter: u32, (floor, ceiling): (u32
 struct FramePeriod {
     /// The newest intervals, µs, in a ring.
     samples: [u32; PERIOD_SAMPLES],
+    /// The same intervals in order (the first `len`): kept sorted as they come
+    /// and go, so the median is a read, not a sort per frame.
+    sorted: [u32; PERIOD_SAMPLES],
     len: u8,
     next: u8,
     /// Peak distance of an interval from a whole number of periods, µs.
@@ -149,6 +149,7 @@ impl FramePeriod {
     const fn new() -> Self {
         FramePeriod {
             samples: [0; PERIOD_SAMPLES],
+            sorted: [0; PERIOD_SAMPLES],
             len: 0,
             next: 0,
             jitter_us: 0,
@@ -159,15 +160,36 @@ impl FramePeriod {
 
     fn push(&mut self, interval: Duration) {
         let us = u32::try_from(interval.as_micros()).unwrap_or(u32::MAX);
-        self.samples[usize::from(self.next)] = us;
-        self.next = (self.next + 1) % PERIOD_SAMPLES as u8;
-        self.len = (self.len + 1).min(PERIOD_SAMPLES as u8);
-        // The median moves slowly: once the ring is full it is worked out
-        // again every [`MEDIAN_EVERY`] intervals, not with every frame (the
-        // sort is most of a frame's cost on the M0+).
-        if self.len < PERIOD_SAMPLES as u8 || self.next % MEDIAN_EVERY == 0 {
-            self.period_us = self.median();
-            self.bounds = self.period_us.map_or((0, 0), jitter_bounds);
+        let next = usize::from(self.next) % PERIOD_SAMPLES;
+        let mut len = usize::from(self.len).min(PERIOD_SAMPLES);
+        // Plain loops over at most eight: a sort, or `copy_within`'s memmove,
+        // costs several times as much on the M0+.
+        if len == PERIOD_SAMPLES {
+            // The oldest leaves the ordered copy.
+            let old = self.samples[next];
+            let mut i = 0;
+            while i < len - 1 && self.sorted[i] != old {
+                i += 1;
+            }
+            while i < len - 1 {
+                self.sorted[i] = self.sorted[i + 1];
+                i += 1;
+            }
+            len -= 1;
+        }
+        let mut i = len;
+        while i > 0 && self.sorted[i - 1] > us {
+            self.sorted[i] = self.sorted[i - 1];
+            i -= 1;
+        }
+        self.sorted[i] = us;
+        self.samples[next] = us;
+        self.next = ((next + 1) % PERIOD_SAMPLES) as u8;
+        self.len = (len + 1) as u8;
+        let period = self.median();
+        if period != self.period_us {
+            self.period_us = period;
+            self.bounds = period.map_or((0, 0), jitter_bounds);
         }
         if let Some(period) = self.period_us.filter(|p| *p > 0) {
             // A two-frame gap is two missed frames, not jitter: measure from
@@ -187,13 +209,8 @@ impl FramePeriod {
     /// frame or one gap cannot move it, bursts never reach it (see
     /// [`BURST_SPACING`]).
     fn median(&self) -> Option<u32> {
-        if self.len < PERIOD_MIN_SAMPLES {
-            return None;
-        }
-        let mut sorted = self.samples;
-        let sorted = &mut sorted[..usize::from(self.len)];
-        sorted.sort_unstable();
-        Some(sorted[sorted.len() / 2])
+        let len = usize::from(self.len).min(PERIOD_SAMPLES);
+        (self.len >= PERIOD_MIN_SAMPLES).then(|| self.sorted[len / 2])
     }
 }
 
