@@ -22,10 +22,19 @@ pub struct DecoderStats {
 }
 
 /// Incremental SBUS decoder; see the [module docs](self).
+///
+/// Two buffers take turns: the frame in progress fills one while the other keeps the
+/// last valid frame, readable as a view ([`SbusDecoder::last_frame`]) until the next one
+/// completes. Nothing is copied or decoded per frame: on the Cortex-M0+ the copy alone
+/// was a byte-wise `memcpy` of a fifth of a frame's cost, and the engine decodes channels
+/// only for the frame it sends out.
 #[derive(Debug, Clone)]
 pub struct SbusDecoder {
-    buf: [u8; LEN],
+    bufs: [[u8; LEN]; 2],
+    /// The buffer being filled; the other holds the last valid frame once `has_last`.
+    cur: usize,
     len: usize,
+    has_last: bool,
     stats: DecoderStats,
 }
 
@@ -38,8 +47,10 @@ impl Default for SbusDecoder {
 impl SbusDecoder {
     pub const fn new() -> Self {
         SbusDecoder {
-            buf: [0; LEN],
+            bufs: [[0; LEN]; 2],
+            cur: 0,
             len: 0,
+            has_last: false,
             stats: DecoderStats {
                 frames: 0,
                 discarded_bytes: 0,
@@ -63,29 +74,44 @@ impl SbusDecoder {
         self.len = 0;
     }
 
-    /// Feeds one byte; returns a frame when this byte completes a valid one.
-    pub fn push(&mut self, byte: u8) -> Option<SbusRepr> {
+    /// Feeds one byte; true when it completes a valid frame, which is then
+    /// [`SbusDecoder::last_frame`].
+    pub fn push_byte(&mut self, byte: u8) -> bool {
         if self.len == 0 && byte != crate::wire::sbus::HEADER {
             self.stats.discarded_bytes += 1;
-            return None;
+            return false;
         }
-        self.buf[self.len] = byte;
+        let buf = &mut self.bufs[self.cur];
+        buf[self.len] = byte;
         self.len += 1;
         if self.len < LEN {
+            return false;
+        }
+        if SbusFrame::new_unchecked(&buf[..]).check_framing().is_ok() {
+            self.len = 0;
+            self.cur ^= 1;
+            self.has_last = true;
+            self.stats.frames += 1;
+            true
+        } else {
+            self.stats.rejected_frames += 1;
+            self.resync();
+            false
+        }
+    }
+
+    /// The last valid frame, if any: a view, checked (header, reserved flag bits, footer).
+    pub fn last_frame(&self) -> Option<SbusFrame<&[u8]>> {
+        self.has_last
+            .then(|| SbusFrame::new_unchecked(&self.bufs[self.cur ^ 1][..]))
+    }
+
+    /// Feeds one byte; returns the frame decoded when this byte completes a valid one.
+    pub fn push(&mut self, byte: u8) -> Option<SbusRepr> {
+        if !self.push_byte(byte) {
             return None;
         }
-        match SbusRepr::parse(&SbusFrame::new_unchecked(&self.buf[..])) {
-            Ok(repr) => {
-                self.len = 0;
-                self.stats.frames += 1;
-                Some(repr)
-            }
-            Err(_) => {
-                self.stats.rejected_frames += 1;
-                self.resync();
-                None
-            }
-        }
+        self.last_frame().and_then(|f| SbusRepr::parse(&f).ok())
     }
 
     /// Feeds many bytes, calling `on_frame` for each complete frame in order.
@@ -99,12 +125,13 @@ impl SbusDecoder {
 
     /// Restarts at the next header byte after the rejected candidate's first byte.
     fn resync(&mut self) {
-        let next = self.buf[1..self.len]
+        let buf = &mut self.bufs[self.cur];
+        let next = buf[1..self.len]
             .iter()
             .position(|&b| b == crate::wire::sbus::HEADER)
             .map(|p| p + 1)
             .unwrap_or(self.len);
-        self.buf.copy_within(next..self.len, 0);
+        buf.copy_within(next..self.len, 0);
         self.len -= next;
         self.stats.discarded_bytes += next as u32;
     }
@@ -190,5 +217,38 @@ mod tests {
         let mut got = None;
         decoder.push_slice(&bytes, |f| got = Some(f));
         assert_eq!(got, Some(frame(3)));
+    }
+
+    #[test]
+    fn the_last_valid_frame_survives_partial_and_rejected_frames() {
+        let good = frame(7).to_bytes();
+        let mut bad = frame(8).to_bytes();
+        bad[24] = 0x55; // no footer SBUS knows
+        let mut decoder = SbusDecoder::new();
+        assert!(decoder.last_frame().is_none());
+        let completed: Vec<bool> = good.iter().map(|&b| decoder.push_byte(b)).collect();
+        assert_eq!(completed.iter().filter(|&&c| c).count(), 1);
+        assert!(completed[24]);
+        let last = |d: &SbusDecoder| d.last_frame().map(|f| SbusRepr::parse(&f).unwrap());
+        assert_eq!(last(&decoder), Some(frame(7)));
+        for &b in &bad {
+            assert!(!decoder.push_byte(b));
+        }
+        assert_eq!(
+            last(&decoder),
+            Some(frame(7)),
+            "a rejected candidate replaced it"
+        );
+        let next = frame(9).to_bytes();
+        for &b in &next[..24] {
+            decoder.push_byte(b);
+        }
+        assert_eq!(
+            last(&decoder),
+            Some(frame(7)),
+            "a partial frame replaced it"
+        );
+        assert!(decoder.push_byte(next[24]));
+        assert_eq!(last(&decoder), Some(frame(9)));
     }
 }

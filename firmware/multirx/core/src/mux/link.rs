@@ -258,7 +258,6 @@ impl LinkState {
 pub struct Link {
     decoder: SbusDecoder,
     state: LinkState,
-    last_frame: Option<SbusRepr>,
     last_frame_at: Option<Instant>,
     up_since: Option<Instant>,
     last_byte_at: Option<Instant>,
@@ -286,7 +285,6 @@ impl Link {
             } else {
                 LinkState::Off
             },
-            last_frame: None,
             last_frame_at: None,
             up_since: None,
             last_byte_at: None,
@@ -315,9 +313,15 @@ impl Link {
         self.up_since
     }
 
-    /// The newest valid frame while the link is up.
-    pub fn frame(&self) -> Option<&SbusRepr> {
-        self.last_frame.as_ref().filter(|_| self.is_up())
+    /// The newest valid frame while the link is up, decoded. Up implies the newest frame
+    /// was a good one: a failsafe frame takes the link out of `Up` at once.
+    pub fn frame(&self) -> Option<SbusRepr> {
+        if !self.is_up() {
+            return None;
+        }
+        self.decoder
+            .last_frame()
+            .and_then(|f| SbusRepr::parse(&f).ok())
     }
 
     pub fn decoder(&self) -> &SbusDecoder {
@@ -369,15 +373,19 @@ impl Link {
         }
         self.last_byte_at = Some(now);
         for &byte in bytes {
-            if let Some(frame) = self.decoder.push(byte) {
-                self.handle_frame(now, frame, acquire_frames);
+            if self.decoder.push_byte(byte) {
+                let failsafe = self
+                    .decoder
+                    .last_frame()
+                    .is_some_and(|f| f.flags().failsafe);
+                self.handle_frame(now, failsafe, acquire_frames);
             }
         }
         // After the frames: they may have measured the timeout anew.
         self.heard(now);
     }
 
-    fn handle_frame(&mut self, now: Instant, frame: SbusRepr, acquire_frames: u8) {
+    fn handle_frame(&mut self, now: Instant, failsafe: bool, acquire_frames: u8) {
         match self.last_frame_at.map(|at| now - at) {
             Some(interval) if interval < BURST_SPACING => {
                 self.burst = self.burst.saturating_add(1);
@@ -394,13 +402,12 @@ impl Link {
             .period_us
             .map(|p| timeout_us_within(p, self.burst, self.period.jitter_us, self.period.bounds));
         self.last_frame_at = Some(now);
-        if frame.flags.failsafe {
+        if failsafe {
             self.good_run = 0;
             self.up_since = None;
             self.state = LinkState::Failsafe;
             return;
         }
-        self.last_frame = Some(frame);
         self.good_run = self.good_run.saturating_add(1);
         if self.good_run >= acquire_frames {
             self.up_since.get_or_insert(now);
@@ -544,7 +551,7 @@ mod tests {
         link.handle_bytes(Instant::ZERO, &cut[..10], 1);
         link.handle_bytes(Instant::from_millis(5), &zeros.to_bytes(), 1);
         assert!(link.is_up());
-        assert_eq!(link.frame(), Some(&zeros));
+        assert_eq!(link.frame(), Some(zeros));
     }
 
     #[test]

@@ -252,7 +252,11 @@ impl Multiplexer {
         } else {
             self.ifs.frame()
         };
-        compose(&self.config, active, ifs)
+        compose(
+            &self.config,
+            active.as_ref().map(|(rx, f)| (*rx, f)),
+            ifs.as_ref(),
+        )
     }
 
     /// Decides who is in control; the one place control changes.
