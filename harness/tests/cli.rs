@@ -497,7 +497,7 @@ fn boot_check_passes_the_device_the_rig_file_names() {
     assert!((0.0..=50.0).contains(&ms), "{ms}");
 }
 
-/// A receiver fixture the host holds past the device's silence timeout (60 ms for a flood) really
+/// A receiver fixture the host holds past the device's 60 ms silence timeout really
 /// silences the link, and the device rightly gives the pilot up: the fault phase must not
 /// call that a device failure. Here the fixture is stopped (SIGSTOP) for 120 ms every
 /// 0.5 s, so every fault window sees a held stimulus: the window runs again once, then the

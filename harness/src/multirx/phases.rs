@@ -73,15 +73,12 @@ fn mode_limits(rig: &RigFile, mode: Mode) -> Result<ModeLimits> {
         .as_ref()
         .and_then(|m| m.config(mode))
         .with_context(|| format!("no MultiRX config for mode {mode}"))?;
-    let multirx = rig.devices.multirx.as_ref();
-    let device = multirx.map_or(DeviceKind::Emulated, |m| m.device.kind());
-    let receiver_period_ms = multirx.map_or(7, |m| m.receivers.period_ms);
-    Ok(ModeLimits::new(
-        mode,
-        &loaded.config,
-        device,
-        receiver_period_ms,
-    ))
+    let device = rig
+        .devices
+        .multirx
+        .as_ref()
+        .map_or(DeviceKind::Emulated, |m| m.device.kind());
+    Ok(ModeLimits::new(mode, &loaded.config, device))
 }
 
 /// One scenario of one mode, on a device started for it alone.

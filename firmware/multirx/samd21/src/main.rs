@@ -350,10 +350,8 @@ fn main() -> ! {
                 let ifs = IFS && port == IFS_PORT;
                 match (entry.value, ifs) {
                     // Drop the frame the damaged byte belongs to.
-                    (UART_ERROR, true) => mux.handle_ifs_error(clock.at(entry.at)),
-                    (UART_ERROR, false) => {
-                        mux.handle_receiver_error(clock.at(entry.at), port as u8)
-                    }
+                    (UART_ERROR, true) => mux.handle_ifs_error(),
+                    (UART_ERROR, false) => mux.handle_receiver_error(port as u8),
                     // Bytes lost here: drop the frame, count and report it.
                     (RX_OVERFLOW, true) => mux.handle_ifs_overflow(clock.at(entry.at)),
                     (RX_OVERFLOW, false) => {

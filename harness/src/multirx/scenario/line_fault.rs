@@ -88,30 +88,11 @@ fn plan(d: &mut Declarations, l: &ModeLimits, name: &str, fault: &'static str) -
              device's silence timeout is repeated once, as the log says",
         )),
     };
-    Box::new(move |s, ctx, l| run(s, ctx, l, fault, h))
+    Box::new(move |s, ctx, _| run(s, ctx, fault, h))
 }
 
-/// Frames the fixture's faulty line delivers at once (fixtures/sbus_receiver.py
-/// STUTTER_FRAMES, FLOOD_COPIES): the device allows a line that clumps frames
-/// as many periods more before its silence ends the link.
-fn frames_at_once(fault: &str) -> u8 {
-    match fault {
-        "stutter" => 3,
-        "flood" => 10,
-        _ => 1,
-    }
-}
-
-fn run(
-    s: &MultirxSession,
-    ctx: &mut PhaseContext,
-    l: &ModeLimits,
-    fault: &str,
-    h: Handles,
-) -> Result<()> {
-    // The device times silence by the receiver's own period now, so a hold of
-    // the stimulus shorter than the configured timeout can end the link too.
-    let silence_ms = l.min_silence_timeout_ms(&s.config, frames_at_once(fault));
+fn run(s: &MultirxSession, ctx: &mut PhaseContext, fault: &str, h: Handles) -> Result<()> {
+    let silence_ms = s.config.silence_timeout.as_secs_f64() * 1000.0;
     let mut gap_ms = 0.0;
     for window in 1..=WINDOWS {
         let (from, to, gap) = fault_window(s, ctx, fault)?;

@@ -48,34 +48,19 @@ pub struct ModeLimits {
     pub frame_period_ms: f64,
     /// Parallel: the SLA; scan: the paper's bound, window × receivers + margin.
     pub handover_ms: f64,
-    /// Parallel: the SLA for receivers that fall silent; scan: the paper's
-    /// bound plus the configured silence timeout, which still bounds the
-    /// measured one.
     pub handover_silent_ms: f64,
     /// Emulated device or board: what the frame-gap figures can hold to.
     pub device: DeviceKind,
-    /// The receivers' frame period (`[multirx.receivers] period_ms`).
-    pub receiver_period_ms: u32,
 }
 
 impl ModeLimits {
-    pub fn new(
-        mode: Mode,
-        config: &Config,
-        device: DeviceKind,
-        receiver_period_ms: u32,
-    ) -> ModeLimits {
+    pub fn new(mode: Mode, config: &Config, device: DeviceKind) -> ModeLimits {
         let period = config.frame_period.as_micros() as f64 / 1000.0;
         let window = config.scan_window.as_micros() as f64 / 1000.0;
         let silence = config.silence_timeout.as_micros() as f64 / 1000.0;
         let scan_bound = window * f64::from(config.receivers) + 500.0;
-        // The SLA from before issue 24. Its targets (30 ms for 7 ms receivers, 55 ms
-        // for 14 ms) are not met by this measure yet: it runs to the frame the flight
-        // controller gets, so it adds the wait for the next output frame (0-7 ms) to the
-        // device's ~25 ms timeout (31 ms worst on the emulated rig).
-        let silent_sla = 100.0;
         let (handover_ms, handover_silent_ms) = match mode {
-            Mode::Parallel => (50.0, silent_sla),
+            Mode::Parallel => (50.0, 100.0),
             Mode::Scan => (scan_bound, scan_bound + silence),
         };
         ModeLimits {
@@ -85,21 +70,7 @@ impl ModeLimits {
             handover_ms,
             handover_silent_ms,
             device,
-            receiver_period_ms,
         }
-    }
-
-    /// The shortest silence after which the device may end a receiver's link
-    /// whose line delivers `burst` frames at once (its jitter only adds to it).
-    pub fn min_silence_timeout_ms(&self, config: &Config, burst: u8) -> f64 {
-        let period = multirx_core::Duration::from_millis(u64::from(self.receiver_period_ms));
-        let timeout = multirx_core::mux::measured_silence_timeout(
-            period,
-            burst,
-            multirx_core::Duration::ZERO,
-            config.silence_timeout,
-        );
-        timeout.as_micros() as f64 / 1000.0
     }
 
     /// A measurement of MultiRX in this mode.

@@ -105,9 +105,7 @@ pub struct Config {
     pub receivers: u8,
     /// Output period towards the flight controller (7 ms high speed, 14 ms normal).
     pub frame_period: Duration,
-    /// A receiver that sent no frame for this long has lost its link. Once its
-    /// frame period is measured, a receiver is timed by that instead (three
-    /// missed frames, see `mux::Link::silence_timeout`), never longer than this.
+    /// A receiver that sent no frame for this long has lost its link.
     pub silence_timeout: Duration,
     /// Scan mode: how long to listen to a freshly powered receiver.
     pub scan_window: Duration,

@@ -3,12 +3,6 @@
 //!
 //! Link loss is the failsafe flag or silence past the timeout; the frame-lost
 //! flag alone is normal on a fading link and is not a loss.
-//!
-//! The silence timeout is the receiver's own: three missed frames at the period
-//! measured on this input, plus its jitter and a margin (see
-//! [`Link::silence_timeout`]). A receiver whose period is not measured yet gets
-//! the configured timeout, which also bounds the measured one, so no receiver
-//! is ever dropped later than with the fixed timeout.
 
 use crate::decoder::SbusDecoder;
 
@@ -39,118 +33,6 @@ use crate::wire::SbusRepr;
 /// feeds what each receive queue holds in one call per loop pass).
 pub fn joins_slice(previous: u32, at: u32) -> bool {
     at.wrapping_sub(previous) < INTRA_FRAME_GAP.as_micros() as u32
-}
-
-/// Frames closer than this came in one delivery (a buffering adapter, a
-/// repeating line), not one period apart: receivers send at most one frame
-/// every 4 ms, and two frames back to back on the 100 kbaud wire are 3 ms apart.
-pub const BURST_SPACING: Duration = Duration::from_micros(3_500);
-
-/// Frames a receiver may miss before its silence is a link loss: two in a row
-/// happen on healthy links (an adapter that clumps three frames delivers them
-/// with the third), and handover within three frames plus one output period is
-/// the requirement (issue 24).
-pub const MISSED_FRAMES: u64 = 3;
-
-/// Added to every measured timeout: drivers stamp bytes when they read them
-/// (an interrupt, a host's read loop), so a frame on time can look up to this
-/// late, beyond the jitter the intervals themselves show.
-pub const SILENCE_MARGIN: Duration = Duration::from_millis(1);
-
-/// Intervals the period is the median of: enough that a late frame or a
-/// two-frame gap does not move it, few enough to follow a receiver switching
-/// rate within a fraction of a second.
-const PERIOD_SAMPLES: usize = 8;
-
-/// Intervals needed before the period counts as measured: two, so a receiver
-/// is timed as its own by the time it comes up (three frames by default). The
-/// upper median of two is the larger, and an estimate can only be too long
-/// then, which the configured timeout bounds; too short is what would drop a
-/// healthy link.
-const PERIOD_MIN_SAMPLES: u8 = 2;
-
-/// Jitter is held at its peak and forgets it by 1/64 per interval (about half
-/// a second at 7 ms): a receiver that was jittery a moment ago keeps the
-/// tolerance it needed, a steady one earns a tighter one back slowly.
-const JITTER_DECAY: u64 = 64;
-
-/// Jitter allowed whatever was measured, as a fraction of the period: a
-/// healthy 7 ms receiver's frames arrive 6-9 ms apart (issue 24), up to 2 ms
-/// late, and the third frame of a two-frame gap (the rig's stutter fault) is as
-/// late as any. A third of a period covers that, even after calm intervals
-/// have let the measured jitter decay.
-const JITTER_FLOOR_DIVISOR: u64 = 3;
-
-/// The silence timeout of a receiver whose period is measured (see
-/// [`Link::silence_timeout`]): `burst` frames in its newest delivery, `jitter`
-/// the largest distance of its intervals from whole periods. Public so the rig
-/// can tell when a stimulus it held was long enough to end a link.
-pub fn measured_silence_timeout(
-    period: Duration,
-    burst: u8,
-    jitter: Duration,
-    configured: Duration,
-) -> Duration {
-    let period = period.as_micros();
-    let held = u64::from(burst.saturating_sub(1));
-    let jitter = jitter
-        .as_micros()
-        .clamp(period / JITTER_FLOOR_DIVISOR, period / 2);
-    let us = (MISSED_FRAMES + held)
-        .saturating_mul(period)
-        .saturating_add(jitter + SILENCE_MARGIN.as_micros());
-    Duration::from_micros(us).min(configured)
-}
-
-/// A receiver's frame period, measured from the intervals between its frames.
-#[derive(Debug, Clone)]
-struct FramePeriod {
-    /// The newest intervals, µs, in a ring.
-    samples: [u32; PERIOD_SAMPLES],
-    len: u8,
-    next: u8,
-    /// Peak distance of an interval from a whole number of periods, µs.
-    jitter_us: u64,
-}
-
-impl FramePeriod {
-    const fn new() -> Self {
-        FramePeriod {
-            samples: [0; PERIOD_SAMPLES],
-            len: 0,
-            next: 0,
-            jitter_us: 0,
-        }
-    }
-
-    fn push(&mut self, interval: Duration) {
-        let us = u32::try_from(interval.as_micros()).unwrap_or(u32::MAX);
-        self.samples[usize::from(self.next)] = us;
-        self.next = (self.next + 1) % PERIOD_SAMPLES as u8;
-        self.len = (self.len + 1).min(PERIOD_SAMPLES as u8);
-        if let Some(period) = self.period_us() {
-            // A two-frame gap is two missed frames, not jitter: measure from
-            // the nearest whole number of periods.
-            let us = u64::from(us);
-            let n = ((us + period / 2) / period).max(1);
-            let deviation = us.abs_diff(n * period);
-            let decayed = self.jitter_us - self.jitter_us / JITTER_DECAY;
-            self.jitter_us = decayed.max(deviation);
-        }
-    }
-
-    /// The upper median of the intervals, once there are enough: one late
-    /// frame or one gap cannot move it, bursts never reach it (see
-    /// [`BURST_SPACING`]).
-    fn period_us(&self) -> Option<u64> {
-        if self.len < PERIOD_MIN_SAMPLES {
-            return None;
-        }
-        let mut sorted = self.samples;
-        let sorted = &mut sorted[..usize::from(self.len)];
-        sorted.sort_unstable();
-        Some(u64::from(sorted[sorted.len() / 2]))
-    }
 }
 
 /// What MultiRX knows of an input's link, as reported in status lines.
@@ -201,14 +83,7 @@ pub struct Link {
     last_frame_at: Option<Instant>,
     up_since: Option<Instant>,
     last_byte_at: Option<Instant>,
-    /// The line's latest sign of life: a byte, a UART error, bytes lost to a
-    /// full queue. Garbage after the last frame is a receiver still talking
-    /// (a damaged stretch, a noisy line), not one that stopped.
-    heard_at: Option<Instant>,
     good_run: u8,
-    /// Frames in the newest delivery (frames closer than [`BURST_SPACING`]).
-    burst: u8,
-    period: FramePeriod,
 }
 
 impl Link {
@@ -224,10 +99,7 @@ impl Link {
             last_frame_at: None,
             up_since: None,
             last_byte_at: None,
-            heard_at: None,
             good_run: 0,
-            burst: 0,
-            period: FramePeriod::new(),
         }
     }
 
@@ -270,16 +142,6 @@ impl Link {
         self.decoder.abort_frame();
     }
 
-    /// The line showed at `now` that something is sending, though no byte of
-    /// it is usable (a UART error, bytes lost to a full queue): the partial
-    /// frame is dropped, and the silence timeout runs from here.
-    pub fn handle_line_error(&mut self, now: Instant) {
-        self.decoder.abort_frame();
-        if self.is_powered() {
-            self.heard_at = Some(now);
-        }
-    }
-
     /// Feeds bytes read from the input at `now`.
     pub fn handle_bytes(&mut self, now: Instant, bytes: &[u8], acquire_frames: u8) {
         if !self.is_powered() {
@@ -294,7 +156,6 @@ impl Link {
             self.decoder.abort_frame();
         }
         self.last_byte_at = Some(now);
-        self.heard_at = Some(now);
         for &byte in bytes {
             if let Some(frame) = self.decoder.push(byte) {
                 self.handle_frame(now, frame, acquire_frames);
@@ -303,17 +164,6 @@ impl Link {
     }
 
     fn handle_frame(&mut self, now: Instant, frame: SbusRepr, acquire_frames: u8) {
-        match self.last_frame_at.map(|at| now - at) {
-            Some(interval) if interval < BURST_SPACING => {
-                self.burst = self.burst.saturating_add(1);
-            }
-            Some(interval) => {
-                self.burst = 1;
-                self.period.push(interval);
-            }
-            // The first frame, or the first after a silence: no interval.
-            None => self.burst = 1,
-        }
         self.last_frame_at = Some(now);
         if frame.flags.failsafe {
             self.good_run = 0;
@@ -331,57 +181,20 @@ impl Link {
         }
     }
 
-    /// The receiver's frame period as measured on this input, once measured.
-    pub fn frame_period(&self) -> Option<Duration> {
-        self.period.period_us().map(Duration::from_micros)
-    }
-
-    /// How long this link may stay silent after its last frame: [`MISSED_FRAMES`]
-    /// periods, plus the periods a line that delivered several frames at once
-    /// may hold back before its next delivery, plus the jitter seen (at least
-    /// a third of a period, at most half: beyond that an interval is nearer
-    /// another whole number of periods) and [`SILENCE_MARGIN`]: 24.3-25.5 ms
-    /// for a 7 ms receiver, 47.7-50 ms for a 14 ms one. `configured` until the period is
-    /// measured, and never more than it.
-    pub fn silence_timeout(&self, configured: Duration) -> Duration {
-        match self.period.period_us() {
-            Some(period) => measured_silence_timeout(
-                Duration::from_micros(period),
-                self.burst,
-                Duration::from_micros(self.period.jitter_us),
-                configured,
-            ),
-            None => configured,
-        }
-    }
-
-    /// When silence would end this link, if it has one to lose; `configured`
-    /// as in [`Self::silence_timeout`]. Silence is a quiet line: while bytes
-    /// or errors keep coming after the last frame (a burst of garbage, a
-    /// damaged stretch), the timeout runs from the latest of them, but never
-    /// past `configured` after the last frame, so a receiver sending only
-    /// garbage loses the link as it always did.
-    pub fn silence_deadline(&self, configured: Duration) -> Option<Instant> {
+    /// When silence would end this link, if it has one to lose.
+    pub fn silence_deadline(&self, timeout: Duration) -> Option<Instant> {
         match self.state {
             LinkState::Off | LinkState::Silent => None,
-            _ => self.last_frame_at.map(|at| {
-                let timeout = self.silence_timeout(configured);
-                let heard = self.heard_at.filter(|h| *h > at).unwrap_or(at);
-                (heard + timeout).min(at + configured).max(at + timeout)
-            }),
+            _ => self.last_frame_at.map(|at| at + timeout),
         }
     }
 
     /// Applies the silence timeout.
-    pub fn handle_timeout(&mut self, now: Instant, configured: Duration) {
-        if self.silence_deadline(configured).is_some_and(|d| now >= d) {
+    pub fn handle_timeout(&mut self, now: Instant, timeout: Duration) {
+        if self.silence_deadline(timeout).is_some_and(|d| now >= d) {
             self.state = LinkState::Silent;
             self.good_run = 0;
             self.up_since = None;
-            // The interval across a silence is not a period: the next frame
-            // starts a new one. The period measured so far is kept, so a
-            // receiver coming back is timed as its own at once.
-            self.last_frame_at = None;
         }
     }
 }
@@ -479,34 +292,6 @@ mod tests {
         link.abort_frame();
         link.handle_bytes(Instant::from_micros(100), &frame, 1);
         assert!(link.is_up());
-    }
-
-    #[test]
-    fn period_ignores_late_frames_bursts_and_silences() {
-        let ms = Instant::from_millis;
-        let frame = bytes(false, false);
-        let mut link = Link::new(true);
-        for n in 0..6 {
-            link.handle_bytes(ms(7 * n), &frame, 1);
-        }
-        let period = Some(Duration::from_millis(7));
-        assert_eq!(link.frame_period(), period);
-        // One late frame, then three frames in one delivery: neither moves it.
-        link.handle_bytes(ms(35 + 12), &frame, 1);
-        link.handle_bytes(ms(35 + 14), &[frame, frame, frame].concat(), 1);
-        assert_eq!(link.frame_period(), period);
-        // The delivery held two frames back, so the next may be two periods
-        // later than the frame period alone says.
-        let burst = link.silence_timeout(T);
-        link.handle_bytes(ms(35 + 21), &frame, 1);
-        assert!(link.silence_timeout(T) + Duration::from_millis(14) <= burst);
-        // Silent, then back: the interval across the silence is not a period.
-        link.handle_timeout(ms(500), T);
-        assert_eq!(link.state(), LinkState::Silent);
-        link.handle_bytes(ms(600), &frame, 1);
-        link.handle_bytes(ms(607), &frame, 1);
-        assert_eq!(link.frame_period(), period);
-        assert!(link.silence_timeout(T) < Duration::from_millis(30));
     }
 
     #[test]
