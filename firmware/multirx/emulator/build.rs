@@ -7,7 +7,7 @@
 use std::env;
 use std::path::PathBuf;
 
-use multirx_core::provenance::{EMULATOR_INPUTS, Source};
+use multirx_core::provenance::{EMULATOR_INPUTS, Source, existing_inputs};
 
 fn main() {
     let dir = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("set by cargo"));
@@ -18,12 +18,7 @@ fn main() {
             std::process::exit(1);
         }
     };
-    // Only paths that exist: cargo reruns the script every build for a missing one.
-    for path in EMULATOR_INPUTS
-        .iter()
-        .map(|i| dir.join(i))
-        .filter(|p| p.exists())
-    {
+    for path in existing_inputs(&dir, EMULATOR_INPUTS) {
         println!("cargo::rerun-if-changed={}", path.display());
     }
     println!("cargo::rustc-env=MULTIRX_SOURCE_ID={:016x}", source.id());

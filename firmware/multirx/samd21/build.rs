@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 use multirx_core::Config;
 use multirx_core::board::SAMD21_UARTS;
 use multirx_core::boot::{ImageKind, build_id};
-use multirx_core::provenance::{SAMD21_INPUTS, Source, git_head_files};
+use multirx_core::provenance::{SAMD21_INPUTS, Source, existing_inputs, git_head_files};
 
 /// Configuration file used when `MULTIRX_CONFIG` is not set.
 const DEFAULT_CONFIG: &str = "multirx.toml";
@@ -96,11 +96,8 @@ fn configuration(manifest_dir: &Path, out_dir: &Path) -> Result<(), String> {
         .write_rust_literal(&mut literal)
         .map_err(|e| format!("{shown}: cannot write the configuration as Rust: {e}"))?;
     let config_hash = config.identity_hash();
-    // Only inputs that exist: cargo reruns the script every build for a missing one.
-    for input in SAMD21_INPUTS.iter().map(|i| manifest_dir.join(i)) {
-        if input.exists() {
-            println!("cargo::rerun-if-changed={}", input.display());
-        }
+    for input in existing_inputs(manifest_dir, SAMD21_INPUTS) {
+        println!("cargo::rerun-if-changed={}", input.display());
     }
     for head in git_head_files(manifest_dir) {
         println!("cargo::rerun-if-changed={}", head.display());

@@ -840,6 +840,7 @@ impl MissionTerminator {
     /// without a word, and a whole plan takes longer than that over LoRa), and its last item
     /// is asked for only when little but that item is left to send.
     fn advance(&mut self, now: Instant) {
+        let hold = self.holding();
         let State::Relaying {
             ground,
             vehicle,
@@ -850,7 +851,6 @@ impl MissionTerminator {
             asked,
             plan,
             id,
-            released,
             hold_polled,
             first_sent,
             ..
@@ -859,8 +859,6 @@ impl MissionTerminator {
             return;
         };
         let complete = items.len() == usize::from(*count);
-        let remaining = *count - items.len() as u16;
-        let hold = remaining > 0 && remaining <= held(*count) && !*released;
         if *framed < items.len() {
             let run = &items[*framed..];
             let mut frames = item_frames(&self.config, *id, *vehicle, *mission_type, *count, run);

@@ -228,8 +228,9 @@ fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
         radio.extend(radio_out(&mut r, ms(t)).into_iter().filter(mission));
     }
     assert!(asked(&mut r).is_empty(), "the tail waits for the bridge");
-    // The bridge answers the poll: it misses only the tail. The ground is asked for it.
-    let tail = MavMessage::MISSION_REQUEST_PARTIAL_LIST(
+    // The bridge answers the poll: it misses only the tail, items 1..=2. The ground is
+    // asked for it.
+    let range = MavMessage::MISSION_REQUEST_PARTIAL_LIST(
         crate::dialect::MISSION_REQUEST_PARTIAL_LIST_DATA {
             start_index: 1,
             end_index: 2,
@@ -238,7 +239,7 @@ fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
             ..Default::default()
         },
     );
-    r.handle_radio_bytes(ms(t), bridge.frame(&tail).as_bytes());
+    r.handle_radio_bytes(ms(t), bridge.frame(&range).as_bytes());
     for seq in 1..3u16 {
         assert_eq!(asked(&mut r), vec![seq]);
         t += 10;
@@ -286,15 +287,6 @@ fn ground_upload_ends_at_the_router_and_the_plan_goes_out_as_one_stream() {
     assert_eq!(known::message_name(44), Some("MISSION_COUNT"));
     // The bridge asks for items 1..=2 again by range: the router answers, the ground never
     // sees the request.
-    let range = MavMessage::MISSION_REQUEST_PARTIAL_LIST(
-        crate::dialect::MISSION_REQUEST_PARTIAL_LIST_DATA {
-            start_index: 1,
-            end_index: 2,
-            target_system: 255,
-            target_component: 191,
-            ..Default::default()
-        },
-    );
     let now = ms(t);
     r.handle_radio_bytes(now, bridge.frame(&range).as_bytes());
     assert!(

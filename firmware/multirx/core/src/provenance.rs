@@ -118,6 +118,17 @@ pub fn git_head_files(dir: &Path) -> Vec<PathBuf> {
         .collect()
 }
 
+/// The `inputs` (relative to `dir`) that exist, for a build script's
+/// `rerun-if-changed`: cargo reruns a script every build for a path that does
+/// not exist (an optional file such as `.cargo/config.toml`).
+pub fn existing_inputs(dir: &Path, inputs: &[&str]) -> Vec<PathBuf> {
+    inputs
+        .iter()
+        .map(|i| dir.join(i))
+        .filter(|p| p.exists())
+        .collect()
+}
+
 fn git(dir: &Path, args: &[&str]) -> Option<String> {
     let out = Command::new("git")
         .arg("-C")
