@@ -144,7 +144,7 @@ impl<T: AsRef<[u8]>> SbusFrame<T> {
     /// per [`SbusFrame::channel`] it costs the Cortex-M0+ several times as much).
     pub fn channels(&self) -> Channels {
         let data = &self.buffer.as_ref()[field::CHANNELS];
-        let mut channels = [0; Self::CHANNELS];
+        let mut channels = [0u16; 16];
         let mut bytes = data.iter();
         let (mut acc, mut bits) = (0u32, 0u32);
         for channel in &mut channels {
