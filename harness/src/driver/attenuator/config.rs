@@ -28,6 +28,7 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 
 use super::DbRange;
+use super::emulated::EmulatedSpec;
 use super::minicircuits::{self, ModelSpec, Options, Transport};
 
 /// The `[attenuator]` table.
@@ -126,6 +127,30 @@ impl MinicircuitsConfig {
     }
 }
 
+impl EmulatedConfig {
+    /// The emulated unit's identity; honest, starting at 0 dB.
+    pub fn spec(&self) -> EmulatedSpec {
+        let default = EmulatedSpec::default();
+        EmulatedSpec {
+            model: self.model.clone().unwrap_or(default.model),
+            serial: self.serial.clone().unwrap_or(default.serial),
+            ..default
+        }
+    }
+
+    /// The wait after each setting.
+    pub fn settle(&self) -> Duration {
+        self.settle_ms
+            .map_or(minicircuits::DEFAULT_SETTLE, Duration::from_millis)
+    }
+
+    /// The longest wait for an answer.
+    pub fn timeout(&self) -> Duration {
+        self.timeout_ms
+            .map_or(minicircuits::DEFAULT_TIMEOUT, Duration::from_millis)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -187,6 +212,11 @@ mod tests {
                 ..EmulatedConfig::default()
             })
         );
+        let AttenuatorConfig::Emulated(e) = ci else {
+            unreachable!()
+        };
+        assert_eq!(e.spec().model, "RCDAT-6000-90");
+        assert_eq!(e.settle(), minicircuits::DEFAULT_SETTLE);
     }
 
     #[test]

@@ -57,6 +57,8 @@ pub struct EmulatedSpec {
     pub firmware: String,
     /// The attenuation at start, dB.
     pub start_db: f64,
+    /// Sends each Telnet command line back before its answer (echo mode).
+    pub echo: bool,
     pub hostile: Hostile,
 }
 
@@ -67,6 +69,7 @@ impl Default for EmulatedSpec {
             serial: "EMULATED-0001".into(),
             firmware: "EMU1".into(),
             start_db: 0.0,
+            echo: false,
             hostile: Hostile::Honest,
         }
     }
@@ -237,6 +240,9 @@ fn session(
                 .to_string();
             if command.is_empty() {
                 continue;
+            }
+            if spec.echo {
+                stream.write_all(format!("{command}\r\n").as_bytes())?;
             }
             match answer(&command, spec, shared, count) {
                 Answer::Line(mut line) => {

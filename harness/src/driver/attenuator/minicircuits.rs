@@ -47,9 +47,10 @@ pub struct ModelSpec {
     pub step_db: f64,
 }
 
-/// Models and their steps, from their datasheets: the single-channel RUDAT (USB +
-/// Ethernet) and RCDAT (Ethernet) units, all 0.25 dB steps. The range's top is the
-/// model name's last field.
+/// Single-channel RUDAT (USB + Ethernet) and RCDAT (Ethernet) models: name, top of the
+/// range (the name's last field), step as the datasheets give it (0.25 dB across these
+/// families). Check a model's datasheet before adding it; a model missing here needs
+/// `range_db` and `step_db` in the rig file.
 pub const MODELS: &[(&str, f64, f64)] = &[
     ("RUDAT-6000-30", 30.0, 0.25),
     ("RUDAT-6000-60", 60.0, 0.25),
@@ -192,7 +193,8 @@ pub fn parse_tagged(line: &[u8], tag: &str) -> Option<String> {
 pub fn parse_firmware(line: &[u8]) -> Option<String> {
     parse_tagged(line, "FIRMWARE").or_else(|| {
         let s = text(line)?;
-        (!s.contains([' ', '='])).then(|| s.to_string())
+        // `0` is the protocol's "failed", not a version.
+        (s != "0" && !s.contains([' ', '='])).then(|| s.to_string())
     })
 }
 
@@ -461,6 +463,7 @@ mod tests {
         assert_eq!(parse_firmware(b"C9"), Some("C9".into()));
         assert_eq!(parse_firmware(b"FIRMWARE=C9"), Some("C9".into()));
         assert_eq!(parse_firmware(b"\xfe\x81"), None);
+        assert_eq!(parse_firmware(b"0"), None);
     }
 
     #[test]

@@ -319,6 +319,18 @@ fn the_settle_time_is_waited() {
 }
 
 #[test]
+fn an_echoing_unit_is_understood() {
+    let (emu, rx) = unit_with(EmulatedSpec {
+        echo: true,
+        ..EmulatedSpec::default()
+    });
+    let mut att = connect(&emu);
+    assert_eq!(att.identity().model, "RCDAT-6000-90");
+    assert_eq!(att.set_db(12.5).expect("sets").db, 12.5);
+    assert_eq!(seen(&rx), vec![12.5]);
+}
+
+#[test]
 fn http_transport_does_the_same() {
     let (emu, rx) = unit(Hostile::Honest);
     let mut att = MiniCircuits::connect(&options(&emu, Transport::Http)).expect("connects");

@@ -180,8 +180,12 @@ impl TelnetLink {
             if !replies.is_empty() {
                 stream.write_all(&replies).map_err(LinkError::Lost)?;
             }
-            if let Some(line) = self.decoder.next_line() {
-                return Ok(line);
+            while let Some(line) = self.decoder.next_line() {
+                // A unit (or a terminal server in front of one) in echo mode sends the
+                // command back first: that is not its answer.
+                if line != command.as_bytes() {
+                    return Ok(line);
+                }
             }
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
