@@ -17,7 +17,7 @@ pub mod minicircuits;
 #[cfg(test)]
 mod over_tcp;
 mod record;
-mod telnet;
+pub mod telnet;
 
 use std::fmt;
 use std::time::{Duration, Instant};

@@ -37,7 +37,7 @@ enum State {
 /// Splits the bytes a device sends into answer lines, taking out Telnet commands and
 /// queueing the refusals of any options the device asks for. Pure: no IO.
 #[derive(Debug)]
-pub(crate) struct Decoder {
+pub struct Decoder {
     state: State,
     line: Vec<u8>,
     lines: VecDeque<Vec<u8>>,
@@ -57,7 +57,7 @@ impl Default for Decoder {
 
 impl Decoder {
     /// Takes in bytes as they arrived.
-    pub(crate) fn push(&mut self, bytes: &[u8]) {
+    pub fn push(&mut self, bytes: &[u8]) {
         for &b in bytes {
             self.state = match self.state {
                 State::Data => match b {
@@ -119,12 +119,12 @@ impl Decoder {
     }
 
     /// The next complete, non-empty line.
-    pub(crate) fn next_line(&mut self) -> Option<Vec<u8>> {
+    pub fn next_line(&mut self) -> Option<Vec<u8>> {
         self.lines.pop_front()
     }
 
     /// Bytes owed to the device (option refusals).
-    pub(crate) fn take_replies(&mut self) -> Vec<u8> {
+    pub fn take_replies(&mut self) -> Vec<u8> {
         std::mem::take(&mut self.replies)
     }
 }
