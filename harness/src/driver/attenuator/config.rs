@@ -161,6 +161,28 @@ mod tests {
         attenuator: AttenuatorConfig,
     }
 
+    /// The ```toml blocks of this module's doc, so the doc cannot drift from the schema.
+    fn doc_toml_blocks() -> Vec<String> {
+        let mut blocks = Vec::new();
+        let mut block: Option<String> = None;
+        for line in include_str!("config.rs")
+            .lines()
+            .filter_map(|l| l.strip_prefix("//!"))
+        {
+            let line = line.strip_prefix(' ').unwrap_or(line);
+            match (&mut block, line) {
+                (None, "```toml") => block = Some(String::new()),
+                (Some(_), "```") => blocks.extend(block.take()),
+                (Some(b), l) => {
+                    b.push_str(l);
+                    b.push('\n');
+                }
+                (None, _) => {}
+            }
+        }
+        blocks
+    }
+
     fn parse(s: &str) -> Result<AttenuatorConfig, toml::de::Error> {
         toml::from_str::<Rig>(s).map(|r| r.attenuator)
     }
@@ -168,20 +190,24 @@ mod tests {
     /// The examples in this module's doc, uncommented, parse to what they say.
     #[test]
     fn the_documented_tables_parse() {
-        let bench = parse(
-            r#"
-            [attenuator]
-            kind = "minicircuits"
-            address = "192.168.1.10"
-            transport = "telnet"
-            port = 23
-            settle_ms = 1
-            timeout_ms = 2000
-            range_db = [0.0, 90.0]
-            step_db = 0.25
-            "#,
-        )
-        .expect("parses");
+        let blocks = doc_toml_blocks();
+        assert_eq!(blocks.len(), 2, "{blocks:?}");
+        // The bench example as written, then with its commented-out keys taken in.
+        let as_written = parse(&blocks[0]).expect("parses");
+        let AttenuatorConfig::Minicircuits(m) = &as_written else {
+            panic!("{as_written:?}")
+        };
+        assert_eq!((m.port, m.range_db, m.step_db), (None, None, None));
+        let uncommented: String = blocks[0]
+            .lines()
+            .map(|l| {
+                l.strip_prefix("# ")
+                    .filter(|k| k.contains(" = "))
+                    .unwrap_or(l)
+            })
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let bench = parse(&uncommented).expect("parses");
         let AttenuatorConfig::Minicircuits(m) = &bench else {
             panic!("{bench:?}")
         };
@@ -202,8 +228,7 @@ mod tests {
             })
         );
 
-        let ci = parse("[attenuator]\nkind = \"emulated\"\nmodel = \"RCDAT-6000-90\"\nserial = \"EMULATED-0001\"\n")
-            .expect("parses");
+        let ci = parse(&blocks[1]).expect("parses");
         assert_eq!(
             ci,
             AttenuatorConfig::Emulated(EmulatedConfig {
