@@ -1,6 +1,6 @@
-//! The cargo-fuzz target's invariants on stable, in every `cargo test`: the `rigfile` body
-//! (`fuzz/bodies/rigfile.rs`, the very file its `fuzz_target!` wraps) on every input of
-//! `fuzz/corpus/rigfile/` and `fuzz/artifacts/rigfile/`, then on inputs mutated from them
+//! The cargo-fuzz targets' invariants on stable, in every `cargo test`: each body
+//! (`fuzz/bodies/<target>.rs`, the very file its `fuzz_target!` wraps) on every input of
+//! `fuzz/corpus/<target>/` and `fuzz/artifacts/<target>/`, then on inputs mutated from them
 //! (`ci/fuzz_replay.rs`). Coverage-guided fuzzing is `ci/fuzz.sh` (nightly).
 
 #[path = "../../ci/fuzz_replay.rs"]
@@ -9,6 +9,9 @@ mod replay;
 #[path = "../fuzz/bodies/rigfile.rs"]
 mod rigfile;
 
+#[path = "../fuzz/bodies/attenuator_reply.rs"]
+mod attenuator_reply;
+
 use replay::{Target, check};
 
 #[test]
@@ -16,6 +19,15 @@ fn rigfile() {
     check(&Target {
         name: "rigfile",
         body: rigfile::run,
+        mutations: 200_000,
+    });
+}
+
+#[test]
+fn attenuator_reply() {
+    check(&Target {
+        name: "attenuator_reply",
+        body: attenuator_reply::run,
         mutations: 200_000,
     });
 }

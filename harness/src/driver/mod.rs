@@ -1,8 +1,9 @@
 //! Drivers bind resources that every device's rig uses (labgrid's vocabulary): pty pairs and
 //! serial ports, child processes, fixture programs (one driver, [`fixture`]), the device
-//! programs of this workspace, the radio emulator. Device-specific drivers live in the
-//! device's folder.
+//! programs of this workspace, the radio emulator, programmable step attenuators
+//! ([`attenuator`]). Device-specific drivers live in the device's folder.
 
+pub mod attenuator;
 pub mod autopilot;
 pub mod fixture;
 pub mod process;
