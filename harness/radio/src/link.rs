@@ -349,6 +349,11 @@ impl Link {
         }
     }
 
+    /// The link budget in force.
+    pub fn budget(&self) -> &LinkBudget {
+        &self.budget
+    }
+
     /// Changes the budget mid-run (an attenuation sweep); the burst model keeps its state.
     pub fn set_budget(&mut self, budget: LinkBudget) -> Result<(), ConfigError> {
         budget.validate()?;

@@ -269,6 +269,26 @@ impl RadioEmulator {
         Ok(at)
     }
 
+    /// Sets the path attenuation of both directions to `db` (a step attenuator between the
+    /// two radios' antenna ports: it attenuates both ways alike). Other budget terms stay.
+    pub fn set_attenuation(&self, db: f64) -> Result<()> {
+        let mut radio = self
+            .shared
+            .radio
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        for direction in [Direction::Uplink, Direction::Downlink] {
+            let link = radio.link_mut(direction);
+            let budget = harness_radio::LinkBudget {
+                path: harness_radio::PathLoss::AttenuationDb(db),
+                ..*link.budget()
+            };
+            link.set_budget(budget)
+                .with_context(|| format!("attenuation {db} dB refused by the radio model"))?;
+        }
+        Ok(())
+    }
+
     /// Counters of one direction so far.
     pub fn stats(&self, direction: Direction) -> LinkStats {
         self.radio().link(direction).stats().clone()

@@ -14,6 +14,7 @@
 //! - [`table_ii`]: the paper's Table II next to the run's figures, for the summary;
 //! - `phases`: the phases a rig file's `[mavlora]` asks for.
 
+pub mod bench;
 pub mod evidence;
 pub mod fixture;
 mod phases;

@@ -104,6 +104,11 @@ impl Device for Mavlora {
         if section.suites.contains(&Suite::Sitl) {
             phases.extend(sitl::phases(&section.sitl, &defaults));
         }
+        if section.suites.contains(&Suite::Bench)
+            && let Some(plan) = &section.bench
+        {
+            phases.extend(super::bench::phases(&Arc::new(plan.clone())));
+        }
         Ok(phases)
     }
 

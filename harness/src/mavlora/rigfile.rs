@@ -57,6 +57,10 @@ pub enum Suite {
     /// The real programs behind real autopilots (ArduPilot, PX4 SITL: `[mavlora.sitl]`),
     /// judged against each autopilot's own truth connection.
     Sitl,
+    /// The radios on an RF path with a programmable attenuator (`[mavlora.bench]`): real
+    /// radios and attenuator on a bench, their emulated counterparts through the same
+    /// drivers in CI.
+    Bench,
 }
 
 impl Suite {
@@ -67,6 +71,7 @@ impl Suite {
             Suite::Realtime => "realtime",
             Suite::Soak => "soak",
             Suite::Sitl => "sitl",
+            Suite::Bench => "bench",
         }
     }
 }
@@ -98,6 +103,8 @@ pub struct MavloraSection {
     pub radios: RadioRoles,
     /// `[mavlora.sitl]`: the autopilots and radios of the `sitl` suite.
     pub sitl: SitlPlan,
+    /// `[mavlora.bench]`: the RF path of the `bench` suite; `None` when the file has none.
+    pub bench: Option<super::bench::rigfile::BenchPlan>,
 }
 
 /// Which autopilots fly the `sitl` suite and over which radios each scenario runs.
@@ -170,6 +177,7 @@ pub(crate) struct RawMavlora {
     pub radios: RawRoles,
     #[serde(default)]
     pub sitl: RawSitl,
+    pub bench: Option<super::bench::rigfile::RawBench>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -223,8 +231,8 @@ impl Checker<'_> {
             Some(s) if s.is_empty() => {
                 return Err(self.invalid(
                     &["mavlora", "suites"],
-                    "empty; list \"simulated\", \"realtime\", \"sitl\" and/or \"soak\", or \
-                     remove [mavlora]",
+                    "empty; list \"simulated\", \"realtime\", \"sitl\", \"bench\" and/or \
+                     \"soak\", or remove [mavlora]",
                 ));
             }
             Some(s) => {
@@ -267,6 +275,19 @@ impl Checker<'_> {
         );
 
         let sitl = self.sitl_plan(raw.sitl, radios, autopilots, suites.contains(&Suite::Sitl))?;
+        let bench = match raw.bench {
+            Some(b) => Some(self.bench_plan(b, radios, |at, name, radios| {
+                self.radio_at(at, name, radios)
+            })?),
+            None if suites.contains(&Suite::Bench) => {
+                return Err(self.invalid(
+                    &["mavlora", "bench"],
+                    "the \"bench\" suite is listed but [mavlora.bench] is missing: name the \
+                     radios and the attenuator (see rigs/bench-radios.example.toml)",
+                ));
+            }
+            None => None,
+        };
         let r = raw.radios;
         let one = |key: &str, given: Option<String>, default: &str| {
             self.named_radio(key, given.as_deref().unwrap_or(default), radios)
@@ -308,6 +329,7 @@ impl Checker<'_> {
             profiles,
             radios: roles,
             sitl,
+            bench,
         })
     }
 

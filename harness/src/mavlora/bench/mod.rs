@@ -1,0 +1,24 @@
+//! The `bench` suite: MavLora's radios on an RF path the rig controls — two radios (real, on
+//! two serial ports, or the radio emulator playing both) and a programmable step attenuator
+//! between their antenna ports, driven through its real driver in CI too.
+//!
+//! - [`rigfile`]: `[mavlora.bench]`, the path and the sweep;
+//! - [`path`]: the path's resources, up and connected;
+//! - [`probe`]: numbered HEARTBEATs into the drone's radio, counted at the ground's, and the
+//!   radios' own `RADIO_STATUS`;
+//! - [`sweep`]: the attenuation sweep phase (the paper's Fig. 1).
+
+pub mod path;
+pub mod probe;
+pub mod rigfile;
+pub mod sweep;
+
+use std::sync::Arc;
+
+use crate::runner::Phase;
+use rigfile::BenchPlan;
+
+/// The suite's phases for `plan`.
+pub fn phases(plan: &Arc<BenchPlan>) -> Vec<Phase> {
+    vec![sweep::phase(plan.clone()).side_by_side(super::phases::REALTIME)]
+}

@@ -1,0 +1,291 @@
+//! `[mavlora.bench]`: the RF path of the `bench` suite — the two radios, the programmable
+//! attenuator between their antenna ports, the fixed pads — and the sweep stepped through it.
+//!
+//! ```toml
+//! [mavlora.bench]
+//! radio = "sik-64k"            # the radio emulator plays both radios (a [radios] name or a
+//!                              # built-in preset), or two real radios on two ports:
+//! # air_port = "/dev/serial/by-id/usb-FTDI_..._A-if00-port0"   # the drone's radio
+//! # ground_port = "/dev/serial/by-id/usb-FTDI_..._B-if00-port0" # the ground's radio
+//! # baud = 57600               # both radios' serial speed (SiK: SERIAL_SPEED)
+//! fixed_db = 0.0               # fixed pads in the path besides the attenuator, dB
+//! attenuator = { kind = "emulated" }  # or { kind = "minicircuits", address = "192.168.1.10" }
+//! # The sweep: total path attenuation (fixed + programmable) from..to in steps; at each step
+//! # `messages` HEARTBEATs at `hz` go into the drone's radio and are counted at the ground's.
+//! sweep = { from_db = 80.0, to_db = 88.0, step_db = 1.0, messages = 100, hz = 50.0 }
+//! ```
+//!
+//! An emulated attenuator steps the radio emulator's path loss, so it goes with `radio`; a
+//! real one with real radios. The sweep's points must be ones the attenuator can set once
+//! the fixed pads are taken off (checked when it is connected: its range comes from it).
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+use super::super::rigfile::NamedRadio;
+use crate::driver::attenuator::config::AttenuatorConfig;
+use crate::rigfile::{Checker, RigFileError};
+use harness_radio::{Preset, RadioSetup};
+
+/// Fewest messages a step sends: the nominal bound is 1 % lost, which must be a whole message
+/// at least.
+pub const MIN_MESSAGES: u32 = 100;
+/// Fastest send rate: a HEARTBEAT is 21 bytes; 200 a second is 4.2 kB/s, within a 64 kbit/s
+/// SiK's air rate with room for its framing, and past that a step measures the radio's
+/// buffer rather than the path.
+pub const MAX_HZ: f64 = 200.0;
+
+/// The checked `[mavlora.bench]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchPlan {
+    pub path: RadioPath,
+    /// Fixed attenuation in the path besides the programmable attenuator, dB.
+    pub fixed_db: f64,
+    pub attenuator: AttenuatorConfig,
+    pub sweep: SweepPlan,
+}
+
+/// The radios at the two ends of the RF path.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RadioPath {
+    /// The radio emulator plays both radios.
+    Emulated(NamedRadio),
+    /// Two real radios: the rig writes into the drone's, reads the ground's.
+    SerialPair {
+        air_port: PathBuf,
+        ground_port: PathBuf,
+        baud: u32,
+    },
+}
+
+impl RadioPath {
+    /// The radio's name for measurements and logs: the emulated radio's name, or `serial`.
+    pub fn label(&self) -> String {
+        match self {
+            RadioPath::Emulated(n) => n.name.clone(),
+            RadioPath::SerialPair { .. } => "serial".into(),
+        }
+    }
+
+    /// The preset the path is: the emulated radio's; `None` for real radios.
+    pub fn preset(&self) -> Option<Preset> {
+        match self {
+            RadioPath::Emulated(n) => n.setup.preset.resolve().ok(),
+            RadioPath::SerialPair { .. } => None,
+        }
+    }
+}
+
+/// The attenuation sweep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepPlan {
+    pub from_db: f64,
+    pub to_db: f64,
+    pub step_db: f64,
+    pub messages: u32,
+    pub hz: f64,
+}
+
+impl SweepPlan {
+    /// The total path attenuations, dB, from `from_db` up to `to_db` inclusive.
+    pub fn points(&self) -> Vec<f64> {
+        let n = ((self.to_db - self.from_db) / self.step_db + 1e-9).floor() as usize;
+        (0..=n)
+            .map(|i| self.from_db + i as f64 * self.step_db)
+            .collect()
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawBench {
+    radio: Option<String>,
+    air_port: Option<PathBuf>,
+    ground_port: Option<PathBuf>,
+    baud: Option<u32>,
+    fixed_db: Option<f64>,
+    attenuator: Option<AttenuatorConfig>,
+    sweep: Option<RawSweep>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSweep {
+    from_db: f64,
+    to_db: f64,
+    step_db: Option<f64>,
+    messages: Option<u32>,
+    hz: Option<f64>,
+}
+
+impl Checker<'_> {
+    /// Checks `[mavlora.bench]`; `resolve_radio` resolves a radio name as every other role.
+    pub(crate) fn bench_plan(
+        &self,
+        raw: RawBench,
+        radios: &BTreeMap<String, RadioSetup>,
+        resolve_radio: impl Fn(
+            &[&str],
+            &str,
+            &BTreeMap<String, RadioSetup>,
+        ) -> Result<NamedRadio, RigFileError>,
+    ) -> Result<BenchPlan, RigFileError> {
+        let at = |key: &'static str| ["mavlora", "bench", key];
+        let path = match (raw.radio, raw.air_port, raw.ground_port) {
+            (Some(name), None, None) => {
+                if raw.baud.is_some() {
+                    return Err(self.invalid(
+                        &at("baud"),
+                        "the emulated radio has no serial speed; baud goes with air_port and \
+                         ground_port",
+                    ));
+                }
+                RadioPath::Emulated(resolve_radio(&at("radio"), &name, radios)?)
+            }
+            (None, Some(air), Some(ground)) => {
+                let baud = raw.baud.unwrap_or(57_600);
+                if baud == 0 {
+                    return Err(self.invalid(&at("baud"), "0 is not a serial speed"));
+                }
+                let (air, ground) = (self.resolve(&air), self.resolve(&ground));
+                if air == ground {
+                    return Err(self.invalid(
+                        &at("ground_port"),
+                        format!(
+                            "{} is also the air_port: each radio needs its own port",
+                            ground.display()
+                        ),
+                    ));
+                }
+                RadioPath::SerialPair {
+                    air_port: air,
+                    ground_port: ground,
+                    baud,
+                }
+            }
+            (Some(_), _, _) => {
+                return Err(self.invalid(
+                    &at("radio"),
+                    "give either radio (emulated) or air_port and ground_port (real radios), \
+                     not both",
+                ));
+            }
+            (None, None, None) => {
+                return Err(self.invalid(
+                    &at("radio"),
+                    "missing: name the emulated radio (radio = \"sik-64k\") or the two real \
+                     radios' ports (air_port, ground_port)",
+                ));
+            }
+            (None, _, _) => {
+                return Err(self.invalid(
+                    &at("air_port"),
+                    "real radios need both air_port (the drone's) and ground_port (the ground's)",
+                ));
+            }
+        };
+        let fixed_db = raw.fixed_db.unwrap_or(0.0);
+        if !(0.0..=200.0).contains(&fixed_db) {
+            return Err(self.invalid(
+                &at("fixed_db"),
+                format!("{fixed_db} is out of range 0..=200 (dB)"),
+            ));
+        }
+        let Some(attenuator) = raw.attenuator else {
+            return Err(self.invalid(
+                &at("attenuator"),
+                "missing: the bench suite steps a programmable attenuator, e.g. \
+                 attenuator = { kind = \"emulated\" } with the emulated radio, or \
+                 { kind = \"minicircuits\", address = \"192.168.1.10\" }",
+            ));
+        };
+        match (&path, &attenuator) {
+            (RadioPath::Emulated(_), AttenuatorConfig::Minicircuits(_)) => {
+                return Err(self.invalid(
+                    &at("attenuator"),
+                    "a real attenuator cannot attenuate the emulated radio; use \
+                     { kind = \"emulated\" }, or real radios (air_port, ground_port)",
+                ));
+            }
+            (RadioPath::SerialPair { .. }, AttenuatorConfig::Emulated(_)) => {
+                return Err(self.invalid(
+                    &at("attenuator"),
+                    "the emulated attenuator steps only the radio emulator; real radios need a \
+                     real attenuator (kind = \"minicircuits\")",
+                ));
+            }
+            _ => {}
+        }
+        if let AttenuatorConfig::Minicircuits(m) = &attenuator {
+            m.options()
+                .map_err(|e| self.invalid(&at("attenuator"), e.to_string()))?;
+        }
+        let sweep = match raw.sweep {
+            Some(s) => s,
+            None => {
+                // Around the emulated preset's edge, as the simulated sweep; real radios must
+                // say where theirs is.
+                let Some(edge) = path.preset().map(|p| p.nominal_edge_db().round()) else {
+                    return Err(self.invalid(
+                        &at("sweep"),
+                        "missing: with real radios give the sweep, e.g. sweep = { from_db = \
+                         70.0, to_db = 100.0 } (total path attenuation, pads included)",
+                    ));
+                };
+                RawSweep {
+                    from_db: edge - 4.0,
+                    to_db: edge + 4.0,
+                    step_db: None,
+                    messages: None,
+                    hz: None,
+                }
+            }
+        };
+        let sweep = SweepPlan {
+            from_db: sweep.from_db,
+            to_db: sweep.to_db,
+            step_db: sweep.step_db.unwrap_or(1.0),
+            messages: sweep.messages.unwrap_or(MIN_MESSAGES),
+            hz: sweep.hz.unwrap_or(50.0),
+        };
+        let bad = |m: String| Err(self.invalid(&at("sweep"), m));
+        if !(sweep.from_db.is_finite() && sweep.to_db.is_finite()) || sweep.from_db > sweep.to_db {
+            return bad(format!(
+                "from_db {} must not be above to_db {}",
+                sweep.from_db, sweep.to_db
+            ));
+        }
+        if sweep.from_db < fixed_db {
+            return bad(format!(
+                "from_db {} is below the fixed pads' {fixed_db} dB: the path cannot attenuate less",
+                sweep.from_db
+            ));
+        }
+        if !(sweep.step_db > 0.0) {
+            return bad(format!("step_db {} must be above 0", sweep.step_db));
+        }
+        if sweep.points().len() > 500 {
+            return bad(format!(
+                "{} points; a sweep of more than 500 is a typo in step_db",
+                sweep.points().len()
+            ));
+        }
+        if sweep.messages < MIN_MESSAGES {
+            return bad(format!(
+                "messages {} is below {MIN_MESSAGES}: 1 % lost must be a whole message",
+                sweep.messages
+            ));
+        }
+        if !(sweep.hz > 0.0 && sweep.hz <= MAX_HZ) {
+            return bad(format!("hz {} is out of range (0, {MAX_HZ}]", sweep.hz));
+        }
+        Ok(BenchPlan {
+            path,
+            fixed_db,
+            attenuator,
+            sweep,
+        })
+    }
+}
