@@ -1,6 +1,6 @@
 //! Drivers bind resources that every device's rig uses (labgrid's vocabulary): pty pairs and
 //! serial ports, child processes, fixture programs (one driver, [`fixture`]), the device
-//! programs of this workspace, the radio emulator. Device-specific drivers live in the
+//! programs of this workspace, the radio emulator, SiK radios' AT command set. Device-specific drivers live in the
 //! device's folder.
 
 pub mod autopilot;
@@ -9,3 +9,4 @@ pub mod process;
 pub mod program;
 pub mod pty;
 pub mod radio_emulator;
+pub mod sik;
