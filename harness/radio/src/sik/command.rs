@@ -20,7 +20,7 @@ enum Plus {
     /// Waiting for the line to be quiet.
     Idle,
     /// Quiet long enough; this many `+` seen.
-    Plus(u8),
+    Seen(u8),
     /// `+++` seen; waiting for quiet again.
     Enable,
 }
@@ -84,14 +84,14 @@ impl CommandLine {
         }
         self.deadline = None;
         match self.plus {
-            Plus::Idle => self.plus = Plus::Plus(0),
+            Plus::Idle => self.plus = Plus::Seen(0),
             Plus::Enable => {
                 self.plus = Plus::Idle;
                 self.active = true;
                 self.line.clear();
                 return true;
             }
-            Plus::Plus(_) => {}
+            Plus::Seen(_) => {}
         }
         false
     }
@@ -144,8 +144,8 @@ impl CommandLine {
             self.plus = Plus::Idle;
         }
         match self.plus {
-            Plus::Plus(n) if n < 2 => self.plus = Plus::Plus(n + 1),
-            Plus::Plus(_) => {
+            Plus::Seen(n) if n < 2 => self.plus = Plus::Seen(n + 1),
+            Plus::Seen(_) => {
                 self.plus = Plus::Enable;
                 self.deadline = Some(now + self.guard);
             }
