@@ -185,3 +185,33 @@ fn an_error_to_a_set_is_refused_naming_the_command() {
         "{err}"
     );
 }
+
+#[test]
+fn the_emulators_sik_side_answers_a_heartbeat_with_radio_status_and_a_plain_side_does_not() {
+    let emu = emulator(Some(sik()), None);
+    let open = |path: &str| {
+        serialport::new(path, 57_600)
+            .timeout(Duration::from_millis(400))
+            .open()
+            .unwrap()
+    };
+    let (mut air, mut ground) = (open(&emu.air_path()), open(&emu.ground_path()));
+    // A MAVLink 1 HEARTBEAT from the drone's autopilot (SiK checks no CRC).
+    let mut heartbeat = vec![0xFE, 9, 0, 1, 1, 0];
+    heartbeat.extend([0u8; 11]);
+    air.write_all(&heartbeat).unwrap();
+    let mut report = [0u8; 17];
+    air.read_exact(&mut report).unwrap();
+    assert_eq!(&report[..6], &[0xFE, 9, 0, b'3', b'D', 109]);
+    assert_eq!(report[6 + 6], 100, "txbuf: the buffer is empty again");
+    // The heartbeat itself crossed to the plain ground side, with nothing added there.
+    let mut crossed = vec![0u8; heartbeat.len()];
+    ground.read_exact(&mut crossed).unwrap();
+    assert_eq!(crossed, heartbeat);
+    ground.write_all(&heartbeat).unwrap();
+    let mut more = [0u8; 1];
+    assert!(
+        ground.read(&mut more).is_err(),
+        "a plain side injects nothing"
+    );
+}
