@@ -145,12 +145,9 @@ impl Which {
     }
 }
 
-/// Lists every [`Param::MUST_MATCH`] setting (and `MAX_WINDOW`) the two radios disagree on.
+/// Lists every [`Param::MUST_MATCH`] setting the two radios disagree on.
 pub fn check_match(record: &SikRecord) -> Result<(), SikError> {
-    let names = Param::MUST_MATCH
-        .iter()
-        .chain([Param::MaxWindow].iter())
-        .map(|p| p.name());
+    let names = Param::MUST_MATCH.iter().map(|p| p.name());
     let mut mismatches = Vec::new();
     for name in names {
         let get = |info: &RadioInfo, radio| {
@@ -222,7 +219,9 @@ impl SikClient {
         &self.path
     }
 
-    /// Quiet, `+++`, quiet, then waits for `OK`. Data arriving before it is skipped.
+    /// Quiet, `+++`, quiet, then waits for `OK`. Data arriving before it is skipped. A
+    /// radio already in command mode echoes the `+++` instead: a `\r` then ends that line
+    /// (not a command, so the radio ignores it) and the radio is ready as well.
     pub fn enter_command_mode(&mut self) -> Result<(), SikError> {
         const CMD: &str = "+++";
         std::thread::sleep(self.guard);
@@ -231,10 +230,19 @@ impl SikClient {
         std::thread::sleep(self.guard);
         let deadline = Instant::now() + self.timeout;
         let mut got = Vec::new();
+        let mut quiet_since = Instant::now();
         while Instant::now() < deadline {
+            let before = got.len();
             self.read_some(&mut got)?;
+            if got.len() != before {
+                quiet_since = Instant::now();
+            }
             if got.ends_with(b"OK\r\n") {
                 return Ok(());
+            }
+            if got == CMD.as_bytes() && quiet_since.elapsed() >= SETTLE {
+                self.write(b"\r")?;
+                return self.read_echo("");
             }
         }
         Err(self.silent_or_garbage(CMD, got))

@@ -55,7 +55,7 @@ impl Param {
 
     /// The settings two radios must share to hear each other or to behave alike on the
     /// air: what a rig checks on both ends before a run.
-    pub const MUST_MATCH: [Param; 9] = [
+    pub const MUST_MATCH: [Param; 10] = [
         Param::AirSpeed,
         Param::NetId,
         Param::Ecc,
@@ -65,6 +65,7 @@ impl Param {
         Param::NumChannels,
         Param::DutyCycle,
         Param::LbtRssi,
+        Param::MaxWindow,
     ];
 
     /// The register number (`n` of `ATSn`).

@@ -27,7 +27,7 @@ fn emulator(air: Option<SikPersonality>, ground: Option<SikPersonality>) -> Radi
 fn client(path: &str) -> SikClient {
     SikClient::open(path, 57_600)
         .unwrap()
-        .guard(GUARD + Duration::from_millis(20))
+        .guard(GUARD + Duration::from_millis(60))
         .timeout(Duration::from_millis(1500))
 }
 
@@ -67,6 +67,11 @@ fn reads_both_radios_sets_a_value_on_both_and_sees_it_after_reboot() {
     for end in [End::Air, End::Ground] {
         assert_eq!(emu.sik_radio(end).unwrap().settings().net_id, 42);
     }
+    // Into command mode twice: the second escape finds the radio there already.
+    c.enter_command_mode().unwrap();
+    c.enter_command_mode().unwrap();
+    assert_eq!(c.banner(Which::Local).unwrap(), "SiK 2.2 on HM-TRP");
+    c.leave_command_mode().unwrap();
     let after = c.read_both().unwrap();
     assert_eq!(after.local.get("NETID"), Some(42));
     assert_eq!(after.remote.get("NETID"), Some(42));
