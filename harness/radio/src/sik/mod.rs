@@ -18,7 +18,11 @@
 //! - frequency hopping: `MIN_FREQ`/`MAX_FREQ`/`NUM_CHANNELS` only decide whether two radios
 //!   pair, the preset's frequency stays the rig's;
 //! - link loss of `RT` command packets (they get through whenever the link is up both ways);
-//! - air rates other than 64 kbit/s keep the 64 kbit/s bench-fitted sensitivity.
+//! - air rates other than 64 kbit/s keep the 64 kbit/s bench-fitted sensitivity, and a rate
+//!   so low that a full packet overruns SiK's longest window is refused by the model
+//!   ([`crate::ConfigError::WindowTooShort`]) where the firmware would shorten its packets;
+//! - `rxerrors` and `fixed` in `RADIO_STATUS` stay 0: the model has no CRC failures or Golay
+//!   corrections to count.
 
 pub mod command;
 pub mod frames;
