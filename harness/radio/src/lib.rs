@@ -24,6 +24,8 @@
 //!   [`LinkStats`] for the evidence.
 //! - [`Radio`]: two directions of one preset, half duplex where the preset is:
 //!   [`Direction::Uplink`] (ground → drone) and [`Direction::Downlink`].
+//! - [`sik`]: SiK firmware on the serial sides: the AT command set, the registers and what
+//!   they mean to the link, `RADIO_STATUS`.
 //!
 //! A rig file carries a radio as a preset plus one [`LinkConfig`] per
 //! direction, e.g. the paper's blind drone on SiK:
@@ -51,6 +53,7 @@ pub mod loss;
 mod pair;
 pub mod preset;
 pub mod setup;
+pub mod sik;
 
 pub use airtime::{FskParams, LoraParams, Modulation};
 pub use duty::{DutyCycle, DutyTracker};

@@ -43,6 +43,8 @@ impl Direction {
 pub struct Radio {
     links: [Link; 2],
     half_duplex: bool,
+    /// Per-direction settings, [downlink, uplink], for [`Radio::rebuilt`].
+    configs: [LinkConfig; 2],
 }
 
 impl Radio {
@@ -53,13 +55,30 @@ impl Radio {
         uplink: &LinkConfig,
         downlink: &LinkConfig,
     ) -> Result<Radio, ConfigError> {
+        Radio::with_presets(preset, preset, uplink, downlink)
+    }
+
+    fn with_presets(
+        downlink_preset: &Preset,
+        uplink_preset: &Preset,
+        uplink: &LinkConfig,
+        downlink: &LinkConfig,
+    ) -> Result<Radio, ConfigError> {
         Ok(Radio {
             links: [
-                Link::new(preset, downlink, Slot::A)?,
-                Link::new(preset, uplink, Slot::B)?,
+                Link::new(downlink_preset, downlink, Slot::A)?,
+                Link::new(uplink_preset, uplink, Slot::B)?,
             ],
-            half_duplex: preset.half_duplex(),
+            half_duplex: downlink_preset.half_duplex(),
+            configs: [downlink.clone(), uplink.clone()],
         })
+    }
+
+    /// A fresh radio with the same per-direction settings and a preset per direction (a
+    /// SiK radio whose air rate or power changed at a reboot). Counters, buffers, bytes in
+    /// flight and silences added while running start afresh.
+    pub fn rebuilt(&self, downlink: &Preset, uplink: &Preset) -> Result<Radio, ConfigError> {
+        Radio::with_presets(downlink, uplink, &self.configs[1], &self.configs[0])
     }
 
     /// Side `from`'s serial port offers `bytes` at `now`.

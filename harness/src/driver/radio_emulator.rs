@@ -12,6 +12,12 @@
 //! `poll_output()` hands over, sleep until the next deadline. A pty has no
 //! "readable" wake-up here, so input is polled every [`POLL`]: a byte's
 //! arrival time is known to within that, on top of host scheduling.
+//!
+//! By default each side is a plain wire into the model. [`RadioEmulator::with_sik`] puts SiK
+//! firmware on either side instead ([`SikPersonality`]): that side answers the AT command
+//! set, keeps its registers, injects `RADIO_STATUS` when its `MAVLINK` register says so, and
+//! its air rate, ECC, power and network id reach the model (see [`harness_radio::sik`]). A
+//! reboot that changes a preset rebuilds the model: its counters start again from there.
 
 use std::io::{Read, Write};
 use std::path::Path;
@@ -25,6 +31,7 @@ use serialport::{SerialPort, TTYPort};
 
 use crate::clock::Mono;
 use crate::driver::pty::{PtyPair, relink};
+use harness_radio::sik::{self, Board, Params, SikPair, SikRadio};
 use harness_radio::{Direction, LinkStats, Radio, Silence};
 use timebase::Instant;
 
@@ -33,6 +40,8 @@ pub const POLL: Duration = Duration::from_millis(1);
 
 struct Shared {
     radio: Mutex<Radio>,
+    /// SiK firmware on the sides, if any side has it; locked after `radio`.
+    sik: Option<Mutex<SikPair>>,
     stop: AtomicBool,
     /// Master ends for the worker to take up (a replugged side) or `None` to let go of
     /// (an unplugged side), by side: 0 air, 1 ground.
@@ -74,6 +83,48 @@ impl End {
     }
 }
 
+/// SiK firmware for one side of [`RadioEmulator::with_sik`]: the board, the registers
+/// saved on it, and the escape's guard time (SiK's 1 s unless a test wants it short).
+#[derive(Debug, Clone)]
+pub struct SikPersonality {
+    /// Banner, power levels, band.
+    pub board: Board,
+    /// Registers saved on the radio; `None` for the factory defaults.
+    pub eeprom: Option<Params>,
+    /// Quiet time the `+++` escape needs before and after.
+    pub guard: Duration,
+}
+
+impl Default for SikPersonality {
+    fn default() -> Self {
+        SikPersonality {
+            board: Board::hm_trp_915(),
+            eeprom: None,
+            guard: Duration::from_micros(sik::command::GUARD.as_micros()),
+        }
+    }
+}
+
+impl SikPersonality {
+    /// With a guard time of `guard`.
+    pub fn guard(mut self, guard: Duration) -> Self {
+        self.guard = guard;
+        self
+    }
+
+    /// With `eeprom` saved on the radio instead of the factory defaults.
+    pub fn eeprom(mut self, eeprom: Params) -> Self {
+        self.eeprom = Some(eeprom);
+        self
+    }
+
+    fn boot(&self) -> SikRadio {
+        let guard = timebase::Duration::from_micros(self.guard.as_micros() as u64);
+        let eeprom = self.eeprom.unwrap_or_else(|| Params::defaults(&self.board));
+        SikRadio::with_eeprom(self.board.clone(), eeprom, guard, Instant::ZERO)
+    }
+}
+
 /// Where one side's program connects.
 enum Side {
     /// The program opens this pair's far end.
@@ -98,7 +149,51 @@ impl RadioEmulator {
         let mut b = PtyPair::new()?;
         let a_master = a.take_master()?;
         let b_master = b.take_master()?;
-        Self::start(name, radio, Side::Pty(a), Side::Pty(b), a_master, b_master)
+        Self::start(
+            name,
+            radio,
+            None,
+            Side::Pty(a),
+            Side::Pty(b),
+            a_master,
+            b_master,
+        )
+    }
+
+    /// As [`RadioEmulator::new`], with SiK firmware on the air side, the ground side or
+    /// both (a side given `None` stays a plain wire).
+    pub fn with_sik(
+        name: &str,
+        radio: Radio,
+        air: Option<SikPersonality>,
+        ground: Option<SikPersonality>,
+    ) -> Result<RadioEmulator> {
+        let base = radio.link(Direction::Uplink).preset().clone();
+        let pair = SikPair::new(
+            &base,
+            air.as_ref().map(SikPersonality::boot),
+            ground.as_ref().map(SikPersonality::boot),
+        );
+        let mut a = PtyPair::new()?;
+        let mut b = PtyPair::new()?;
+        let a_master = a.take_master()?;
+        let b_master = b.take_master()?;
+        Self::start(
+            name,
+            radio,
+            Some(pair),
+            Side::Pty(a),
+            Side::Pty(b),
+            a_master,
+            b_master,
+        )
+    }
+
+    /// The SiK radio on `end` as it is now (registers, settings), if it has one.
+    pub fn sik_radio(&self, end: End) -> Option<SikRadio> {
+        let pair = self.shared.sik.as_ref()?;
+        let pair = pair.lock().unwrap_or_else(PoisonError::into_inner);
+        pair.radio(sik_end(end)).cloned()
     }
 
     /// As [`RadioEmulator::new`], with stable names for the programs to open: symlinks
@@ -138,6 +233,7 @@ impl RadioEmulator {
         Self::start(
             name,
             radio,
+            None,
             Side::Device(air_device.to_string()),
             Side::Device(ground_device.to_string()),
             a_port,
@@ -148,6 +244,7 @@ impl RadioEmulator {
     fn start(
         name: &str,
         radio: Radio,
+        sik: Option<SikPair>,
         a: Side,
         b: Side,
         mut a_master: TTYPort,
@@ -159,6 +256,7 @@ impl RadioEmulator {
         }
         let shared = Arc::new(Shared {
             radio: Mutex::new(radio),
+            sik: sik.map(Mutex::new),
             stop: AtomicBool::new(false),
             swaps: Mutex::new(Vec::new()),
             swapped: AtomicU64::new(0),
@@ -359,13 +457,24 @@ fn run(name: &str, shared: &Shared, mut ports: [Option<TTYPort>; 2]) {
                 .radio
                 .lock()
                 .unwrap_or_else(|poisoned| poisoned.into_inner());
+            let mut sik = shared
+                .sik
+                .as_ref()
+                .map(|s| s.lock().unwrap_or_else(PoisonError::into_inner));
             let now = model_time(shared.epoch);
             for (port, from) in [(&mut *a, Direction::Downlink), (&mut *b, Direction::Uplink)] {
                 // An unplugged side sends nothing.
                 let Some(port) = port else { continue };
                 match read_available(port, &mut buf) {
                     Ok(0) => {}
-                    Ok(n) => radio.handle_input(now, from, &buf[..n]),
+                    Ok(n) => match &mut sik {
+                        None => radio.handle_input(now, from, &buf[..n]),
+                        Some(sik) => {
+                            let end = sik_end_sending(from);
+                            let air = sik.handle_host_input(now, end, &buf[..n], &radio);
+                            radio.handle_input(now, from, &air);
+                        }
+                    },
                     Err(e) => {
                         tracing::debug!(radio = name, error = %e, "radio emulator port closed");
                         return;
@@ -373,8 +482,15 @@ fn run(name: &str, shared: &Shared, mut ports: [Option<TTYPort>; 2]) {
                 }
             }
             radio.handle_timeout(now);
+            if let Some(sik) = &mut sik {
+                sik.handle_timeout(now, &radio);
+            }
             for (port, to) in [(&mut *b, Direction::Downlink), (&mut *a, Direction::Uplink)] {
                 while let Some(bytes) = radio.poll_output(to) {
+                    if let Some(sik) = &mut sik {
+                        sik.handle_air_output(sik_end_sending(to.reverse()), &bytes);
+                        continue;
+                    }
                     let written = port.as_mut().is_some_and(|p| p.write_all(&bytes).is_ok());
                     if !written {
                         shared
@@ -383,7 +499,34 @@ fn run(name: &str, shared: &Shared, mut ports: [Option<TTYPort>; 2]) {
                     }
                 }
             }
-            radio.poll_timeout()
+            match &mut sik {
+                None => radio.poll_timeout(),
+                Some(sik) => {
+                    if let Some([down, up]) = sik.take_presets() {
+                        match radio.rebuilt(&down, &up) {
+                            Ok(r) => *radio = r,
+                            Err(e) => {
+                                tracing::warn!(radio = name, error = %e, "SiK settings the model cannot run; the link keeps its preset")
+                            }
+                        }
+                    }
+                    for (port, end) in [(&mut *a, sik::End::Air), (&mut *b, sik::End::Ground)] {
+                        while let Some(bytes) = sik.poll_host_output(end) {
+                            let written =
+                                port.as_mut().is_some_and(|p| p.write_all(&bytes).is_ok());
+                            if !written {
+                                shared
+                                    .unwritten
+                                    .fetch_add(bytes.len() as u64, Ordering::Relaxed);
+                            }
+                        }
+                    }
+                    [radio.poll_timeout(), sik.poll_timeout()]
+                        .into_iter()
+                        .flatten()
+                        .min()
+                }
+            }
         };
         let now = model_time(shared.epoch);
         let wait = next.map_or(POLL, |t| {
@@ -400,6 +543,21 @@ fn run(name: &str, shared: &Shared, mut ports: [Option<TTYPort>; 2]) {
             unwritten,
             "radio emulator delivered bytes nobody read"
         );
+    }
+}
+
+/// The SiK side whose port sends on `direction`.
+fn sik_end_sending(direction: Direction) -> sik::End {
+    match direction {
+        Direction::Downlink => sik::End::Air,
+        Direction::Uplink => sik::End::Ground,
+    }
+}
+
+fn sik_end(end: End) -> sik::End {
+    match end {
+        End::Air => sik::End::Air,
+        End::Ground => sik::End::Ground,
     }
 }
 
