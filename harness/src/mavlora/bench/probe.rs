@@ -6,6 +6,7 @@
 //! frame still in flight from one step is never counted in the next.
 
 use std::collections::BTreeSet;
+use std::io::Read as _;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
@@ -20,6 +21,10 @@ use mavlora::wire::{FrameReader, encode, ids};
 
 /// The system id the probe sends as: a ground-test sender no autopilot uses.
 const PROBE_SYSTEM: u8 = 42;
+/// The ground station's system id (what ground stations use).
+const GROUND_SYSTEM: u8 = 255;
+/// How often the ground station says it is there.
+const GROUND_HEARTBEAT: Duration = Duration::from_secs(1);
 /// SiK's own `RADIO_STATUS`: system `'3'`, component `'D'`.
 const SIK_SYSTEM: u8 = b'3';
 
@@ -53,11 +58,19 @@ struct Heard {
 /// A running receiver on the ground radio's port and the sender on the drone's.
 pub struct Probe {
     air: Box<dyn SerialPort>,
+    /// The ground's port again, for the ground station's HEARTBEAT: SiK reports
+    /// `RADIO_STATUS` to its host after each HEARTBEAT the host sends, as a ground station
+    /// does once a second.
+    ground: Box<dyn SerialPort>,
+    ground_name: String,
     air_name: String,
     sequence: u8,
     heard: Arc<Mutex<Heard>>,
     stop: Arc<AtomicBool>,
     reader: Option<JoinHandle<Result<()>>>,
+    /// Reads and drops what the drone's radio hands its host (the ground's HEARTBEATs, its
+    /// own `RADIO_STATUS`), so a full port never stalls the radio.
+    air_drain: Option<JoinHandle<()>>,
 }
 
 impl Probe {
@@ -72,7 +85,13 @@ impl Probe {
                 })
         };
         let air_port = open(air, "drone")?;
+        let mut air_reader = air_port
+            .try_clone()
+            .with_context(|| format!("cannot share the drone radio's port {air}"))?;
         let mut ground_port = open(ground, "ground")?;
+        let ground_writer = ground_port
+            .try_clone()
+            .with_context(|| format!("cannot share the ground radio's port {ground}"))?;
         let heard = Arc::new(Mutex::new(Heard::default()));
         let stop = Arc::new(AtomicBool::new(false));
         let reader = {
@@ -82,8 +101,28 @@ impl Probe {
                 .spawn(move || read_ground(&mut *ground_port, &ground, &heard, &stop))
                 .context("cannot start the probe's reader")?
         };
+        let air_drain = {
+            let stop = stop.clone();
+            std::thread::Builder::new()
+                .name("bench-probe-air".into())
+                .spawn(move || {
+                    let mut buf = [0u8; 512];
+                    while !stop.load(Ordering::Relaxed) {
+                        if let Err(e) = air_reader.read(&mut buf)
+                            && e.kind() != std::io::ErrorKind::TimedOut
+                            && e.kind() != std::io::ErrorKind::Interrupted
+                        {
+                            return;
+                        }
+                    }
+                })
+                .context("cannot start the probe's drain")?
+        };
         Ok(Probe {
             air: air_port,
+            air_drain: Some(air_drain),
+            ground: ground_writer,
+            ground_name: ground.to_string(),
             air_name: air.to_string(),
             sequence: 0,
             heard,
@@ -103,7 +142,12 @@ impl Probe {
     ) -> Result<StepCount> {
         let start = WallInstant::now();
         let period = Duration::from_secs_f64(1.0 / hz);
+        let mut next_ground_heartbeat = start;
         for n in 0..messages {
+            if WallInstant::now() >= next_ground_heartbeat {
+                self.ground_heartbeat()?;
+                next_ground_heartbeat += GROUND_HEARTBEAT;
+            }
             let due = start + period * n;
             if let Some(wait) = due.checked_duration_since(WallInstant::now()) {
                 std::thread::sleep(wait);
@@ -169,6 +213,24 @@ impl Probe {
         })
     }
 
+    fn ground_heartbeat(&mut self) -> Result<()> {
+        let frame = encode(
+            MavlinkVersion::V2,
+            MavHeader {
+                system_id: u32::from(GROUND_SYSTEM),
+                component_id: 190,
+                sequence: self.sequence,
+            },
+            &MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                mavtype: mavlora::dialect::MavType::MAV_TYPE_GCS,
+                mavlink_version: 3,
+                ..HEARTBEAT_DATA::default()
+            }),
+        );
+        std::io::Write::write_all(&mut self.ground, frame.as_bytes())
+            .with_context(|| format!("writing to the ground radio on {}", self.ground_name))
+    }
+
     /// Bytes read at the ground that were not part of a frame, so far.
     pub fn garbage(&self) -> u64 {
         self.heard
@@ -197,6 +259,9 @@ impl Drop for Probe {
         self.stop.store(true, Ordering::Relaxed);
         if let Some(r) = self.reader.take() {
             let _ = r.join();
+        }
+        if let Some(d) = self.air_drain.take() {
+            let _ = d.join();
         }
     }
 }

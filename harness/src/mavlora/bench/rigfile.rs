@@ -8,6 +8,9 @@
 //! # air_port = "/dev/serial/by-id/usb-FTDI_..._A-if00-port0"   # the drone's radio
 //! # ground_port = "/dev/serial/by-id/usb-FTDI_..._B-if00-port0" # the ground's radio
 //! # baud = 57600               # both radios' serial speed (SiK: SERIAL_SPEED)
+//! radio_firmware = "sik"       # "sik": the rig reads both radios' AT settings (the ground's
+//!                              # port, the drone's over the air), records them and checks the
+//!                              # ends agree; "transparent" (default): it only sends through
 //! fixed_db = 0.0               # fixed pads in the path besides the attenuator, dB
 //! attenuator = { kind = "emulated" }  # or { kind = "minicircuits", address = "192.168.1.10" }
 //! # The sweep: total path attenuation (fixed + programmable) from..to in steps; at each step
@@ -41,17 +44,30 @@ pub const MAX_HZ: f64 = 200.0;
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchPlan {
     pub path: RadioPath,
+    pub firmware: RadioFirmware,
     /// Fixed attenuation in the path besides the programmable attenuator, dB.
     pub fixed_db: f64,
     pub attenuator: AttenuatorConfig,
     pub sweep: SweepPlan,
 }
 
+/// What the radios at the two ends run, as far as the rig talks to them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RadioFirmware {
+    /// Transparent serial radios: the rig only sends through them.
+    #[default]
+    Transparent,
+    /// SiK (mRo, Holybro, RFD900): the rig reads, records and checks both radios' settings
+    /// over the AT command set; the emulator plays SiK on both sides.
+    Sik,
+}
+
 /// The radios at the two ends of the RF path.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RadioPath {
     /// The radio emulator plays both radios.
-    Emulated(NamedRadio),
+    Emulated(Box<NamedRadio>),
     /// Two real radios: the rig writes into the drone's, reads the ground's.
     SerialPair {
         air_port: PathBuf,
@@ -105,6 +121,7 @@ pub(crate) struct RawBench {
     air_port: Option<PathBuf>,
     ground_port: Option<PathBuf>,
     baud: Option<u32>,
+    radio_firmware: Option<RadioFirmware>,
     fixed_db: Option<f64>,
     attenuator: Option<AttenuatorConfig>,
     sweep: Option<RawSweep>,
@@ -142,7 +159,7 @@ impl Checker<'_> {
                          ground_port",
                     ));
                 }
-                RadioPath::Emulated(resolve_radio(&at("radio"), &name, radios)?)
+                RadioPath::Emulated(Box::new(resolve_radio(&at("radio"), &name, radios)?))
             }
             (None, Some(air), Some(ground)) => {
                 let baud = raw.baud.unwrap_or(57_600);
@@ -263,7 +280,7 @@ impl Checker<'_> {
                 sweep.from_db
             ));
         }
-        if !(sweep.step_db > 0.0) {
+        if sweep.step_db.is_nan() || sweep.step_db <= 0.0 {
             return bad(format!("step_db {} must be above 0", sweep.step_db));
         }
         if sweep.points().len() > 500 {
@@ -283,9 +300,117 @@ impl Checker<'_> {
         }
         Ok(BenchPlan {
             path,
+            firmware: raw.radio_firmware.unwrap_or_default(),
             fixed_db,
             attenuator,
             sweep,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mavlora::rigfile::Suite;
+    use crate::rigfile::RigFile;
+
+    fn load(bench: &str) -> Result<BenchPlan, String> {
+        let text = format!(
+            "[rig]\nname = \"t\"\n\n[mavlora]\nsuites = [\"bench\"]\n\n[mavlora.bench]\n{bench}\n"
+        );
+        RigFile::from_str(&text, "/r/rigs/t.toml")
+            .map(|rig| rig.devices.mavlora.unwrap().bench.unwrap())
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn an_emulated_path_sweeps_around_its_presets_edge_by_default() {
+        let plan = load("radio = \"sik-64k\"\nattenuator = { kind = \"emulated\" }").unwrap();
+        assert_eq!(plan.firmware, RadioFirmware::Transparent);
+        let edge = Preset::sik_64k().nominal_edge_db().round();
+        assert_eq!(plan.sweep.points().first(), Some(&(edge - 4.0)));
+        assert_eq!(plan.sweep.points().len(), 9);
+        assert_eq!(plan.sweep.messages, MIN_MESSAGES);
+    }
+
+    #[test]
+    fn checked_in_examples_load() {
+        let rigs = concat!(env!("CARGO_MANIFEST_DIR"), "/../rigs");
+        let bench = RigFile::load(format!("{rigs}/bench-radios.example.toml")).unwrap();
+        let m = bench.devices.mavlora.unwrap();
+        assert_eq!(m.suites, [Suite::Bench]);
+        let plan = m.bench.unwrap();
+        assert!(matches!(
+            plan.path,
+            RadioPath::SerialPair { baud: 57_600, .. }
+        ));
+        assert_eq!((plan.firmware, plan.fixed_db), (RadioFirmware::Sik, 60.0));
+        assert!(matches!(plan.attenuator, AttenuatorConfig::Minicircuits(_)));
+        assert_eq!(plan.sweep.points().len(), 31);
+        let ci = RigFile::load(format!("{rigs}/emulated.toml")).unwrap();
+        let m = ci.devices.mavlora.unwrap();
+        assert!(m.suites.contains(&Suite::Bench));
+        assert_eq!(m.bench.unwrap().firmware, RadioFirmware::Sik);
+    }
+
+    #[test]
+    fn the_suite_listed_without_its_section_is_refused() {
+        let e = RigFile::from_str(
+            "[rig]\nname = \"t\"\n[mavlora]\nsuites = [\"bench\"]\n",
+            "/r/rigs/t.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("mavlora.bench") && e.contains("missing"), "{e}");
+    }
+
+    #[test]
+    fn mixed_or_missing_parts_are_refused_naming_the_key() {
+        for (bench, key, words) in [
+            (
+                "radio = \"sik-64k\"\nattenuator = { kind = \"minicircuits\", address = \"10.0.0.2\" }",
+                "mavlora.bench.attenuator",
+                "cannot attenuate the emulated radio",
+            ),
+            (
+                "air_port = \"/dev/ttyUSB0\"\nground_port = \"/dev/ttyUSB1\"\nattenuator = { kind = \"emulated\" }\nsweep = { from_db = 70.0, to_db = 90.0 }",
+                "mavlora.bench.attenuator",
+                "real radios need a real attenuator",
+            ),
+            (
+                "radio = \"sik-64k\"\nair_port = \"/dev/ttyUSB0\"\nattenuator = { kind = \"emulated\" }",
+                "mavlora.bench.radio",
+                "not both",
+            ),
+            (
+                "air_port = \"/dev/ttyUSB0\"\nattenuator = { kind = \"minicircuits\", address = \"10.0.0.2\" }",
+                "mavlora.bench.air_port",
+                "both air_port",
+            ),
+            (
+                "air_port = \"/dev/ttyUSB0\"\nground_port = \"/dev/ttyUSB1\"\nattenuator = { kind = \"minicircuits\", address = \"10.0.0.2\" }",
+                "mavlora.bench.sweep",
+                "with real radios give the sweep",
+            ),
+            (
+                "radio = \"sik-64k\"\nattenuator = { kind = \"emulated\" }\nsweep = { from_db = 80.0, to_db = 90.0, messages = 10 }",
+                "mavlora.bench.sweep",
+                "1 % lost must be a whole message",
+            ),
+            (
+                "radio = \"sik-64k\"\nfixed_db = 60.0\nattenuator = { kind = \"emulated\" }\nsweep = { from_db = 50.0, to_db = 90.0 }",
+                "mavlora.bench.sweep",
+                "below the fixed pads",
+            ),
+            ("radio = \"sik-64k\"", "mavlora.bench.attenuator", "missing"),
+            (
+                "radio = \"sik-128k\"\nattenuator = { kind = \"emulated\" }",
+                "mavlora.bench.radio",
+                "sik-128k",
+            ),
+        ] {
+            let e = load(bench).unwrap_err();
+            assert!(e.contains(key) && e.contains(words), "{bench}:\n{e}");
+        }
     }
 }

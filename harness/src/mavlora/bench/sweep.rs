@@ -16,11 +16,10 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 
-use super::path::RfPath;
+use super::path::{Emulated, RfPath};
 use super::probe::{Probe, StepCount};
 use super::rigfile::BenchPlan;
 use crate::driver::attenuator::AttenuatorRecord;
-use crate::driver::attenuator::emulated::EmulatedSpec;
 use crate::mavlora::simulated::sweep::{EDGE_TOLERANCE_DB, NOMINAL_LOSS, key, paper_edge};
 use crate::measurement::{Declarations, Dimension, Handle, Spec};
 use crate::runner::PhaseContext;
@@ -56,6 +55,8 @@ impl Point {
 pub struct Outcome {
     pub points: Vec<Point>,
     pub attenuator: AttenuatorRecord,
+    /// Both SiK radios, when the path's radios run SiK.
+    pub sik: Option<crate::driver::sik::SikRecord>,
     pub error: Option<anyhow::Error>,
 }
 
@@ -68,10 +69,11 @@ pub fn nominal_edge(points: &[Point]) -> Option<f64> {
         .map(|p| p.path_db)
 }
 
-/// Runs the sweep of `plan` (an emulated attenuator misbehaving as `hostile`, for tests).
-pub fn run_sweep(plan: &BenchPlan, hostile: Option<EmulatedSpec>) -> Result<Outcome> {
-    let mut path = RfPath::open(plan, hostile)?;
+/// Runs the sweep of `plan` (with emulated `parts` other than the plan's, for tests).
+pub fn run_sweep(plan: &BenchPlan, parts: Emulated) -> Result<Outcome> {
+    let mut path = RfPath::open_with(plan, parts)?;
     let attenuator = path.attenuator.record();
+    let sik = path.sik.clone();
     let mut probe = Probe::open(&path.air_port, &path.ground_port, path.baud)?;
     let mut points = Vec::new();
     for (i, path_db) in plan.sweep.points().into_iter().enumerate() {
@@ -82,6 +84,7 @@ pub fn run_sweep(plan: &BenchPlan, hostile: Option<EmulatedSpec>) -> Result<Outc
                 return Ok(Outcome {
                     points,
                     attenuator,
+                    sik,
                     error: Some(anyhow::Error::new(e).context(format!(
                         "attenuator step to {wanted} dB (path {path_db} dB, step {} of {})",
                         i + 1,
@@ -108,6 +111,7 @@ pub fn run_sweep(plan: &BenchPlan, hostile: Option<EmulatedSpec>) -> Result<Outc
     Ok(Outcome {
         points,
         attenuator,
+        sik,
         error: None,
     })
 }
@@ -176,7 +180,7 @@ pub fn declare(d: &mut Declarations, plan: &BenchPlan) -> Measured {
 
 /// The phase's script.
 pub fn run(ctx: &mut PhaseContext, plan: &BenchPlan, m: &Measured) -> Result<()> {
-    let outcome = run_sweep(plan, None)?;
+    let outcome = run_sweep(plan, Emulated::default())?;
     let dir = ctx.dir.join("bench");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     keep(ctx, &dir, plan, &outcome)?;
@@ -214,6 +218,7 @@ fn keep(ctx: &mut PhaseContext, dir: &Path, plan: &BenchPlan, outcome: &Outcome)
         "radio": plan.path.label(),
         "fixed_db": plan.fixed_db,
         "attenuator": outcome.attenuator,
+        "sik": outcome.sik,
     });
     let json_path = dir.join("resources.json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&resources)?)
@@ -223,6 +228,12 @@ fn keep(ctx: &mut PhaseContext, dir: &Path, plan: &BenchPlan, outcome: &Outcome)
         json_path,
         "application/json",
     );
+    if let Some(sik) = &outcome.sik {
+        ctx.log(format!(
+            "SiK radios on {}: local {:?}, remote {:?}",
+            sik.port, sik.local.banner, sik.remote.banner
+        ));
+    }
     let a = &outcome.attenuator;
     ctx.log(format!(
         "attenuator: {} {} serial {} at {}, {}..{} dB in {} dB steps",
@@ -242,3 +253,6 @@ pub fn phase(plan: Arc<BenchPlan>) -> crate::runner::Phase {
         move |ctx| run(ctx, &plan, &measured),
     )
 }
+
+#[cfg(test)]
+mod tests;
