@@ -107,7 +107,7 @@ impl Device for Mavlora {
         if section.suites.contains(&Suite::Bench)
             && let Some(plan) = &section.bench
         {
-            phases.extend(super::bench::phases(&Arc::new(plan.clone())));
+            phases.extend(super::bench::phases(&Arc::new(plan.clone()), &defaults));
         }
         Ok(phases)
     }

@@ -6,19 +6,26 @@
 //! - [`path`]: the path's resources, up and connected;
 //! - [`probe`]: numbered HEARTBEATs into the drone's radio, counted at the ground's, and the
 //!   radios' own `RADIO_STATUS`;
-//! - [`sweep`]: the attenuation sweep phase (the paper's Fig. 1).
+//! - [`sweep`]: the attenuation sweep phase (the paper's Fig. 1);
+//! - [`session`]: the real bridge and router over the path at one attenuation.
 
 pub mod path;
 pub mod probe;
 pub mod rigfile;
+pub mod session;
 pub mod sweep;
 
 use std::sync::Arc;
 
+use crate::mavlora::session::SessionDefaults;
 use crate::runner::Phase;
 use rigfile::BenchPlan;
 
-/// The suite's phases for `plan`.
-pub fn phases(plan: &Arc<BenchPlan>) -> Vec<Phase> {
-    vec![sweep::phase(plan.clone()).side_by_side(super::phases::REALTIME)]
+/// The suite's phases for `plan`, the real-time ones side by side with the realtime suite.
+pub fn phases(plan: &Arc<BenchPlan>, defaults: &Arc<SessionDefaults>) -> Vec<Phase> {
+    let group = super::phases::REALTIME;
+    vec![
+        sweep::phase(plan.clone()).side_by_side(group),
+        session::phase(plan.clone(), defaults.clone()).side_by_side(group),
+    ]
 }

@@ -13,6 +13,8 @@
 //!                              # ends agree; "transparent" (default): it only sends through
 //! fixed_db = 0.0               # fixed pads in the path besides the attenuator, dB
 //! attenuator = { kind = "emulated" }  # or { kind = "minicircuits", address = "192.168.1.10" }
+//! session_db = 78.0           # the bench session's total path attenuation (default: 6 dB
+//!                              # inside the emulated preset's edge; required for real radios)
 //! # The sweep: total path attenuation (fixed + programmable) from..to in steps; at each step
 //! # `messages` HEARTBEATs at `hz` go into the drone's radio and are counted at the ground's.
 //! sweep = { from_db = 80.0, to_db = 88.0, step_db = 1.0, messages = 100, hz = 50.0 }
@@ -49,6 +51,8 @@ pub struct BenchPlan {
     pub fixed_db: f64,
     pub attenuator: AttenuatorConfig,
     pub sweep: SweepPlan,
+    /// Total path attenuation the bench session runs at, dB.
+    pub session_db: f64,
 }
 
 /// What the radios at the two ends run, as far as the rig talks to them.
@@ -123,6 +127,7 @@ pub(crate) struct RawBench {
     baud: Option<u32>,
     radio_firmware: Option<RadioFirmware>,
     fixed_db: Option<f64>,
+    session_db: Option<f64>,
     attenuator: Option<AttenuatorConfig>,
     sweep: Option<RawSweep>,
 }
@@ -298,7 +303,26 @@ impl Checker<'_> {
         if !(sweep.hz > 0.0 && sweep.hz <= MAX_HZ) {
             return bad(format!("hz {} is out of range (0, {MAX_HZ}]", sweep.hz));
         }
+        let session_db = match (raw.session_db, path.preset()) {
+            (Some(db), _) => db,
+            // Inside the edge by a margin a real link is flown with.
+            (None, Some(preset)) => preset.nominal_edge_db().round() - 6.0,
+            (None, None) => {
+                return Err(self.invalid(
+                    &at("session_db"),
+                    "missing: with real radios say at which total path attenuation the bench \
+                     session runs, e.g. session_db = 78.0",
+                ));
+            }
+        };
+        if !(session_db.is_finite() && session_db >= fixed_db) {
+            return Err(self.invalid(
+                &at("session_db"),
+                format!("{session_db} dB is below the fixed pads' {fixed_db} dB"),
+            ));
+        }
         Ok(BenchPlan {
+            session_db,
             path,
             firmware: raw.radio_firmware.unwrap_or_default(),
             fixed_db,

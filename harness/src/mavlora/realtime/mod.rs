@@ -116,7 +116,7 @@ pub fn run_sessions(
     Ok(reports)
 }
 
-pub(super) fn keep_evidence(ctx: &mut PhaseContext, label: &str, report: &SessionReport) {
+pub(crate) fn keep_evidence(ctx: &mut PhaseContext, label: &str, report: &SessionReport) {
     for file in &report.files {
         let media = if file.extension().is_some_and(|e| e == "json") {
             "application/json"

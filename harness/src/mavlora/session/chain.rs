@@ -64,11 +64,14 @@ impl MavloraSession {
             }
         }
         let started = Mono::now();
-        let radio = Arc::new(RadioEmulator::with_stable_names(
-            &options.name,
-            options.radio.radio()?,
-            dir,
-        )?);
+        let radio = match &options.radio_path {
+            Some(path) => path.0.clone(),
+            None => Arc::new(RadioEmulator::with_stable_names(
+                &options.name,
+                options.radio.radio()?,
+                dir,
+            )?),
+        };
         let fc_summary = dir.join("fc.json");
         // Flight controller: its own pty behind a bridge; the radio's port when naive.
         let (fc, fc_port) = start_fc(&options, &fc_summary, (!bridged).then(|| radio.air_path()))?;

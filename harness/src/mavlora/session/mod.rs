@@ -37,7 +37,7 @@ pub use crate::driver::radio_emulator::End;
 pub(crate) use chain::Bridged;
 pub use chain::{GcsLine, MavloraSession, Program, RadioCounters};
 pub use options::{
-    FcProfile, GcsPlan, Ground, MavsdkPlan, SessionDefaults, SessionOptions, Variant,
+    FcProfile, GcsPlan, Ground, MavsdkPlan, RadioPath, SessionDefaults, SessionOptions, Variant,
     sik_with_independent_loss, sik_with_loss,
 };
 pub use report::{ExitRecord, GCS_PHASE_FAILED, LinkNotice, ProgramStatus, SessionReport};

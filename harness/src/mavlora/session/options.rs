@@ -171,6 +171,24 @@ pub struct SessionOptions {
     pub fc_reboot_at_item: Option<u32>,
     /// `--fc-baud` of the bridge; `None`: its default.
     pub fc_baud: Option<u32>,
+    /// A radio path already up to run over instead of a new emulator of [`Self::radio`]:
+    /// the bench suite's (SiK on both sides, an attenuator stepping its path loss).
+    pub radio_path: Option<RadioPath>,
+}
+
+/// A running radio emulator a session is handed ([`SessionOptions::radio_path`]).
+#[derive(Clone)]
+pub struct RadioPath(pub std::sync::Arc<crate::driver::radio_emulator::RadioEmulator>);
+
+impl std::fmt::Debug for RadioPath {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "RadioPath(air {}, ground {})",
+            self.0.air_path(),
+            self.0.ground_path()
+        )
+    }
 }
 
 /// What comes from the rig file, shared by every real-time scenario.
@@ -234,6 +252,7 @@ impl SessionDefaults {
             ground_key: false,
             fc_reboot_at_item: None,
             fc_baud: None,
+            radio_path: None,
         }
     }
 }

@@ -22,6 +22,7 @@ fn plan(firmware: RadioFirmware) -> BenchPlan {
         })),
         firmware,
         fixed_db: 30.0,
+        session_db: 60.0,
         attenuator: AttenuatorConfig::Emulated(EmulatedConfig::default()),
         sweep: SweepPlan {
             from_db: 60.0,
