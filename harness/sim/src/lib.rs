@@ -47,4 +47,6 @@ pub use rng::SplitMix64;
 pub use world::{Carrier, Counts, Relay, World, WorldError, secs};
 
 #[cfg(test)]
+mod pacing_tests;
+#[cfg(test)]
 mod tests;

@@ -22,7 +22,9 @@ use crate::filter::{
 use crate::mission::{MissionRelay, MissionStats};
 use crate::param::{ParamPackStats, ParamPacker, ParamValue};
 use crate::quality::{LinkQuality, is_local_radio_status};
-use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats, TokenBucket};
+use crate::schedule::{
+    Class, LinkScheduler, ScheduleError, SchedulerStats, TokenBucket, TxbufPacer,
+};
 use crate::signing::{RadioLeg, SigningStats};
 use crate::time::Instant;
 use crate::wire::{
@@ -138,6 +140,8 @@ pub struct Bridge {
     radio_reader: FrameReader,
     filter: RadioFilter,
     scheduler: LinkScheduler,
+    /// Moves the scheduler's rate by the local radio's free buffer.
+    pacer: TxbufPacer,
     quality: LinkQuality,
     compactor: Option<Compactor>,
     mission: MissionRelay,
@@ -179,6 +183,7 @@ impl Bridge {
             fc_reader: FrameReader::new(),
             radio_reader: RadioLeg::reader(config.signing.as_ref()),
             filter: RadioFilter::new(config.profile.clone()),
+            pacer: TxbufPacer::new(config.scheduler.rate_bytes_per_s),
             scheduler,
             quality: LinkQuality::new(config.quality, now),
             compactor: config.compact.map(Compactor::new),
@@ -603,7 +608,23 @@ impl Bridge {
     /// The local radio's status read out of band (a modem's registers; a SiK radio's comes
     /// in the byte stream by itself).
     pub fn handle_radio_status(&mut self, status: RADIO_STATUS_DATA) {
+        let txbuf = status.txbuf;
         self.quality.handle_radio_status(status);
+        // The radio's free buffer paces the budget ([`TxbufPacer`]), when this link reads
+        // its radio's reports at all.
+        if self.quality.local_radio().is_some()
+            && let Some(rate) = self.pacer.handle_txbuf(txbuf)
+        {
+            tracing::debug!(txbuf, rate, "radio budget paced by the radio's buffer");
+            self.scheduler.set_rate(rate);
+        }
+    }
+
+    /// The local radio's own `RADIO_STATUS` frame from its byte stream.
+    fn local_radio_frame<T: AsRef<[u8]>>(&mut self, frame: &crate::wire::Frame<T>) {
+        if let Ok(MavMessage::RADIO_STATUS(status)) = frame.decode::<MavMessage>() {
+            self.handle_radio_status(status);
+        }
     }
 
     /// Bytes read from the radio's serial port.
@@ -619,7 +640,7 @@ impl Bridge {
         // The local radio's own report (SiK injects it into its serial output): never signed,
         // for the link-quality engine only, and not a frame of the peer's.
         if is_local_radio_status(&rx.frame) {
-            self.quality.handle_local_radio(&rx.frame);
+            self.local_radio_frame(&rx.frame);
             return;
         }
         // Only frames the peer signed count as received: loss is the peer's frames lost.

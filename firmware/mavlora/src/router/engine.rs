@@ -21,7 +21,7 @@ use crate::quality::{
     LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig, Notice, is_local_radio_status,
 };
 use crate::schedule::{
-    Class, LinkScheduler, Origin, ScheduleError, SchedulerConfig, SchedulerStats,
+    Class, LinkScheduler, Origin, ScheduleError, SchedulerConfig, SchedulerStats, TxbufPacer,
 };
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
 use crate::time::Instant;
@@ -178,6 +178,8 @@ pub struct Router {
     /// The vehicle's system id, from its link-quality reports (or its first frame).
     vehicle: Option<u8>,
     scheduler: LinkScheduler,
+    /// Moves the scheduler's rate by the local radio's free buffer.
+    pacer: TxbufPacer,
     heartbeat_filter: RadioFilter,
     expander: Expander,
     /// The ground's reads of values a list in flight brings wait here.
@@ -235,6 +237,7 @@ impl Router {
             quality: LinkQuality::new(config.quality, now),
             monitor: LinkMonitor::new(config.monitor),
             vehicle: None,
+            pacer: TxbufPacer::new(config.scheduler.rate_bytes_per_s),
             scheduler: LinkScheduler::new(config.scheduler, now)?
                 .with_frame_extra(radio_leg.frame_extra()),
             heartbeat_filter: RadioFilter::new(profile),
@@ -325,7 +328,23 @@ impl Router {
     /// The local radio's status read out of band (a modem's registers; a SiK radio's comes
     /// in the byte stream by itself).
     pub fn handle_radio_status(&mut self, status: RADIO_STATUS_DATA) {
+        let txbuf = status.txbuf;
         self.quality.handle_radio_status(status);
+        // The radio's free buffer paces the budget ([`TxbufPacer`]), when this link reads
+        // its radio's reports at all.
+        if self.quality.local_radio().is_some()
+            && let Some(rate) = self.pacer.handle_txbuf(txbuf)
+        {
+            tracing::debug!(txbuf, rate, "radio budget paced by the radio's buffer");
+            self.scheduler.set_rate(rate);
+        }
+    }
+
+    /// The local radio's own `RADIO_STATUS` frame from its byte stream.
+    fn local_radio_frame<T: AsRef<[u8]>>(&mut self, frame: &crate::wire::Frame<T>) {
+        if let Ok(MavMessage::RADIO_STATUS(status)) = frame.decode::<MavMessage>() {
+            self.handle_radio_status(status);
+        }
     }
 
     /// What the ground station is told about the link.
@@ -511,7 +530,7 @@ impl Router {
             // The local radio's own report (SiK injects it into its serial output): never
             // signed, never the vehicle, folded into ours for the ground.
             if is_local_radio_status(&rx.frame) {
-                self.quality.handle_local_radio(&rx.frame);
+                self.local_radio_frame(&rx.frame);
                 continue;
             }
             // Only frames the peer signed count as received: loss is the peer's frames lost.

@@ -26,6 +26,16 @@ impl TokenBucket {
         }
     }
 
+    /// Changes the rate from the last refill on (the tokens gathered until then stay).
+    pub fn set_rate(&mut self, rate_bytes_per_s: u32) {
+        self.rate = rate_bytes_per_s.into();
+    }
+
+    /// Bytes per second.
+    pub fn rate(&self) -> u32 {
+        self.rate as u32
+    }
+
     fn refill(&mut self, now: Instant) {
         let elapsed = now.as_micros().saturating_sub(self.last.as_micros());
         self.tokens_micro = self

@@ -235,6 +235,17 @@ impl LinkScheduler {
         self
     }
 
+    /// Paces the budget at `rate_bytes_per_s` from now on (a [`super::TxbufPacer`]'s rate);
+    /// the configured rate is what it started at.
+    pub fn set_rate(&mut self, rate_bytes_per_s: u32) {
+        self.bucket.set_rate(rate_bytes_per_s.max(1));
+    }
+
+    /// The byte rate in force.
+    pub fn rate(&self) -> u32 {
+        self.bucket.rate()
+    }
+
     /// The configuration.
     pub fn config(&self) -> SchedulerConfig {
         self.config
