@@ -7,8 +7,11 @@
 //! - [`probe`]: numbered HEARTBEATs into the drone's radio, counted at the ground's, and the
 //!   radios' own `RADIO_STATUS`;
 //! - [`sweep`]: the attenuation sweep phase (the paper's Fig. 1);
-//! - [`session`]: the real bridge and router over the path at one attenuation.
+//! - [`session`]: the real bridge and router over the path at one attenuation;
+//! - [`flow`]: the same with ECC turned on in the radios (half the throughput the programs
+//!   are budgeted for): paced by the radios' `txbuf`.
 
+pub mod flow;
 pub mod path;
 pub mod probe;
 pub mod rigfile;
@@ -27,5 +30,6 @@ pub fn phases(plan: &Arc<BenchPlan>, defaults: &Arc<SessionDefaults>) -> Vec<Pha
     vec![
         sweep::phase(plan.clone()).side_by_side(group),
         session::phase(plan.clone(), defaults.clone()).side_by_side(group),
+        flow::phase(plan.clone(), defaults.clone()).side_by_side(group),
     ]
 }
