@@ -23,7 +23,7 @@ use crate::quality::{
 use crate::schedule::{
     Class, LinkScheduler, Origin, ScheduleError, SchedulerConfig, SchedulerStats,
 };
-use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
+use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats, is_link_frame};
 use crate::time::Instant;
 use crate::wire::{
     FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, StreamId, encode, ids, known,
@@ -535,6 +535,8 @@ impl Router {
                 // The ground's RADIO_STATUS is ours (the link monitor's), built from both
                 // radios' reports; the far end has none to send.
                 ids::RADIO_STATUS => {}
+                // The signing handshake is the radio leg's (done in `incoming`).
+                ids::TIMESYNC if is_link_frame(&frame) => {}
                 ids::MAVLORA_COMPACT => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.expand(now, frame.system_id(), frame.component_id(), &msg);
@@ -730,6 +732,12 @@ impl Router {
     /// Does what is due at `now`: our link-quality report (also shown to the ground
     /// station), command retransmissions, mission keep-alives and polls.
     pub fn handle_timeout(&mut self, now: Instant) {
+        // The signing handshake's challenge or answer: small, and nothing else of the peer's
+        // is taken before it, so with the commands.
+        while let Some(msg) = self.radio_leg.poll_handshake(now) {
+            let frame = self.sender.frame(&msg);
+            self.scheduler.push(frame, Class::Command, now);
+        }
         self.mission.handle_timeout(now);
         self.drain_mission(now);
         self.commands.set_link_loss(now, self.link_loss(now));
@@ -841,6 +849,7 @@ impl Router {
             self.quality.poll_timeout(),
             self.monitor.poll_timeout(),
             self.scheduler.poll_timeout(),
+            self.radio_leg.poll_timeout(),
             self.commands.poll_timeout(),
             self.mission.poll_timeout(),
             self.expander.poll_timeout(),

@@ -15,13 +15,17 @@
 //! readable by their owner only ([`SigningKey::load`]). Timestamps follow the spec's rules
 //! and survive restarts through [`SigningState`] (see [`signer`](LinkSigner)).
 
+mod handshake;
 mod key;
 mod radio_leg;
 mod signer;
 mod state;
 
 pub use key::{FormatError, KeyError, SigningKey};
-pub use radio_leg::RadioLeg;
+pub use handshake::{
+    ANSWER_GAP, CHALLENGE_EVERY, Handshake, HandshakeFrame, random_nonce,
+};
+pub use radio_leg::{RadioLeg, is_link_frame};
 pub use signer::{
     KeyAuthenticator, LinkSigner, MAX_AHEAD, NEW_STREAM_SLACK, Rejection, SigningStats,
 };

@@ -1,9 +1,12 @@
 //! What every frame crossing the radio gets, at both ends: frames leaving are made MAVLink 2
 //! (a MAVLink 1 autopilot's frames too: same id, same payload), renumbered (so the far end
 //! counts radio loss only) and signed unless the link was explicitly set up unsigned; frames
-//! arriving are verified and stripped of their signature, or rejected and counted.
+//! arriving are verified and stripped of their signature, or rejected and counted. A signed
+//! leg whose state knows no peer proves the peer live first ([`Handshake`]).
 
+use super::handshake::{Handshake, HandshakeFrame, random_nonce};
 use super::{KeyAuthenticator, LinkSigner, Rejection, SigningConfig, SigningState, SigningStats};
+use crate::dialect::MavMessage;
 use crate::time::Instant;
 use crate::wire::{FrameReader, OwnedFrame, Resequencer, to_v2};
 
@@ -12,6 +15,8 @@ use crate::wire::{FrameReader, OwnedFrame, Resequencer, to_v2};
 pub struct RadioLeg {
     sequence: Resequencer,
     signer: Option<LinkSigner>,
+    /// The freshness handshake (signed legs only).
+    handshake: Option<Handshake>,
     /// Frames sent without a signature (signing off).
     sent_unsigned: u64,
     /// Frames [`RadioLeg::admit`] refused.
@@ -36,12 +41,50 @@ impl RadioLeg {
     /// A leg that signs with `signing`, or passes frames unsigned when `None` (the binaries
     /// allow that only with `--unsigned`).
     pub fn new(signing: Option<&SigningConfig>) -> Self {
+        Self::with_nonce(signing, random_nonce())
+    }
+
+    /// [`new`](Self::new) with the handshake's nonce given (tests).
+    pub fn with_nonce(signing: Option<&SigningConfig>, nonce: i64) -> Self {
+        let mut signer = signing.map(SigningConfig::signer);
+        let handshake = signer.as_mut().map(|s| {
+            let known = s.require_proof();
+            if !known {
+                tracing::warn!(
+                    "no peer in the signing state: taking nothing from the radio until the \
+                     peer proves it is live (answers our challenge)"
+                );
+            }
+            Handshake::new(nonce, !known)
+        });
         Self {
             sequence: Resequencer::new(),
-            signer: signing.map(SigningConfig::signer),
+            signer,
+            handshake,
             sent_unsigned: 0,
             dropped: 0,
         }
+    }
+
+    /// The next handshake message for the radio at `now` (a challenge, or an answer to the
+    /// peer's), to send as this end's own (system, component) with the commands' priority.
+    pub fn poll_handshake(&mut self, now: Instant) -> Option<MavMessage> {
+        let (Some(h), Some(s)) = (&mut self.handshake, &self.signer) else {
+            return None;
+        };
+        // Our signing time, in the nanoseconds TIMESYNC carries.
+        let time_ns = i64::try_from(s.timestamp(now).saturating_mul(10_000)).unwrap_or(i64::MAX);
+        h.poll(now, time_ns)
+    }
+
+    /// When [`poll_handshake`](Self::poll_handshake) next has something.
+    pub fn poll_timeout(&self) -> Option<Instant> {
+        self.handshake.as_ref().and_then(Handshake::poll_timeout)
+    }
+
+    /// Whether the peer is still to prove it is live (nothing of it is taken meanwhile).
+    pub fn awaiting_proof(&self) -> bool {
+        self.handshake.as_ref().is_some_and(Handshake::challenging)
     }
 
     /// Whether frames leaving are signed.
@@ -101,14 +144,51 @@ impl RadioLeg {
     }
 
     /// `frame` as read from the radio, verified and without its signature; `None` if it is
-    /// rejected (unsigned, bad signature, replayed, stale, ahead: counted in
-    /// [`RadioLeg::stats`]).
+    /// rejected (unsigned, bad signature, replayed, stale, ahead, unproven: counted in
+    /// [`RadioLeg::stats`]). A handshake frame is handled here and returned for the
+    /// engine's counts only: [`is_link_frame`] says to go no further with it.
     pub fn incoming(&mut self, frame: OwnedFrame, now: Instant) -> Option<OwnedFrame> {
-        let Some(signer) = &mut self.signer else {
+        let (Some(signer), Some(handshake)) = (&mut self.signer, &mut self.handshake) else {
             return Some(frame);
         };
+        if let Some(kind) = HandshakeFrame::parse(&frame) {
+            let plain = signer.verify_handshake(&frame, now).ok()?;
+            match kind {
+                HandshakeFrame::Challenge { nonce } => {
+                    handshake.challenged(frame.system_id(), frame.component_id(), nonce);
+                }
+                HandshakeFrame::Answer { nonce } => {
+                    if let Some((link, timestamp)) = super::signer::signed_timestamp(&frame)
+                        && handshake.answered(nonce)
+                    {
+                        let stream = (link, frame.system_id(), frame.component_id());
+                        if !signer.trusts(link) {
+                            tracing::info!(
+                                link,
+                                "the peer proved it is live: taking its frames signed from now on"
+                            );
+                        }
+                        signer.prove(stream, timestamp);
+                    }
+                }
+            }
+            return Some(plain);
+        }
         match signer.verify(&frame, now) {
             Ok(plain) => Some(plain),
+            Err(Rejection::Unproven) => {
+                handshake.start(now);
+                // On the 1st, 2nd, 4th, 8th... such frame.
+                let n = signer.stats().unproven;
+                if n.is_power_of_two() {
+                    tracing::warn!(
+                        refused = n,
+                        "radio frame refused: waiting for the peer to prove it is live (this \
+                         end has no signing state of it, and a recording would look the same)"
+                    );
+                }
+                None
+            }
             Err(Rejection::Ahead { seconds }) => {
                 // A clock off by more than a minute stops the link: say which and where, on
                 // the 1st, 2nd, 4th, 8th... such frame.
@@ -130,4 +210,10 @@ impl RadioLeg {
             }
         }
     }
+}
+
+/// Whether `frame` (as [`RadioLeg::incoming`] returned it) is one of the handshake's: for the
+/// two ends only, never passed on.
+pub fn is_link_frame(frame: &OwnedFrame) -> bool {
+    HandshakeFrame::parse(frame).is_some()
 }
