@@ -60,6 +60,21 @@ impl HandshakeFrame {
     }
 }
 
+/// What a live peer sends back for `frame` if it is a challenge: the answer echoing its
+/// nonce, addressed to the challenger, `time_ns` the responder's time (a peer simulated in
+/// tests, or a tool speaking for one end).
+pub fn answer_to(frame: &OwnedFrame, time_ns: i64) -> Option<MavMessage> {
+    let Some(HandshakeFrame::Challenge { nonce }) = HandshakeFrame::parse(frame) else {
+        return None;
+    };
+    Some(MavMessage::TIMESYNC(TIMESYNC_DATA {
+        tc1: time_ns.max(1),
+        ts1: nonce,
+        target_system: frame.system_id(),
+        target_component: frame.component_id(),
+    }))
+}
+
 /// A nonce for this run: random (std's hash keys, drawn from the operating system), its top
 /// bit set. Only a run's own challenges carry it, so a recorded answer never matches.
 pub fn random_nonce() -> i64 {

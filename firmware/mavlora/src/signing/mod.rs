@@ -23,7 +23,7 @@ mod state;
 
 pub use key::{FormatError, KeyError, SigningKey};
 pub use handshake::{
-    ANSWER_GAP, CHALLENGE_EVERY, Handshake, HandshakeFrame, random_nonce,
+    ANSWER_GAP, CHALLENGE_EVERY, Handshake, HandshakeFrame, answer_to, random_nonce,
 };
 pub use radio_leg::{RadioLeg, is_link_frame};
 pub use signer::{
