@@ -367,7 +367,7 @@ impl LinkSigner {
 mod tests {
     use super::*;
     use crate::testutil::frame;
-    use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT};
+    use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT, TIMESYNC};
 
     fn pair() -> (LinkSigner, LinkSigner) {
         let key = SigningKey([7; 32]);
@@ -612,5 +612,42 @@ mod tests {
         let still = behind.sign(&frame(HEARTBEAT, 1, 1, 1), t).unwrap();
         assert_eq!(ground.verify(&still, t), Err(Rejection::Replayed));
         assert_eq!(behind.stats().ahead, 1);
+    }
+
+    /// Regression: a signer without a state took a ground ARM recorded 30 s before it
+    /// started (a new stream within the spec's minute). Required to, it takes nothing of the
+    /// peer until the peer's answer, and then only what the peer signed after it.
+    #[test]
+    fn a_fresh_signer_takes_nothing_of_an_unproven_peer_and_only_what_it_signed_after_the_proof()
+    {
+        let key = SigningKey([7; 32]);
+        let thirty = 30 * 100_000;
+        let mut router = LinkSigner::new(key.clone(), 2, 1_000_000);
+        let captured = router
+            .sign(&frame(COMMAND_LONG, 255, 190, 0), Instant::ZERO)
+            .unwrap();
+        let mut spec_only = LinkSigner::new(key.clone(), 1, 1_000_000 + thirty);
+        assert!(spec_only.verify(&captured, Instant::ZERO).is_ok(), "the spec takes it");
+        let mut bridge = LinkSigner::new(key.clone(), 1, 1_000_000 + thirty);
+        assert!(!bridge.require_proof(), "knows no peer");
+        assert_eq!(bridge.verify(&captured, Instant::ZERO), Err(Rejection::Unproven));
+        assert_eq!(bridge.stats().unproven, 1);
+        let t = Instant::from_secs(30);
+        let answer = router.sign(&frame(TIMESYNC, 255, 191, 1), t).unwrap();
+        assert!(bridge.verify_handshake(&answer, Instant::ZERO).is_ok());
+        assert!(!bridge.trusts(2), "verifying is not proving");
+        let (link, stamp) = signed_timestamp(&answer).unwrap();
+        bridge.prove((link, 255, 191), stamp);
+        assert!(bridge.trusts(2));
+        assert_eq!(bridge.verify(&captured, Instant::ZERO), Err(Rejection::Replayed));
+        let live = router.sign(&frame(COMMAND_LONG, 255, 190, 2), t).unwrap();
+        assert!(bridge.verify(&live, Instant::ZERO).is_ok());
+        // a state knowing the peer's link needs no proof: the spec's rules
+        let stored = bridge.state(Instant::ZERO);
+        let mut restarted = LinkSigner::with_state(key, 1, 1_000_000 + thirty, stored);
+        assert!(restarted.require_proof());
+        let next = router.sign(&frame(COMMAND_LONG, 255, 190, 3), t).unwrap();
+        assert!(restarted.verify(&next, Instant::ZERO).is_ok());
+        assert_eq!(restarted.verify(&captured, Instant::ZERO), Err(Rejection::Replayed));
     }
 }
