@@ -281,7 +281,10 @@ fn a_bridge_restarted_without_its_state_never_runs_an_arm_recorded_before_and_re
         );
         // Replayed again after the handshake: below the router's proven floor.
         let replayed = w.bridge.stats().signing.replayed;
-        assert!(!w.replay_reaches_fc(&recorded), "seed {seed}: after the handshake");
+        assert!(
+            !w.replay_reaches_fc(&recorded),
+            "seed {seed}: after the handshake"
+        );
         assert!(w.bridge.stats().signing.replayed > replayed, "seed {seed}");
         assert!(
             w.live_arm_reaches_fc(Duration::from_secs(5)),
@@ -297,7 +300,10 @@ fn a_bridge_restarted_without_its_state_never_runs_an_arm_recorded_before_and_re
         assert!(s.unproven > 0, "seed {seed}: {s:?}");
         // What it stores now knows the router: a next restart with the file is as before.
         let state = w.bridge.signing_state(w.bridge_now()).unwrap();
-        assert!(state.streams.keys().any(|&(link, _, _)| link == 2), "{state:?}");
+        assert!(
+            state.streams.keys().any(|&(link, _, _)| link == 2),
+            "{state:?}"
+        );
     }
 }
 
@@ -350,6 +356,10 @@ fn a_router_restarted_without_its_state_never_forwards_a_recorded_frame_and_reco
             w.live_arm_reaches_fc(Duration::from_secs(5)),
             "seed {seed}: the live pilot's ARM did not reach the autopilot"
         );
-        assert_eq!(w.arms.iter().filter(|&&p| p == 0.0).count(), 1, "seed {seed}");
+        assert_eq!(
+            w.arms.iter().filter(|&&p| p == 0.0).count(),
+            1,
+            "seed {seed}"
+        );
     }
 }

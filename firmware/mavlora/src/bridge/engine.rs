@@ -626,7 +626,11 @@ impl Bridge {
         let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
             return;
         };
-        self.radio_reader.accept(&frame, rx.integrity);
+        // Nothing counts while the peer is still to prove it is live (a fresh signing state):
+        // its frames refused meanwhile would read as lost.
+        if !self.radio_leg.awaiting_proof() {
+            self.radio_reader.accept(&frame, rx.integrity);
+        }
         self.quality.handle_frame(now, &frame);
         if self.quality.take_peer_restart() {
             self.radio_reader.expect_restart(StreamId {

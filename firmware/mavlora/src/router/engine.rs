@@ -518,7 +518,11 @@ impl Router {
             let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
                 continue;
             };
-            self.radio_reader.accept(&frame, rx.integrity);
+            // Nothing counts while the peer is still to prove it is live (a fresh signing
+            // state): its frames refused meanwhile would read as lost.
+            if !self.radio_leg.awaiting_proof() {
+                self.radio_reader.accept(&frame, rx.integrity);
+            }
             // The link carries something: a command's timeout means loss again, not silence.
             self.commands.heard_radio(now);
             self.quality.handle_frame(now, &frame);

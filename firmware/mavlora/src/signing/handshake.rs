@@ -212,7 +212,10 @@ mod tests {
         let MavMessage::TIMESYNC(a) = h.poll(ms(0), 7).unwrap() else {
             panic!()
         };
-        assert_eq!((a.tc1, a.ts1, a.target_system, a.target_component), (7, -9, 255, 191));
+        assert_eq!(
+            (a.tc1, a.ts1, a.target_system, a.target_component),
+            (7, -9, 255, 191)
+        );
         assert_eq!(
             HandshakeFrame::parse(&frame_of(&MavMessage::TIMESYNC(a))),
             Some(HandshakeFrame::Answer { nonce: -9 })
@@ -220,7 +223,10 @@ mod tests {
         h.challenged(255, 191, -10);
         assert_eq!(h.poll(ms(100), 7), None, "within the gap");
         assert_eq!(h.poll_timeout(), Some(ms(250)));
-        assert!(h.poll(ms(250), 0).is_some_and(|m| matches!(m, MavMessage::TIMESYNC(t) if t.tc1 == 1)));
+        assert!(
+            h.poll(ms(250), 0)
+                .is_some_and(|m| matches!(m, MavMessage::TIMESYNC(t) if t.tc1 == 1))
+        );
     }
 
     #[test]

@@ -26,10 +26,10 @@ mod radio_leg;
 mod signer;
 mod state;
 
-pub use key::{FormatError, KeyError, SigningKey};
 pub use handshake::{
     ANSWER_GAP, CHALLENGE_EVERY, Handshake, HandshakeFrame, answer_to, random_nonce,
 };
+pub use key::{FormatError, KeyError, SigningKey};
 pub use radio_leg::{RadioLeg, is_link_frame};
 pub use signer::{
     KeyAuthenticator, LinkSigner, MAX_AHEAD, NEW_STREAM_SLACK, Rejection, SigningStats,

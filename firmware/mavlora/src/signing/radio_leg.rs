@@ -277,22 +277,34 @@ mod tests {
     /// Regression: a bridge without a state took a pilot's ARM recorded 30 s before (a
     /// stream it had not seen, within the spec's minute of its clock) and ran it.
     #[test]
-    fn a_fresh_end_refuses_a_frame_recorded_30_s_before_it_started_before_and_after_the_handshake(
-    ) {
+    fn a_fresh_end_refuses_a_frame_recorded_30_s_before_it_started_before_and_after_the_handshake()
+    {
         let (mut router, recorded, mut bridge) = setup(-77);
         assert!(bridge.awaiting_proof());
         assert_eq!(bridge.incoming(recorded.clone(), Instant::ZERO), None);
         assert_eq!(bridge.stats().unproven, 1);
         let t = Instant::from_secs(30);
         let answer = answer(&mut bridge, &mut router, t);
-        let plain = bridge.incoming(answer, Instant::ZERO).expect("the answer verifies");
-        assert!(is_link_frame(&plain), "consumed by the ends, never passed on");
+        let plain = bridge
+            .incoming(answer, Instant::ZERO)
+            .expect("the answer verifies");
+        assert!(
+            is_link_frame(&plain),
+            "consumed by the ends, never passed on"
+        );
         assert!(!bridge.awaiting_proof());
-        assert_eq!(bridge.poll_handshake(Instant::from_secs(5)), None, "no more challenges");
+        assert_eq!(
+            bridge.poll_handshake(Instant::from_secs(5)),
+            None,
+            "no more challenges"
+        );
         assert_eq!(bridge.incoming(recorded, Instant::ZERO), None);
         assert_eq!(bridge.stats().replayed, 1, "below the floor the answer set");
         let live = sent(&mut router, 255, 190, &arm_command(), t);
-        assert!(bridge.incoming(live, Instant::ZERO).is_some(), "signed after the answer");
+        assert!(
+            bridge.incoming(live, Instant::ZERO).is_some(),
+            "signed after the answer"
+        );
         // what it stores from now on knows the router
         let state = bridge.signing_state(Instant::ZERO).unwrap();
         assert!(state.streams.keys().any(|&(link, _, _)| link == 2));
@@ -316,7 +328,13 @@ mod tests {
         let wrong = sent(&mut router, 255, 191, &wrong, Instant::from_secs(30));
         assert!(bridge.incoming(wrong, Instant::ZERO).is_some());
         assert!(bridge.awaiting_proof());
-        let live = sent(&mut router, 255, 190, &arm_command(), Instant::from_secs(30));
+        let live = sent(
+            &mut router,
+            255,
+            190,
+            &arm_command(),
+            Instant::from_secs(30),
+        );
         assert_eq!(bridge.incoming(live, Instant::ZERO), None);
         assert_eq!(bridge.stats().unproven, 1);
         // the state it would store before the proof knows nothing of the router

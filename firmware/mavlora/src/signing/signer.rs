@@ -618,8 +618,7 @@ mod tests {
     /// started (a new stream within the spec's minute). Required to, it takes nothing of the
     /// peer until the peer's answer, and then only what the peer signed after it.
     #[test]
-    fn a_fresh_signer_takes_nothing_of_an_unproven_peer_and_only_what_it_signed_after_the_proof()
-    {
+    fn a_fresh_signer_takes_nothing_of_an_unproven_peer_and_only_what_it_signed_after_the_proof() {
         let key = SigningKey([7; 32]);
         let thirty = 30 * 100_000;
         let mut router = LinkSigner::new(key.clone(), 2, 1_000_000);
@@ -627,10 +626,16 @@ mod tests {
             .sign(&frame(COMMAND_LONG, 255, 190, 0), Instant::ZERO)
             .unwrap();
         let mut spec_only = LinkSigner::new(key.clone(), 1, 1_000_000 + thirty);
-        assert!(spec_only.verify(&captured, Instant::ZERO).is_ok(), "the spec takes it");
+        assert!(
+            spec_only.verify(&captured, Instant::ZERO).is_ok(),
+            "the spec takes it"
+        );
         let mut bridge = LinkSigner::new(key.clone(), 1, 1_000_000 + thirty);
         assert!(!bridge.require_proof(), "knows no peer");
-        assert_eq!(bridge.verify(&captured, Instant::ZERO), Err(Rejection::Unproven));
+        assert_eq!(
+            bridge.verify(&captured, Instant::ZERO),
+            Err(Rejection::Unproven)
+        );
         assert_eq!(bridge.stats().unproven, 1);
         let t = Instant::from_secs(30);
         let answer = router.sign(&frame(TIMESYNC, 255, 191, 1), t).unwrap();
@@ -639,7 +644,10 @@ mod tests {
         let (link, stamp) = signed_timestamp(&answer).unwrap();
         bridge.prove((link, 255, 191), stamp);
         assert!(bridge.trusts(2));
-        assert_eq!(bridge.verify(&captured, Instant::ZERO), Err(Rejection::Replayed));
+        assert_eq!(
+            bridge.verify(&captured, Instant::ZERO),
+            Err(Rejection::Replayed)
+        );
         let live = router.sign(&frame(COMMAND_LONG, 255, 190, 2), t).unwrap();
         assert!(bridge.verify(&live, Instant::ZERO).is_ok());
         // a state knowing the peer's link needs no proof: the spec's rules
@@ -648,6 +656,9 @@ mod tests {
         assert!(restarted.require_proof());
         let next = router.sign(&frame(COMMAND_LONG, 255, 190, 3), t).unwrap();
         assert!(restarted.verify(&next, Instant::ZERO).is_ok());
-        assert_eq!(restarted.verify(&captured, Instant::ZERO), Err(Rejection::Replayed));
+        assert_eq!(
+            restarted.verify(&captured, Instant::ZERO),
+            Err(Rejection::Replayed)
+        );
     }
 }
