@@ -176,7 +176,7 @@ impl World {
             }
         }
         while self.router.poll_gcs_transmit().is_some() {}
-        self.now = self.now + STEP;
+        self.now += STEP;
     }
 
     /// The autopilot: records each ARM and acknowledges it.
