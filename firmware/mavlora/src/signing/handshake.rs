@@ -126,9 +126,11 @@ impl Handshake {
         self.answer = Some((system, component, nonce));
     }
 
-    /// A verified answer: whether it echoes our nonce (then challenging stops).
+    /// A verified answer: whether it answers our challenge (our nonce, while we wait for
+    /// one); then challenging stops. Later copies (the peer answered a repeated challenge
+    /// too) prove nothing more.
     pub fn answered(&mut self, nonce: i64) -> bool {
-        let ours = nonce == self.nonce;
+        let ours = nonce == self.nonce && self.challenging();
         if ours {
             self.next_challenge = None;
         }
@@ -200,6 +202,7 @@ mod tests {
         assert!(h.challenging());
         assert!(h.answered(-5));
         assert!(!h.challenging());
+        assert!(!h.answered(-5), "a second copy");
         assert_eq!(h.poll(ms(5000), 7), None);
         assert_eq!(h.poll_timeout(), None);
     }
