@@ -266,17 +266,22 @@ fn a_bridge_restarted_without_its_state_never_runs_an_arm_recorded_before_and_re
         let mut w = World::new(seed);
         let recorded = w.first_run();
         // The bridge restarts without its state file; the router keeps running.
-        w.bridge_start = w.now;
-        w.bridge = bridge(w.now, SigningState::default());
+        let restart = w.now;
+        w.bridge_start = restart;
+        w.bridge = bridge(restart, SigningState::default());
         w.up.clear();
         w.loss = loss;
         assert!(
             !w.replay_reaches_fc(&recorded),
             "seed {seed}: the recorded ARM ran on the restarted bridge"
         );
-        w.run_for(RECOVERY);
+        // The link is back once the router's frames count as received again (nothing of
+        // the peer counts before it proved it is live).
+        while w.bridge.stats().radio_reader.frames() == 0 && w.now < restart + RECOVERY {
+            w.step();
+        }
         assert!(
-            w.bridge.stats().signing.accepted > 0,
+            w.bridge.stats().radio_reader.frames() > 0,
             "seed {seed}: no frame of the live router taken {RECOVERY:?} after the restart"
         );
         // Replayed again after the handshake: below the router's proven floor.
@@ -314,8 +319,9 @@ fn a_router_restarted_without_its_state_never_forwards_a_recorded_frame_and_reco
         let recorded = w.first_run();
         // The router restarts without its state file (the bridge keeps its own): its fresh
         // state must take nothing of the bridge's until the bridge answered.
-        w.router_start = w.now;
-        w.router = router(w.now, SigningState::default());
+        let restart = w.now;
+        w.router_start = restart;
+        w.router = router(restart, SigningState::default());
         w.down.clear();
         w.loss = loss;
         // The autopilot's heartbeat recorded on the air before the restart, played to the
@@ -340,9 +346,11 @@ fn a_router_restarted_without_its_state_never_forwards_a_recorded_frame_and_reco
         // The ARM recorded on the air, signed by the router's previous run: the bridge's
         // state holds that stream.
         assert!(!w.replay_reaches_fc(&recorded), "seed {seed}");
-        w.run_for(RECOVERY);
+        while w.router.stats().radio_reader.frames() == 0 && w.now < restart + RECOVERY {
+            w.step();
+        }
         assert!(
-            w.router.stats().signing.accepted > 0,
+            w.router.stats().radio_reader.frames() > 0,
             "seed {seed}: no frame of the bridge taken {RECOVERY:?} after the restart"
         );
         let replayed = w.router.stats().signing.replayed;
@@ -361,5 +369,35 @@ fn a_router_restarted_without_its_state_never_forwards_a_recorded_frame_and_reco
             1,
             "seed {seed}"
         );
+    }
+}
+
+/// A first install: neither end has a state. Each proves the other live, and the pilot's
+/// ARM goes through within a few seconds, also at 10 % loss.
+#[test]
+fn two_fresh_ends_prove_each_other_and_carry_commands() {
+    for (seed, loss) in [(21, 0.0), (22, 0.1), (23, 0.1)] {
+        let mut w = World::new(seed);
+        w.bridge = bridge(Instant::ZERO, SigningState::default());
+        w.router = router(Instant::ZERO, SigningState::default());
+        w.loss = loss;
+        let counted = |w: &World| {
+            w.bridge.stats().radio_reader.frames() > 0 && w.router.stats().radio_reader.frames() > 0
+        };
+        while !counted(&w) && w.now < Instant::ZERO + RECOVERY {
+            w.step();
+        }
+        assert!(
+            counted(&w),
+            "seed {seed}: a link not proven within {RECOVERY:?}"
+        );
+        assert!(
+            w.live_arm_reaches_fc(Duration::from_secs(5)),
+            "seed {seed}: the pilot's ARM did not reach the autopilot"
+        );
+        // Each stores the other: a restart with the files needs no handshake.
+        let knows = |state: SigningState, peer: u8| state.streams.keys().any(|k| k.0 == peer);
+        assert!(knows(w.bridge.signing_state(w.bridge_now()).unwrap(), 2));
+        assert!(knows(w.router.signing_state(w.router_now()).unwrap(), 1));
     }
 }
