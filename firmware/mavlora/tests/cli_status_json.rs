@@ -48,6 +48,7 @@ const RADIO_COUNTERS: &[&str] = &[
     "rejected_replayed",
     "rejected_stale",
     "rejected_ahead",
+    "rejected_unproven",
     "radio_tx_unsigned",
     "inbox_dropped",
     "inbox_dropped_priority",

@@ -26,7 +26,7 @@ use mavlora::dialect::{
 use mavlora::filter::Profile;
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::SchedulerConfig;
-use mavlora::signing::{SigningConfig, SigningKey};
+use mavlora::signing::{SigningConfig, SigningKey, SigningState};
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, ids, known};
 use mavlora::{Duration, Instant};
 
@@ -338,12 +338,16 @@ impl Ground {
 
 const KEY: [u8; 32] = [7; 32];
 
+/// Signing as `link_id` (1 or 2), from a state that knows the other end (no freshness
+/// handshake holding the first frames back).
 fn signing(link_id: u8) -> SigningConfig {
+    let mut state = SigningState::default();
+    state.streams.insert((3 - link_id, 0, 0), 1);
     SigningConfig {
         key: SigningKey(KEY),
         link_id,
         epoch: 3_000_000_000,
-        state: Default::default(),
+        state,
     }
 }
 

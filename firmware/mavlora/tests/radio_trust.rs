@@ -15,7 +15,7 @@ use mavlora::dialect::{
 use mavlora::filter::Profile;
 use mavlora::quality::RssiScale;
 use mavlora::schedule::SchedulerConfig;
-use mavlora::signing::{LinkSigner, SigningConfig, SigningKey};
+use mavlora::signing::{LinkSigner, SigningConfig, SigningKey, SigningState};
 use mavlora::wire::{OwnedFrame, Sender};
 
 const KEY: SigningKey = SigningKey([5; 32]);
@@ -26,7 +26,8 @@ fn ms(n: u64) -> Instant {
     Instant::from_millis(n)
 }
 
-/// A bridge signing as link 1 (the router signs as 2).
+/// A bridge signing as link 1 (the router signs as 2), its state knowing the router from a
+/// previous run (a fresh one takes nothing before the router answered its challenge).
 fn signed_bridge() -> Bridge {
     let mut config = BridgeConfig::new(
         Profile::parse("", "test").unwrap(),
@@ -40,7 +41,11 @@ fn signed_bridge() -> Bridge {
         key: KEY,
         link_id: 1,
         epoch: CLOCK,
-        state: Default::default(),
+        state: {
+            let mut state = SigningState::default();
+            state.streams.insert((2, 0, 0), 1);
+            state
+        },
     });
     Bridge::new(config, Instant::ZERO).unwrap()
 }

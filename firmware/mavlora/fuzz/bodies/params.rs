@@ -23,16 +23,20 @@ use mavlora::filter::Profile;
 use mavlora::param::{ParamValue, pack};
 use mavlora::router::{Router, RouterConfig};
 use mavlora::schedule::SchedulerConfig;
-use mavlora::signing::{SigningConfig, SigningKey};
+use mavlora::signing::{SigningConfig, SigningKey, SigningState};
 use mavlora::wire::{FrameReader, encode, ids, known};
 use mavlora::{Duration, Instant};
 
+/// Signing as `link_id` (1 or 2), from a state that knows the other end: a fresh one takes
+/// nothing of a peer before its answer to the freshness challenge.
 fn signing(link_id: u8) -> SigningConfig {
+    let mut state = SigningState::default();
+    state.streams.insert((3 - link_id, 0, 0), 1);
     SigningConfig {
         key: SigningKey([3; 32]),
         link_id,
         epoch: 1_000_000,
-        state: Default::default(),
+        state,
     }
 }
 

@@ -25,7 +25,7 @@ use crate::quality::{LinkQuality, is_local_radio_status};
 use crate::schedule::{
     Class, LinkScheduler, ScheduleError, SchedulerStats, TokenBucket, TxbufPacer,
 };
-use crate::signing::{RadioLeg, SigningStats};
+use crate::signing::{RadioLeg, SigningStats, is_link_frame};
 use crate::time::Instant;
 use crate::wire::{
     FrameReader, MAX_FRAME_LEN, OwnedFrame, ReaderStats, Received, Sender, StreamId, encode, ids,
@@ -649,7 +649,11 @@ impl Bridge {
         let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
             return;
         };
-        self.radio_reader.accept(&frame, rx.integrity);
+        // Nothing counts while the peer is still to prove it is live (a fresh signing state):
+        // its frames refused meanwhile would read as lost.
+        if !self.radio_leg.awaiting_proof() {
+            self.radio_reader.accept(&frame, rx.integrity);
+        }
         self.quality.handle_frame(now, &frame);
         if self.quality.take_peer_restart() {
             self.radio_reader.expect_restart(StreamId {
@@ -664,6 +668,8 @@ impl Bridge {
             // The ground's radio reports to the router, never to this flight controller (whose
             // flow control follows its own radio's).
             ids::RADIO_STATUS => return,
+            // The signing handshake is the radio leg's (done in `incoming`).
+            ids::TIMESYNC if is_link_frame(&frame) => return,
             // LINK_QUALITY is for us; the flight controller does not know it.
             ids::LINK_QUALITY => {
                 self.stats.link_quality_received += 1;
@@ -803,6 +809,12 @@ impl Bridge {
     /// Does what is due at `now`: link-quality reports, compact telemetry, regenerated ground
     /// heartbeats, configuration retries, mission timeouts.
     pub fn handle_timeout(&mut self, now: Instant) {
+        // The signing handshake's challenge or answer: small, and nothing else of the peer's
+        // is taken before it, so with the commands.
+        while let Some(msg) = self.radio_leg.poll_handshake(now) {
+            let frame = self.radio_sender.frame(&msg);
+            self.scheduler.push(frame, Class::Command, now);
+        }
         self.quality.handle_timeout(now, self.radio_reader.stats());
         if let Some(report) = self.quality.poll_report() {
             self.stats.link_quality_sent += 1;
@@ -933,6 +945,7 @@ impl Bridge {
         [
             self.quality.poll_timeout(),
             self.scheduler.poll_timeout(),
+            self.radio_leg.poll_timeout(),
             self.compactor.as_ref().and_then(|c| c.poll_timeout()),
             self.gcs_heartbeat.poll_timeout(),
             self.config_state.next_retry,

@@ -949,10 +949,11 @@ fn compact_mode_asks_for_heartbeat_or_current_mode_at_state_hz() {
 
 /// Regression: a bridge that lost its signing state, its clock a day behind, ran a ground ARM
 /// recorded ten minutes before: a stream it had not seen, stamped far "after" its clock. A
-/// live command from a ground whose clock agrees with the bridge's still goes through.
+/// live command from a ground whose clock agrees with the bridge's still goes through, once
+/// the live router answered the bridge's challenge.
 #[test]
 fn a_bridge_without_signing_state_and_a_clock_a_day_behind_does_not_run_a_recorded_arm() {
-    use crate::signing::{LinkSigner, SigningConfig, SigningKey};
+    use crate::signing::{LinkSigner, SigningConfig, SigningKey, answer_to};
     let key = SigningKey([9; 32]);
     let real = 300_000_000_000u64; // now, 10 us units since 2015
     let (day, ten_minutes) = (86_400 * 100_000, 600 * 100_000);
@@ -978,6 +979,13 @@ fn a_bridge_without_signing_state_and_a_clock_a_day_behind_does_not_run_a_record
         assert_eq!(arms(&to_fc(&mut b, ms(10))), 0, "the recorded ARM ran");
         if live {
             let mut router_now = LinkSigner::new(key.clone(), 2, clock);
+            let mut router = Sender::new(255, 191, MavlinkVersion::V2);
+            let answer = to_radio(&mut b, ms(15))
+                .iter()
+                .find_map(|f| answer_to(f, 1))
+                .expect("the bridge challenges");
+            let answer = router_now.sign(&router.frame(&answer), ms(15)).unwrap();
+            b.handle_radio_bytes(ms(15), answer.as_bytes());
             let fresh = router_now.sign(&pilot.frame(&arm), ms(20)).unwrap();
             b.handle_radio_bytes(ms(20), fresh.as_bytes());
             assert_eq!(arms(&to_fc(&mut b, ms(20))), 1, "a live ARM was refused");

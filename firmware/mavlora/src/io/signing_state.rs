@@ -63,13 +63,14 @@ impl SigningStateFile {
             Ok(text) => SigningState::parse(&text)
                 .with_context(|| format!("signing state {}", path.display()))?,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                // A first start, or a lost file: either way the clock is all there is to judge
-                // first frames by, and only the operator knows whether it is right.
+                // A first start, or a lost file: nothing of the peer is taken until it answers
+                // our challenge (the radio leg's handshake), but our own timestamps come from
+                // the clock, and only the operator knows whether it is right.
                 tracing::warn!(
                     path = %path.display(),
                     "no signing state: starting a new one from this clock, which must be right \
-                     within a minute (check `date -u` if this is not a first start): frames are \
-                     judged by it alone until this side has accepted some"
+                     within a minute (check `date -u` if this is not a first start); the peer \
+                     must prove it is live before its frames are taken"
                 );
                 SigningState::default()
             }

@@ -91,6 +91,9 @@ pub struct RadioCounters {
     pub rejected_stale: u64,
     /// Radio frames dropped as stamped more than a minute ahead of this clock.
     pub rejected_ahead: u64,
+    /// Radio frames dropped because the peer has not yet proven it is live (a fresh signing
+    /// state waiting for the answer to its challenge).
+    pub rejected_unproven: u64,
     /// Frames sent on the radio without a signature (all of them with `--unsigned`).
     pub radio_tx_unsigned: u64,
     /// Events the main loop's inbox dropped when full.
@@ -147,6 +150,7 @@ impl RadioCounters {
             rejected_replayed: signing.replayed,
             rejected_stale: signing.stale,
             rejected_ahead: signing.ahead,
+            rejected_unproven: signing.unproven,
             radio_tx_unsigned: signing.sent_unsigned,
             inbox_dropped: inbox.dropped_items,
             inbox_dropped_priority: inbox.dropped_priority,

@@ -23,7 +23,7 @@ use crate::quality::{
 use crate::schedule::{
     Class, LinkScheduler, Origin, ScheduleError, SchedulerConfig, SchedulerStats, TxbufPacer,
 };
-use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats};
+use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats, is_link_frame};
 use crate::time::Instant;
 use crate::wire::{
     FrameReader, Integrity, OwnedFrame, ReaderStats, Sender, StreamId, encode, ids, known,
@@ -538,7 +538,11 @@ impl Router {
             let Some(frame) = self.radio_leg.incoming(rx.frame, now) else {
                 continue;
             };
-            self.radio_reader.accept(&frame, rx.integrity);
+            // Nothing counts while the peer is still to prove it is live (a fresh signing
+            // state): its frames refused meanwhile would read as lost.
+            if !self.radio_leg.awaiting_proof() {
+                self.radio_reader.accept(&frame, rx.integrity);
+            }
             // The link carries something: a command's timeout means loss again, not silence.
             self.commands.heard_radio(now);
             self.quality.handle_frame(now, &frame);
@@ -555,6 +559,8 @@ impl Router {
                 // The ground's RADIO_STATUS is ours (the link monitor's), built from both
                 // radios' reports; the far end has none to send.
                 ids::RADIO_STATUS => {}
+                // The signing handshake is the radio leg's (done in `incoming`).
+                ids::TIMESYNC if is_link_frame(&frame) => {}
                 ids::MAVLORA_COMPACT => {
                     if let Ok(msg) = frame.decode::<MavMessage>() {
                         self.expand(now, frame.system_id(), frame.component_id(), &msg);
@@ -750,6 +756,12 @@ impl Router {
     /// Does what is due at `now`: our link-quality report (also shown to the ground
     /// station), command retransmissions, mission keep-alives and polls.
     pub fn handle_timeout(&mut self, now: Instant) {
+        // The signing handshake's challenge or answer: small, and nothing else of the peer's
+        // is taken before it, so with the commands.
+        while let Some(msg) = self.radio_leg.poll_handshake(now) {
+            let frame = self.sender.frame(&msg);
+            self.scheduler.push(frame, Class::Command, now);
+        }
         self.mission.handle_timeout(now);
         self.drain_mission(now);
         self.commands.set_link_loss(now, self.link_loss(now));
@@ -864,6 +876,7 @@ impl Router {
             self.quality.poll_timeout(),
             self.monitor.poll_timeout(),
             self.scheduler.poll_timeout(),
+            self.radio_leg.poll_timeout(),
             self.commands.poll_timeout(),
             self.mission.poll_timeout(),
             self.expander.poll_timeout(),

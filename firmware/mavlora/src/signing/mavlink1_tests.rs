@@ -11,7 +11,7 @@ use crate::dialect::{
 use crate::filter::Profile;
 use crate::router::{Router, RouterConfig};
 use crate::schedule::SchedulerConfig;
-use crate::signing::{SigningConfig, SigningKey};
+use crate::signing::{SigningConfig, SigningKey, SigningState};
 use crate::testutil::raw_frame;
 use crate::time::{Duration, Instant};
 use crate::wire::{FrameReader, OwnedFrame, Sender, ids};
@@ -28,12 +28,16 @@ fn budget() -> SchedulerConfig {
     }
 }
 
+/// Each end's state knows its peer (link 1 and 2) from a previous run: no handshake (a
+/// fresh pair's first frames wait for it), every frame counts.
 fn signing(link_id: u8) -> Option<SigningConfig> {
+    let mut state = SigningState::default();
+    state.streams.insert((3 - link_id, 0, 0), 1);
     Some(SigningConfig {
         key: SigningKey([9; 32]),
         link_id,
         epoch: 3_000_000_000,
-        state: Default::default(),
+        state,
     })
 }
 

@@ -11,17 +11,26 @@
 //! (`MAVLinkV2MessageRaw::calculate_signature`); its `SigningData` is not used because it
 //! reads the system clock, and the engines take time as an argument.
 //!
+//! An end whose state knows nothing of its peer (a first start, a lost state file) cannot
+//! judge a frame's age by its clock: it takes nothing of the peer until the peer answered a
+//! signed challenge with a fresh nonce ([`Handshake`], a `TIMESYNC` exchange), and from then
+//! only frames the peer signed after its answer ([`LinkSigner::require_proof`]).
+//!
 //! Key files hold the 32-byte secret as 64 hexadecimal characters and an optional newline,
 //! readable by their owner only ([`SigningKey::load`]). Timestamps follow the spec's rules
 //! and survive restarts through [`SigningState`] (see [`signer`](LinkSigner)).
 
+mod handshake;
 mod key;
 mod radio_leg;
 mod signer;
 mod state;
 
+pub use handshake::{
+    ANSWER_GAP, CHALLENGE_EVERY, Handshake, HandshakeFrame, answer_to, random_nonce,
+};
 pub use key::{FormatError, KeyError, SigningKey};
-pub use radio_leg::RadioLeg;
+pub use radio_leg::{RadioLeg, is_link_frame};
 pub use signer::{
     KeyAuthenticator, LinkSigner, MAX_AHEAD, NEW_STREAM_SLACK, Rejection, SigningStats,
 };

@@ -11,7 +11,12 @@
 //!   ends' timestamps to wherever it was stamped (2^48 - 60: past the 48-bit wrap, after
 //!   which each end took the other's frames for replays, across restarts too);
 //! - at start the timestamp and the streams come from the stored [`SigningState`], so a
-//!   restart neither reuses timestamps nor forgets what it accepted before.
+//!   restart neither reuses timestamps nor forgets what it accepted before;
+//! - beyond the spec, on the radio leg ([`LinkSigner::require_proof`]): a peer link id the
+//!   stored state holds no stream of (a fresh state) is not taken at all ([`Rejection::Unproven`])
+//!   until the peer answered our challenge ([`super::Handshake`]); the answer's timestamp then
+//!   is that link's floor, every frame of it must be above. A clock cannot say how old a
+//!   frame is when the clock itself may be behind; the peer's own counter can.
 
 use std::collections::BTreeMap;
 
@@ -57,6 +62,9 @@ pub enum Rejection {
         /// How far ahead of our clock, whole seconds.
         seconds: u64,
     },
+    /// From a peer link id our state holds nothing of (a fresh state) that has not yet
+    /// answered our challenge: it may be a recording (see [`LinkSigner::require_proof`]).
+    Unproven,
 }
 
 /// Counters.
@@ -83,6 +91,9 @@ pub struct SigningStats {
     pub stale: u64,
     /// Received frames rejected as stamped more than [`MAX_AHEAD`] ahead of our clock.
     pub ahead: u64,
+    /// Received frames rejected because their peer has not yet proven it is live (a fresh
+    /// state waiting for the answer to its challenge).
+    pub unproven: u64,
 }
 
 /// The signature `key` gives the signed frame `bytes` (its last six bytes are not read).
@@ -119,7 +130,19 @@ pub struct LinkSigner {
     /// The last timestamp used or adopted from an accepted frame.
     timestamp: u64,
     streams: BTreeMap<StreamKey, u64>,
+    /// Per peer link id, the timestamp its frames must be above; `None`: every link is taken
+    /// as the spec says (no proof required). A link the stored state knew has floor 0; one
+    /// without an entry is unproven.
+    floors: Option<BTreeMap<u8, u64>>,
     stats: SigningStats,
+}
+
+/// The signing timestamp of a signed frame.
+pub(crate) fn signed_timestamp(frame: &OwnedFrame) -> Option<(u8, u64)> {
+    let sig = frame.signature()?;
+    let mut ts = [0u8; 8];
+    ts[..6].copy_from_slice(&sig[1..7]);
+    Some((sig[0], u64::from_le_bytes(ts)))
 }
 
 impl LinkSigner {
@@ -140,8 +163,50 @@ impl LinkSigner {
             epoch,
             timestamp: state.timestamp,
             streams: state.streams,
+            floors: None,
             stats: SigningStats::default(),
         }
+    }
+
+    /// From now on, frames of a peer link id the stored state holds no stream of are refused
+    /// ([`Rejection::Unproven`]) until [`prove`](Self::prove) gives that link a floor: a fresh
+    /// state cannot tell a recording made a minute ago from a live frame by its clock. Links
+    /// the state knows keep the spec's rules. Returns whether some peer link is known.
+    pub fn require_proof(&mut self) -> bool {
+        let own = self.link_id;
+        let known: BTreeMap<u8, u64> = self
+            .streams
+            .keys()
+            .filter(|&&(link, _, _)| link != own)
+            .map(|&(link, _, _)| (link, 0))
+            .collect();
+        let any = !known.is_empty();
+        self.floors = Some(known);
+        any
+    }
+
+    /// The peer signing as `link` proved it is live with a frame stamped `timestamp` from
+    /// `stream` (the answer to our challenge): everything it signed before, recordings
+    /// included, is older. Recorded as that stream's last, so a state stored from now on
+    /// knows the link.
+    pub fn prove(&mut self, stream: StreamKey, timestamp: u64) {
+        if let Some(floors) = &mut self.floors {
+            let floor = floors.entry(stream.0).or_insert(0);
+            *floor = (*floor).max(timestamp);
+        }
+        let last = self.streams.entry(stream).or_insert(0);
+        *last = (*last).max(timestamp);
+    }
+
+    /// Whether `link` is a peer whose frames are taken (known from the stored state, proven,
+    /// or no proof required).
+    pub fn trusts(&self, link: u8) -> bool {
+        self.floors.as_ref().is_none_or(|f| f.contains_key(&link))
+    }
+
+    /// Our signing timestamp at `now` (10 µs units since 2015-01-01).
+    pub fn timestamp(&self, now: Instant) -> u64 {
+        self.local(now)
     }
 
     /// What to store so a restart resumes safely (see [`LinkSigner::with_state`]); taken at
@@ -204,7 +269,26 @@ impl LinkSigner {
     /// Checks a frame received from the radio at `now`; on success returns it without its
     /// signature (flag cleared, checksum fixed) for peers that do not hold the key.
     pub fn verify(&mut self, frame: &OwnedFrame, now: Instant) -> Result<OwnedFrame, Rejection> {
-        let result = self.check(frame, now);
+        let result = self.check(frame, now, false);
+        self.count(&result);
+        result
+    }
+
+    /// [`verify`](Self::verify) for a frame of the freshness handshake (a challenge or its
+    /// answer): taken from a peer not yet proven (answering is always allowed: a replayed
+    /// challenge gets an answer echoing an old nonce, useless), and then not recorded as its
+    /// stream's last, so a state stored before the proof still knows nothing of that link.
+    pub fn verify_handshake(
+        &mut self,
+        frame: &OwnedFrame,
+        now: Instant,
+    ) -> Result<OwnedFrame, Rejection> {
+        let result = self.check(frame, now, true);
+        self.count(&result);
+        result
+    }
+
+    fn count(&mut self, result: &Result<OwnedFrame, Rejection>) {
         match result {
             Ok(_) => self.stats.accepted += 1,
             Err(Rejection::Unsigned) => self.stats.unsigned += 1,
@@ -213,18 +297,20 @@ impl LinkSigner {
             Err(Rejection::Replayed) => self.stats.replayed += 1,
             Err(Rejection::Stale) => self.stats.stale += 1,
             Err(Rejection::Ahead { .. }) => self.stats.ahead += 1,
+            Err(Rejection::Unproven) => self.stats.unproven += 1,
         }
-        result
     }
 
-    fn check(&mut self, frame: &OwnedFrame, now: Instant) -> Result<OwnedFrame, Rejection> {
-        let Some(sig) = frame.signature() else {
+    fn check(
+        &mut self,
+        frame: &OwnedFrame,
+        now: Instant,
+        handshake: bool,
+    ) -> Result<OwnedFrame, Rejection> {
+        let (Some(sig), Some((link_id, timestamp))) = (frame.signature(), signed_timestamp(frame))
+        else {
             return Err(Rejection::Unsigned);
         };
-        let link_id = sig[0];
-        let mut ts = [0u8; 8];
-        ts[..6].copy_from_slice(&sig[1..7]);
-        let timestamp = u64::from_le_bytes(ts);
         if self.signature(frame.as_bytes()) != sig[7..13] {
             return Err(Rejection::BadSignature);
         }
@@ -238,6 +324,20 @@ impl LinkSigner {
                 seconds: (timestamp - clock) / 100_000,
             });
         }
+        let floor = self.floors.as_ref().map(|f| f.get(&link_id).copied());
+        let proven = match floor {
+            // Adopted all the same (within MAX_AHEAD, checked above): our own frames, the
+            // challenge first, then sign above what the peer accepted from us before.
+            Some(None) if !handshake => {
+                self.timestamp = self.timestamp.max(timestamp);
+                return Err(Rejection::Unproven);
+            }
+            Some(Some(floor)) if timestamp <= floor && !handshake => {
+                return Err(Rejection::Replayed);
+            }
+            Some(None) => false,
+            _ => true,
+        };
         let stream = (link_id, frame.system_id(), frame.component_id());
         match self.streams.get(&stream) {
             Some(&last) if timestamp <= last => return Err(Rejection::Replayed),
@@ -246,7 +346,9 @@ impl LinkSigner {
             }
             _ => {}
         }
-        self.streams.insert(stream, timestamp);
+        if proven {
+            self.streams.insert(stream, timestamp);
+        }
         // the spec: adopt a newer timestamp from an accepted frame (at most MAX_AHEAD of our
         // clock, checked above)
         self.timestamp = self.timestamp.max(timestamp);
@@ -265,7 +367,7 @@ impl LinkSigner {
 mod tests {
     use super::*;
     use crate::testutil::frame;
-    use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT};
+    use crate::wire::ids::{COMMAND_LONG, GLOBAL_POSITION_INT, HEARTBEAT, TIMESYNC};
 
     fn pair() -> (LinkSigner, LinkSigner) {
         let key = SigningKey([7; 32]);
@@ -510,5 +612,53 @@ mod tests {
         let still = behind.sign(&frame(HEARTBEAT, 1, 1, 1), t).unwrap();
         assert_eq!(ground.verify(&still, t), Err(Rejection::Replayed));
         assert_eq!(behind.stats().ahead, 1);
+    }
+
+    /// Regression: a signer without a state took a ground ARM recorded 30 s before it
+    /// started (a new stream within the spec's minute). Required to, it takes nothing of the
+    /// peer until the peer's answer, and then only what the peer signed after it.
+    #[test]
+    fn a_fresh_signer_takes_nothing_of_an_unproven_peer_and_only_what_it_signed_after_the_proof() {
+        let key = SigningKey([7; 32]);
+        let thirty = 30 * 100_000;
+        let mut router = LinkSigner::new(key.clone(), 2, 1_000_000);
+        let captured = router
+            .sign(&frame(COMMAND_LONG, 255, 190, 0), Instant::ZERO)
+            .unwrap();
+        let mut spec_only = LinkSigner::new(key.clone(), 1, 1_000_000 + thirty);
+        assert!(
+            spec_only.verify(&captured, Instant::ZERO).is_ok(),
+            "the spec takes it"
+        );
+        let mut bridge = LinkSigner::new(key.clone(), 1, 1_000_000 + thirty);
+        assert!(!bridge.require_proof(), "knows no peer");
+        assert_eq!(
+            bridge.verify(&captured, Instant::ZERO),
+            Err(Rejection::Unproven)
+        );
+        assert_eq!(bridge.stats().unproven, 1);
+        let t = Instant::from_secs(30);
+        let answer = router.sign(&frame(TIMESYNC, 255, 191, 1), t).unwrap();
+        assert!(bridge.verify_handshake(&answer, Instant::ZERO).is_ok());
+        assert!(!bridge.trusts(2), "verifying is not proving");
+        let (link, stamp) = signed_timestamp(&answer).unwrap();
+        bridge.prove((link, 255, 191), stamp);
+        assert!(bridge.trusts(2));
+        assert_eq!(
+            bridge.verify(&captured, Instant::ZERO),
+            Err(Rejection::Replayed)
+        );
+        let live = router.sign(&frame(COMMAND_LONG, 255, 190, 2), t).unwrap();
+        assert!(bridge.verify(&live, Instant::ZERO).is_ok());
+        // a state knowing the peer's link needs no proof: the spec's rules
+        let stored = bridge.state(Instant::ZERO);
+        let mut restarted = LinkSigner::with_state(key, 1, 1_000_000 + thirty, stored);
+        assert!(restarted.require_proof());
+        let next = router.sign(&frame(COMMAND_LONG, 255, 190, 3), t).unwrap();
+        assert!(restarted.verify(&next, Instant::ZERO).is_ok());
+        assert_eq!(
+            restarted.verify(&captured, Instant::ZERO),
+            Err(Rejection::Replayed)
+        );
     }
 }
