@@ -177,15 +177,13 @@ impl Bridge {
         let radio_leg = RadioLeg::new(config.signing.as_ref());
         let scheduler =
             LinkScheduler::new(config.scheduler, now)?.with_frame_extra(radio_leg.frame_extra());
-        let pacer = TxbufPacer::new(config.scheduler.rate_bytes_per_s, now);
-        let scheduler = scheduler.with_rate(pacer.rate());
         let sys = config.system_id;
         let comp = config.component_id;
         Ok(Self {
             fc_reader: FrameReader::new(),
             radio_reader: RadioLeg::reader(config.signing.as_ref()),
             filter: RadioFilter::new(config.profile.clone()),
-            pacer,
+            pacer: TxbufPacer::new(config.scheduler.rate_bytes_per_s),
             scheduler,
             quality: LinkQuality::new(config.quality, now),
             compactor: config.compact.map(Compactor::new),
@@ -925,9 +923,6 @@ impl Bridge {
 
     /// The next frame for the radio if the budget allows at `now` and it fits `room` bytes.
     pub fn poll_radio_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
-        if let Some(rate) = self.pacer.poll(now) {
-            self.scheduler.set_rate(rate);
-        }
         self.drain_mission(now);
         loop {
             self.refill_params(now);

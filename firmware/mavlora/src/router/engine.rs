@@ -237,10 +237,9 @@ impl Router {
             quality: LinkQuality::new(config.quality, now),
             monitor: LinkMonitor::new(config.monitor),
             vehicle: None,
-            pacer: TxbufPacer::new(config.scheduler.rate_bytes_per_s, now),
+            pacer: TxbufPacer::new(config.scheduler.rate_bytes_per_s),
             scheduler: LinkScheduler::new(config.scheduler, now)?
-                .with_frame_extra(radio_leg.frame_extra())
-                .with_rate(TxbufPacer::new(config.scheduler.rate_bytes_per_s, now).rate()),
+                .with_frame_extra(radio_leg.frame_extra()),
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
             param_reads: ReadGate::default(),
@@ -841,9 +840,6 @@ impl Router {
 
     /// The next frame for the radio if the budget allows at `now` and it fits `room` bytes.
     pub fn poll_radio_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
-        if let Some(rate) = self.pacer.poll(now) {
-            self.scheduler.set_rate(rate);
-        }
         loop {
             let frame = self.scheduler.poll_transmit(now, room)?;
             if (frame.system_id(), frame.component_id())

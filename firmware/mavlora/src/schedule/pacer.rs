@@ -9,17 +9,12 @@
 //! thresholds ArduPilot paces its streams by (`GCS_MAVLINK::handle_radio_status`): below 20 %
 //! free it halves the rate, below 50 % it takes a quarter off, above 95 % it adds 1/16 of the
 //! configured rate and above 90 % 1/64; in between it holds. The configured rate stays the
-//! ceiling. The start is slow: half the configured rate until the radio's first report, so
-//! the burst of a start (an autopilot streaming at full rate at once) does not overflow a
-//! radio at half its nominal throughput before it has said anything (measured: 306 bytes
-//! dropped in the first seconds without it). A radio that has reported nothing after
-//! [`PROBATION`] reports nothing: the configured rate stands from then on.
-
-use crate::time::{Duration, Instant};
-
-/// How long the pacer waits for a first report at half rate: SiK reports after each
-/// HEARTBEAT its host sends, about once a second.
-pub const PROBATION: Duration = Duration::from_secs(3);
+//! ceiling and stands until the radio's first report: a radio that reports nothing keeps
+//! the configured budget (a slow start for everyone cost a LoRa link, which reports nothing,
+//! a second-long gap in positions at every start). The first report that shows the buffer
+//! filling (below 90 % free) halves the rate at once: at twice the real throughput the
+//! buffer (1.85 KB on SiK) would overflow within the second to the next report, and a
+//! quarter off would still be above the real rate.
 
 /// The budget's rate, paced by the radio's free transmit buffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,9 +22,6 @@ pub struct TxbufPacer {
     ceiling: u32,
     floor: u32,
     rate: u32,
-    /// Until when the slow start waits for a first report; `None` once it came or the
-    /// wait is over.
-    probation: Option<Instant>,
     reports: u64,
 }
 
@@ -38,15 +30,12 @@ pub struct TxbufPacer {
 const FLOOR_DIVISOR: u32 = 16;
 
 impl TxbufPacer {
-    /// Paces a budget configured at `ceiling` bytes per second, from `now`: half of it until
-    /// the radio's first report or [`PROBATION`].
-    pub fn new(ceiling: u32, now: Instant) -> Self {
-        let floor = (ceiling / FLOOR_DIVISOR).max(1);
+    /// Paces a budget configured at `ceiling` bytes per second.
+    pub fn new(ceiling: u32) -> Self {
         Self {
             ceiling,
-            floor,
-            rate: (ceiling / 2).max(floor),
-            probation: Some(now + PROBATION),
+            floor: (ceiling / FLOOR_DIVISOR).max(1),
+            rate: ceiling,
             reports: 0,
         }
     }
@@ -54,19 +43,6 @@ impl TxbufPacer {
     /// The rate the budget should run at now, bytes per second.
     pub fn rate(&self) -> u32 {
         self.rate
-    }
-
-    /// Ends the slow start of a radio that said nothing for [`PROBATION`]; returns the
-    /// configured rate then.
-    pub fn poll(&mut self, now: Instant) -> Option<u32> {
-        match self.probation {
-            Some(until) if now >= until => {
-                self.probation = None;
-                self.rate = self.ceiling;
-                Some(self.ceiling)
-            }
-            _ => None,
-        }
     }
 
     /// Reports taken.
@@ -78,9 +54,10 @@ impl TxbufPacer {
     /// when it changed.
     pub fn handle_txbuf(&mut self, txbuf_pct: u8) -> Option<u32> {
         self.reports += 1;
-        self.probation = None;
         let rate = self.rate;
         let next = match txbuf_pct {
+            // The first sign of a radio slower than configured.
+            0..=89 if self.reports == 1 => rate / 2,
             0..20 => rate / 2,
             20..50 => rate - rate / 4,
             91..=95 => rate.saturating_add(self.ceiling / 64),
@@ -97,22 +74,24 @@ impl TxbufPacer {
 mod tests {
     use super::*;
 
-    const T0: Instant = Instant::ZERO;
-
     #[test]
-    fn a_radio_that_says_nothing_gets_half_for_the_probation_then_the_configured_rate() {
-        let mut p = TxbufPacer::new(4000, T0);
-        assert_eq!(p.rate(), 2000);
-        assert_eq!(p.poll(T0 + Duration::from_millis(2999)), None);
-        assert_eq!(p.poll(T0 + PROBATION), Some(4000));
-        assert_eq!(p.poll(T0 + PROBATION * 2), None);
+    fn nothing_reported_keeps_the_configured_rate() {
+        assert_eq!(TxbufPacer::new(4000).rate(), 4000);
     }
 
     #[test]
-    fn a_free_buffer_climbs_from_the_slow_start_to_the_ceiling_and_no_further() {
-        let mut p = TxbufPacer::new(4000, T0);
-        assert_eq!(p.handle_txbuf(100), Some(2250));
-        let mut reports = 1;
+    fn a_first_report_of_a_filling_buffer_halves_the_rate_at_once() {
+        let mut p = TxbufPacer::new(4000);
+        assert_eq!(p.handle_txbuf(70), Some(2000));
+        assert_eq!(p.handle_txbuf(70), None, "then held between 50 and 90 %");
+    }
+
+    #[test]
+    fn a_free_buffer_keeps_the_ceiling_and_climbs_back_to_it() {
+        let mut p = TxbufPacer::new(4000);
+        assert_eq!(p.handle_txbuf(100), None, "never above the ceiling");
+        assert_eq!(p.handle_txbuf(10), Some(2000));
+        let mut reports = 0;
         while p.rate() < 4000 {
             p.handle_txbuf(100);
             reports += 1;
@@ -121,16 +100,14 @@ mod tests {
             reports, 8,
             "half to full in 1/16 steps: 8 reports (about 8 s)"
         );
-        assert_eq!(p.handle_txbuf(100), None, "never above the ceiling");
-        assert_eq!(p.poll(T0 + PROBATION), None, "a report ended the probation");
     }
 
     #[test]
     fn a_filling_buffer_cuts_the_rate_harder_the_fuller_it_is() {
-        let mut p = TxbufPacer::new(4000, T0);
-        assert_eq!(p.handle_txbuf(70), None, "held");
-        assert_eq!(p.handle_txbuf(40), Some(1500));
-        assert_eq!(p.handle_txbuf(10), Some(750));
+        let mut p = TxbufPacer::new(4000);
+        assert_eq!(p.handle_txbuf(95), None);
+        assert_eq!(p.handle_txbuf(40), Some(3000));
+        assert_eq!(p.handle_txbuf(10), Some(1500));
         for _ in 0..10 {
             p.handle_txbuf(0);
         }
@@ -139,7 +116,8 @@ mod tests {
 
     #[test]
     fn a_nearly_free_buffer_creeps_up_slowly() {
-        let mut p = TxbufPacer::new(6400, T0);
+        let mut p = TxbufPacer::new(6400);
+        p.handle_txbuf(0);
         assert_eq!(p.handle_txbuf(93), Some(3300));
         assert_eq!(p.handle_txbuf(90), None, "90 % holds");
     }

@@ -235,12 +235,6 @@ impl LinkScheduler {
         self
     }
 
-    /// Starts at `rate_bytes_per_s` instead of the configured rate (a pacer's slow start).
-    pub fn with_rate(mut self, rate_bytes_per_s: u32) -> Self {
-        self.set_rate(rate_bytes_per_s);
-        self
-    }
-
     /// Paces the budget at `rate_bytes_per_s` from now on (a [`super::TxbufPacer`]'s rate);
     /// the configured rate is what it started at.
     pub fn set_rate(&mut self, rate_bytes_per_s: u32) {
