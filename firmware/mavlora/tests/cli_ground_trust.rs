@@ -236,3 +236,80 @@ fn scenario(name: &str, intruder_addr: &str, ground_key: Option<[u8; 32]>) {
     );
     assert!(status.success(), "exit status {status:?}\n{log}");
 }
+
+/// A ground station on an allowed address but with a system id the router does not allow:
+/// pymavlink at id 42 sends heartbeats for 3 s. It is told why, once (reports are per 10 s),
+/// in a STATUSTEXT from the router (issue 22 item 11: MAVSDK at id 245 timed out with no word
+/// at the station), and gets nothing else: it is not a peer.
+const REFUSED: &str = r#"
+import json, os, sys, time
+os.environ["MAVLINK20"] = "1"
+from pymavlink import mavutil
+conn = mavutil.mavlink_connection(sys.argv[1], source_system=42, source_component=190)
+texts, others = [], 0
+start, last_hb = time.monotonic(), -1.0
+while time.monotonic() - start < 3:
+    now = time.monotonic() - start
+    if now - last_hb >= 0.2:
+        conn.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        last_hb = now
+    msg = conn.recv_match(blocking=True, timeout=0.05)
+    if msg is None or msg.get_type() == "BAD_DATA":
+        continue
+    if msg.get_type() == "STATUSTEXT":
+        texts.append([msg.get_srcSystem(), msg.severity, msg.text])
+    else:
+        others += 1
+print(json.dumps({"texts": texts, "others": others}))
+"#;
+
+#[test]
+fn a_station_whose_system_id_is_refused_is_told_why() {
+    let dir = std::env::temp_dir().join(format!("mavlora-trust-told-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (_radio, slave) = TTYPort::pair().unwrap();
+    let (nowhere, router_port) = (free_udp_port(), free_udp_port());
+    let log = std::fs::File::create(dir.join("router.log")).unwrap();
+    let mut router = Command::new(env!("CARGO_BIN_EXE_mavlora-router"))
+        .arg("--unsigned")
+        .arg("--radio")
+        .arg(slave.name().unwrap())
+        .args(["--udp", &format!("127.0.0.1:{nowhere}")])
+        .args(["--udp-bind", &format!("127.0.0.1:{router_port}")])
+        .env("RUST_LOG", "info")
+        .stderr(Stdio::from(log))
+        .spawn()
+        .unwrap();
+    thread::sleep(Duration::from_millis(500));
+    let out = Command::new("python3")
+        .args(["-c", REFUSED, &format!("udpout:127.0.0.1:{router_port}")])
+        .output()
+        .expect("python3");
+    let _ = Command::new("kill")
+        .args(["-TERM", &router.id().to_string()])
+        .status();
+    router.wait().unwrap();
+    let log = std::fs::read_to_string(dir.join("router.log")).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap_or(""))
+        .unwrap_or_else(|e| {
+            panic!(
+                "station (pymavlink installed?): {e}: {stdout}\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            )
+        });
+    let texts = summary["texts"].as_array().unwrap();
+    assert_eq!(
+        texts.len(),
+        1,
+        "told once per report period: {summary}\n{log}"
+    );
+    let text = texts[0][2].as_str().unwrap();
+    assert!(text.contains("system id 42 not allowed"), "{text:?}\n{log}");
+    assert_eq!(texts[0][0], 255, "from the router's own id: {summary}");
+    assert_eq!(
+        summary["others"], 0,
+        "a refused station got other frames: {summary}"
+    );
+}

@@ -326,6 +326,14 @@ impl Side<Router> for GroundSide {
         };
         let input = router.handle_gcs_input(now, from, &frame);
         report(from, &input);
+        if let Some(reply) = &input.reply {
+            // To the refused station alone, as it spoke (a datagram, or its TCP stream).
+            if udp {
+                self.udp.send_one(reply.as_bytes(), from);
+            } else if let Some(tcp) = &self.tcp {
+                tcp.send_one(reply.as_bytes(), from);
+            }
+        }
         if input.learn_peer() {
             // Whole and checked by the engine: its start byte is its version.
             let version = if frame.first() == Some(&mavlora::wire::STX_V1) {

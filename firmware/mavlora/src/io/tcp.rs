@@ -164,6 +164,13 @@ impl TcpEndpoint {
         }
     }
 
+    /// Queues one frame for the client at `to` alone (a refused station told why).
+    pub fn send_one(&self, bytes: &[u8], to: SocketAddr) {
+        if let Some(c) = self.shared.clients().iter().find(|c| c.addr == to) {
+            c.out.push(bytes.to_vec(), bytes.len(), Lane::Priority);
+        }
+    }
+
     /// Queues one frame for every client, in the version each speaks; never blocks. A
     /// client whose queue is full loses its oldest periodic frames first (counted). A frame
     /// MAVLink 1 cannot carry is dropped for MAVLink 1 clients only (counted).

@@ -212,6 +212,11 @@ impl UdpEndpoint {
         self.pending_v1.clear();
     }
 
+    /// Sends one frame to `to` alone, at once (a refused station told why: not a peer).
+    pub fn send_one(&mut self, frame: &[u8], to: SocketAddr) {
+        self.send_to(frame, to);
+    }
+
     fn send_to(&mut self, datagram: &[u8], to: SocketAddr) {
         if datagram.is_empty() {
             return;

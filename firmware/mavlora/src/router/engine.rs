@@ -13,7 +13,7 @@ use crate::command::{
     Admission, CommandRetransmitter, Redundancy, RetransmitStats, link_loss, random_epoch,
 };
 use crate::compact::Expander;
-use crate::dialect::{MavMessage, RADIO_STATUS_DATA};
+use crate::dialect::{MavMessage, MavSeverity, RADIO_STATUS_DATA, STATUSTEXT_DATA};
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
 use crate::param::{ParamValue, ReadGate, ReadGateStats, pack as param_pack, param_value_frame};
@@ -520,7 +520,35 @@ impl Router {
         if due {
             self.reported.insert((from, why), now);
             input.report.get_or_insert(why);
+            // A station we let in by address but refuse a frame of is ours to help: MAVSDK
+            // timing out at id 245 had no word of why (issue 22 item 11). With ground
+            // signing, a sender without the key is the stranger that policy is for: told
+            // nothing, as a stranger by address.
+            if matches!(
+                why,
+                GroundRejection::SystemId(_) | GroundRejection::CommandBudget
+            ) && input.reply.is_none()
+            {
+                input.reply = Some(self.refusal_text(why));
+            }
         }
+    }
+
+    /// The `STATUSTEXT` a refused ground station gets: why, in the 50 characters it holds.
+    fn refusal_text(&mut self, why: GroundRejection) -> OwnedFrame {
+        let mut text = format!("MavLora router refused: {why}");
+        if text.len() > 50 {
+            let mut end = 50;
+            while !text.is_char_boundary(end) {
+                end -= 1;
+            }
+            text.truncate(end);
+        }
+        self.sender.frame(&MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+            severity: MavSeverity::MAV_SEVERITY_WARNING,
+            text: text.as_str().into(),
+            ..Default::default()
+        }))
     }
 
     /// Bytes from the radio's serial port.

@@ -489,6 +489,50 @@ fn ground_frames_from_other_addresses_or_system_ids_never_reach_the_radio() {
     assert_eq!(commands(&radio_out(&mut r, ms(50))), 1);
 }
 
+/// Issue 22 item 11: a station the router lets in by address but refuses a frame of (a
+/// system id not allowed) is told why, once per report period, in a `STATUSTEXT` for it
+/// alone; a stranger (an address not allowed) is told nothing.
+#[test]
+fn a_refused_station_is_told_why_and_a_stranger_is_not() {
+    let mut r = router();
+    let arm = crate::testutil::arm_command();
+    let mut station = Sender::new(42, 190, MavlinkVersion::V2);
+    let input = r.handle_gcs_bytes(ms(0), station.frame(&arm).as_bytes());
+    assert_eq!(input.report, Some(GroundRejection::SystemId(42)));
+    let reply = input.reply.expect("the refused station was not told");
+    assert_eq!(
+        (reply.system_id(), reply.message_id()),
+        (
+            RouterConfig::new(SchedulerConfig::for_radio(1000, 300)).system_id,
+            crate::wire::ids::STATUSTEXT
+        )
+    );
+    let Ok(MavMessage::STATUSTEXT(text)) = reply.decode::<MavMessage>() else {
+        panic!("not a STATUSTEXT: {reply:?}");
+    };
+    let text = String::from_utf8_lossy(&text.text.to_vec())
+        .trim_end_matches('\0')
+        .to_string();
+    assert_eq!(text, "MavLora router refused: system id 42 not allowed");
+    assert!(
+        r.handle_gcs_bytes(ms(100), station.frame(&arm).as_bytes())
+            .reply
+            .is_none(),
+        "told again within the report period"
+    );
+    let stranger: std::net::SocketAddr = "192.168.1.66:14550".parse().unwrap();
+    let mut spoof = Sender::new(255, 190, MavlinkVersion::V2);
+    let input = r.handle_gcs_input(ms(200), stranger, spoof.frame(&arm).as_bytes());
+    assert_eq!(input.report, Some(GroundRejection::Address));
+    assert!(input.reply.is_none(), "a stranger was answered");
+    // Nothing of the refused station's went to the radio, and its reply not to the peers.
+    assert_eq!(commands(&radio_out(&mut r, ms(300))), 0);
+    assert!(
+        r.poll_gcs_transmit()
+            .is_none_or(|f| f.message_id() != crate::wire::ids::STATUSTEXT)
+    );
+}
+
 #[test]
 fn one_source_cannot_fill_the_command_relay() {
     use crate::dialect::{COMMAND_LONG_DATA, MavCmd};

@@ -213,7 +213,7 @@ impl TrustStats {
 }
 
 /// What became of one datagram (or TCP chunk) from the ground.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct GroundInput {
     /// Checksum-valid frames that passed the policy.
     pub accepted: usize,
@@ -222,6 +222,11 @@ pub struct GroundInput {
     /// The first reason, when a report is due for this source and reason (rate-limited by
     /// [`GroundPolicy::log_every`]): the IO layer logs it.
     pub report: Option<GroundRejection>,
+    /// What to tell the source, with the report: a `STATUSTEXT` saying why it was refused,
+    /// for the IO layer to send to that source alone (it is not a peer, so nothing else
+    /// reaches it). Only for a system id not allowed or commands over budget: a stranger (an
+    /// address not allowed, or a sender without the ground key) is told nothing.
+    pub reply: Option<crate::wire::OwnedFrame>,
 }
 
 impl GroundInput {

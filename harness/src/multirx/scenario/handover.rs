@@ -64,7 +64,7 @@ fn failsafe_mark(s: &MultirxSession, rx: u8) -> Result<Mono> {
     let off = Mono::now();
     s.receiver(rx).set_tx(false)?;
     Ok(s.receiver(rx)
-        .first_frame_with_flags(off, 0x08, std::time::Duration::from_secs(1))?)
+        .first_frame_with_flags(off, 0x08, super::FIXTURE_FIRST_FRAME)?)
 }
 
 fn silent_mark(s: &MultirxSession, rx: u8) -> Result<Mono> {

@@ -55,7 +55,7 @@ fn run(
     s.fly(0)?;
     ifs.set_channels(&[(ch + 1, IFS_VALUE)])?;
     let on = ifs.set_tx(true)?;
-    let t0 = ifs.first_frame_with_flags(on.t(), 0, Duration::from_secs(1))?;
+    let t0 = ifs.first_frame_with_flags(on.t(), 0, super::FIXTURE_FIRST_FRAME)?;
     let f =
         s.fc.wait_for(t0, Duration::from_secs(1), "the IFS override", |f| {
             f.channels[usize::from(ch)] == IFS_VALUE && s.shows_pilot(f, 0)

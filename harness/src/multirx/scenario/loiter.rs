@@ -46,7 +46,7 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, entry: Handle) -> Result<()> 
     s.receiver(0).set_tx(false)?;
     let t0 = s
         .receiver(0)
-        .first_frame_with_flags(off, 0x08, Duration::from_secs(1))?;
+        .first_frame_with_flags(off, 0x08, super::FIXTURE_FIRST_FRAME)?;
     let (mode, pilot) = (s.mode_index(), s.pilot_index());
     let f =
         s.fc.wait_for(t0, s.acquire_timeout(), "auto-loiter with no pilot", |f| {

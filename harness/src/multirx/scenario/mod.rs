@@ -312,3 +312,9 @@ pub fn record_session(
 
 /// Settle time between steps, so each pilot's receiver is steadily up.
 pub const SETTLE: Duration = Duration::from_millis(600);
+
+/// Longest wait for a receiver fixture to report the first frame it wrote after a change (a
+/// transmitter off: its first failsafe frame). The fixture stamps the frame when it writes
+/// it, and measurements run from that stamp, so this only bounds a fixture that stalls: a
+/// second was too short for a fixture under CI's load once (scan c_loiter).
+pub const FIXTURE_FIRST_FRAME: Duration = Duration::from_secs(3);

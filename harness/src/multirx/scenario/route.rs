@@ -1,8 +1,6 @@
 //! A route with a pilot at every receiver: each pilot switches on before the
 //! previous one switches off, and control walks down the line.
 
-use std::time::Duration;
-
 use anyhow::Result;
 
 use super::{ModeLimits, SETTLE, Scenario, Script, SessionOptions};
@@ -54,7 +52,7 @@ fn run(
         s.receiver(k - 1).set_tx(false)?;
         let t0 = s
             .receiver(k - 1)
-            .first_frame_with_flags(off, 0x08, Duration::from_secs(1))?;
+            .first_frame_with_flags(off, 0x08, super::FIXTURE_FIRST_FRAME)?;
         let f = s.fc.wait_for(
             t0,
             s.acquire_timeout(),
