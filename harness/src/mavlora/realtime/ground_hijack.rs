@@ -110,6 +110,7 @@ struct Measured {
     unsigned: Unsigned,
     on_radio: Handle,
     to_intruders: Handle,
+    refusals: Handle,
     sent: Handle,
     uncounted: Handle,
     gaps: Handle,
@@ -131,11 +132,16 @@ fn plan(d: &mut Declarations) -> Script {
         to_intruders: d.declare(
             spec("ground_hijack_datagrams_to_intruders", "")
                 .describe(
-                    "datagrams the router sent to an intruder's socket: the vehicle's \
-                     telemetry redirected to a stranger",
+                    "datagrams the router sent to an intruder's socket, its refusal notices \
+                     aside: the vehicle's telemetry redirected to a stranger",
                 )
                 .equal_to(0.0),
         ),
+        refusals: d.declare(spec("ground_hijack_refusal_notices", "").describe(
+            "STATUSTEXTs the router sent an intruder to say it refused it (a program on an \
+             allowed address with a system id not allowed is told why, at most once per reason \
+             per 10 s; a stranger is told nothing)",
+        )),
         sent: d.declare(spec("ground_hijack_intruder_frames_sent", "").describe(
             "well-formed frames the intruders sent to the router's ground port, both \
                  sessions (garbage and partial frames besides)",
@@ -203,6 +209,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     let attack_end = attack_start + ATTACK;
 
     let (mut on_radio, mut to_intruders, mut sent, mut uncounted, mut gaps) = (0, 0, 0, 0, 0);
+    let mut refusals = 0;
     let mut reports = Vec::new();
     for ((session, started), (name, _, who)) in sessions.into_iter().zip(intruders).zip(&SESSIONS) {
         let mut summaries = Vec::new();
@@ -217,7 +224,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
                 );
             }
             ctx.log(format!(
-                "{name}: {} ({} as system {}{}) sent {} frames {:?} and {} garbage datagrams, got {} datagrams back",
+                "{name}: {} ({} as system {}{}) sent {} frames {:?} and {} garbage datagrams, got {} datagrams back and {} refusal notices",
                 i.label,
                 i.source,
                 i.sysid,
@@ -225,7 +232,8 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
                 s.frames_sent,
                 s.by_type,
                 s.garbage_sent,
-                s.datagrams_received
+                s.datagrams_received,
+                s.refusals_received
             ));
             summaries.push(s);
         }
@@ -246,6 +254,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
         on_radio += crossed;
         let name_sent: u64 = summaries.iter().map(|s| s.frames_sent).sum();
         to_intruders += summaries.iter().map(|s| s.datagrams_received).sum::<u64>();
+        refusals += summaries.iter().map(|s| s.refusals_received).sum::<u64>();
         sent += name_sent;
         let rejected = report
             .router_status
@@ -261,6 +270,7 @@ fn run(ctx: &mut PhaseContext, d: &SessionDefaults, m: &Measured) -> Result<()> 
     }
     ctx.record(m.on_radio, f64::from(on_radio));
     ctx.record(m.to_intruders, to_intruders as f64);
+    ctx.record(m.refusals, refusals as f64);
     ctx.record(m.sent, sent as f64);
     ctx.record(m.uncounted, uncounted as f64);
     ctx.record(m.gaps, gaps as f64);
