@@ -117,6 +117,14 @@ fn main() {
     });
     let unsigned_log = file_len(&log);
     let (key_arg, state) = (key_path.to_str().unwrap(), dir.join("state"));
+    // A router that knows the bridge's link from a previous run: a fresh one would hold the
+    // bridge's frames until it answered a liveness challenge, and the replay answers none.
+    let known = signing_epoch_now().saturating_sub(100_000);
+    fs::write(
+        &state,
+        format!("mavlora-signing-state 1\ntimestamp {known}\nstream 1 1 1 {known}\n"),
+    )
+    .unwrap();
     let signed_log = dir.join("router-signed.log");
     let signed_feed = Feed::new(&capture, rounds, Some(key));
     let signed = replay("mavlora-router --key", signed_feed, |pty, sink| {
