@@ -22,9 +22,7 @@ use crate::filter::{
 use crate::mission::{MissionRelay, MissionStats};
 use crate::param::{ParamPackStats, ParamPacker, ParamValue};
 use crate::quality::{LinkQuality, is_local_radio_status};
-use crate::schedule::{
-    Class, LinkScheduler, ScheduleError, SchedulerStats, TokenBucket, TxbufPacer,
-};
+use crate::schedule::{Class, LinkScheduler, ScheduleError, SchedulerStats, TokenBucket};
 use crate::signing::{RadioLeg, SigningStats, is_link_frame};
 use crate::time::Instant;
 use crate::wire::{
@@ -140,8 +138,6 @@ pub struct Bridge {
     radio_reader: FrameReader,
     filter: RadioFilter,
     scheduler: LinkScheduler,
-    /// Moves the scheduler's rate by the local radio's free buffer.
-    pacer: TxbufPacer,
     quality: LinkQuality,
     compactor: Option<Compactor>,
     mission: MissionRelay,
@@ -183,7 +179,6 @@ impl Bridge {
             fc_reader: FrameReader::new(),
             radio_reader: RadioLeg::reader(config.signing.as_ref()),
             filter: RadioFilter::new(config.profile.clone()),
-            pacer: TxbufPacer::new(config.scheduler.rate_bytes_per_s),
             scheduler,
             quality: LinkQuality::new(config.quality, now),
             compactor: config.compact.map(Compactor::new),
@@ -610,13 +605,9 @@ impl Bridge {
     pub fn handle_radio_status(&mut self, status: RADIO_STATUS_DATA) {
         let txbuf = status.txbuf;
         self.quality.handle_radio_status(status);
-        // The radio's free buffer paces the budget ([`TxbufPacer`]), when this link reads
-        // its radio's reports at all.
-        if self.quality.local_radio().is_some()
-            && let Some(rate) = self.pacer.handle_txbuf(txbuf)
-        {
-            tracing::debug!(txbuf, rate, "radio budget paced by the radio's buffer");
-            self.scheduler.set_rate(rate);
+        // The radio's free buffer paces the budget, when this link reads its radio's reports.
+        if self.quality.local_radio().is_some() {
+            self.scheduler.handle_txbuf(txbuf);
         }
     }
 

@@ -21,7 +21,7 @@ use crate::quality::{
     LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig, Notice, is_local_radio_status,
 };
 use crate::schedule::{
-    Class, LinkScheduler, Origin, ScheduleError, SchedulerConfig, SchedulerStats, TxbufPacer,
+    Class, LinkScheduler, Origin, ScheduleError, SchedulerConfig, SchedulerStats,
 };
 use crate::signing::{LinkSigner, RadioLeg, SigningConfig, SigningStats, is_link_frame};
 use crate::time::Instant;
@@ -178,8 +178,6 @@ pub struct Router {
     /// The vehicle's system id, from its link-quality reports (or its first frame).
     vehicle: Option<u8>,
     scheduler: LinkScheduler,
-    /// Moves the scheduler's rate by the local radio's free buffer.
-    pacer: TxbufPacer,
     heartbeat_filter: RadioFilter,
     expander: Expander,
     /// The ground's reads of values a list in flight brings wait here.
@@ -237,7 +235,6 @@ impl Router {
             quality: LinkQuality::new(config.quality, now),
             monitor: LinkMonitor::new(config.monitor),
             vehicle: None,
-            pacer: TxbufPacer::new(config.scheduler.rate_bytes_per_s),
             scheduler: LinkScheduler::new(config.scheduler, now)?
                 .with_frame_extra(radio_leg.frame_extra()),
             heartbeat_filter: RadioFilter::new(profile),
@@ -330,13 +327,9 @@ impl Router {
     pub fn handle_radio_status(&mut self, status: RADIO_STATUS_DATA) {
         let txbuf = status.txbuf;
         self.quality.handle_radio_status(status);
-        // The radio's free buffer paces the budget ([`TxbufPacer`]), when this link reads
-        // its radio's reports at all.
-        if self.quality.local_radio().is_some()
-            && let Some(rate) = self.pacer.handle_txbuf(txbuf)
-        {
-            tracing::debug!(txbuf, rate, "radio budget paced by the radio's buffer");
-            self.scheduler.set_rate(rate);
+        // The radio's free buffer paces the budget, when this link reads its radio's reports.
+        if self.quality.local_radio().is_some() {
+            self.scheduler.handle_txbuf(txbuf);
         }
     }
 

@@ -165,6 +165,8 @@ pub const SPARE_RESERVE_BYTES: usize = 64;
 pub struct LinkScheduler {
     config: SchedulerConfig,
     bucket: TokenBucket,
+    /// Moves the bucket's rate by the radio's free buffer.
+    pacer: super::TxbufPacer,
     commands: FairQueue,
     transfers: FairQueue,
     status: FairQueue,
@@ -210,6 +212,7 @@ impl LinkScheduler {
         Ok(Self {
             config,
             bucket: TokenBucket::new(config.rate_bytes_per_s, config.burst_bytes, now),
+            pacer: super::TxbufPacer::new(config.rate_bytes_per_s),
             commands: FairQueue::default(),
             transfers: FairQueue::default(),
             status: FairQueue::default(),
@@ -235,10 +238,13 @@ impl LinkScheduler {
         self
     }
 
-    /// Paces the budget at `rate_bytes_per_s` from now on (a [`super::TxbufPacer`]'s rate);
-    /// the configured rate is what it started at.
-    pub fn set_rate(&mut self, rate_bytes_per_s: u32) {
-        self.bucket.set_rate(rate_bytes_per_s.max(1));
+    /// The local radio reported `txbuf_pct` % of its transmit buffer free: the budget's rate
+    /// follows ([`super::TxbufPacer`]; the configured rate is the ceiling).
+    pub fn handle_txbuf(&mut self, txbuf_pct: u8) {
+        if let Some(rate) = self.pacer.handle_txbuf(txbuf_pct) {
+            tracing::debug!(txbuf_pct, rate, "radio budget paced by the radio's buffer");
+            self.bucket.set_rate(rate.max(1));
+        }
     }
 
     /// The byte rate in force.
