@@ -45,6 +45,14 @@ impl std::ops::Add<Duration> for Mono {
     }
 }
 
+impl std::ops::Sub<Duration> for Mono {
+    type Output = Mono;
+    /// Saturates at the clock's zero.
+    fn sub(self, d: Duration) -> Mono {
+        Mono(self.0.saturating_sub(d))
+    }
+}
+
 impl fmt::Display for Mono {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{:.6}s", self.0.as_secs_f64())

@@ -4,10 +4,11 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
+use multirx_core::boot::ResetCause;
 use serialport::TTYPort;
 
 use super::MULTIRX_EMU;
@@ -17,6 +18,7 @@ use crate::driver::process::Process;
 use crate::driver::pty::{PtyLink, PtyPair};
 use crate::multirx::boot_check;
 use crate::multirx::driver::fc::FcMonitor;
+use crate::multirx::driver::probe::ProbeDriver;
 use crate::multirx::driver::receiver::{Loss, ReceiverFixture, ReceiverSpec};
 use crate::multirx::driver::status::StatusMonitor;
 use crate::multirx::driver::tx_probe;
@@ -60,14 +62,20 @@ pub struct MultirxSession {
     pub boot: Option<multirx_core::BootReport>,
     /// When the session was up.
     pub started: Mono,
+    /// Start of the window the session's figures judge: when the session was up, or the
+    /// first frame after a [`MultirxSession::reset_device`] (a reset's gap is the
+    /// scenario's to judge, by its own limits).
+    judged_from: Mutex<Mono>,
     /// End of the window the last [`MultirxSession::px4_report`] judged;
     /// the capture stops there too, so it shows exactly what was judged.
-    judged_until: std::sync::Mutex<Option<Mono>>,
+    judged_until: Mutex<Option<Mono>>,
     /// Where logs of this session go.
     pub log_dir: PathBuf,
-    device: Option<Process>,
-    /// The emulated device's TX probe (see `multirx-emu --tx-log`).
-    tx_log: Option<PathBuf>,
+    /// The emulated device: how it is started, the running program, the files of every
+    /// run (a reset starts another).
+    emulator: Option<Emulator>,
+    /// The board's probe, for a reset.
+    probe: Option<ProbeDriver>,
     /// The emulated wires into the device: receivers in order, then IFS.
     links: Vec<PtyLink>,
     _ptys: Vec<PtyPair>,
@@ -125,14 +133,24 @@ impl MultirxSession {
             }),
         )?;
         let fc = FcMonitor::start(wiring.fc)?;
-        let device = match &section.device.setup {
-            DeviceSetup::Emulated { program } => Some(spawn_emulator(
-                program.as_deref(),
-                &loaded.path,
-                &wiring.device_ends,
-                log_dir,
-            )?),
-            DeviceSetup::Board(_) => None,
+        let started = Mono::now();
+        let (emulator, probe) = match &section.device.setup {
+            DeviceSetup::Emulated { program } => {
+                let launch = EmulatorLaunch {
+                    program: program.clone(),
+                    config: loaded.path.clone(),
+                    ends: wiring.device_ends,
+                    log_dir: log_dir.to_path_buf(),
+                };
+                (Some(Emulator::start(launch)?), None)
+            }
+            DeviceSetup::Board(board) => (
+                None,
+                Some(ProbeDriver {
+                    selector: board.probe.clone(),
+                    chip: board.chip.clone(),
+                }),
+            ),
         };
 
         let mut session = MultirxSession {
@@ -143,11 +161,12 @@ impl MultirxSession {
             fc,
             status,
             boot: None,
-            started: Mono::now(),
-            judged_until: std::sync::Mutex::new(None),
+            started,
+            judged_from: Mutex::new(started),
+            judged_until: Mutex::new(None),
             log_dir: log_dir.to_path_buf(),
-            tx_log: device.as_ref().map(|_| log_dir.join(TX_LOG)),
-            device,
+            emulator,
+            probe,
             links: wiring.links,
             _ptys: wiring.ptys,
         };
@@ -225,6 +244,15 @@ impl MultirxSession {
             && frame.channels[0] == pilot_stick(rx)
     }
 
+    /// Whether `frame` shows nobody in control: neutral sticks, the flight-mode channel at
+    /// auto-loiter and the pilot channel at "none".
+    pub fn shows_loiter(&self, frame: &FcFrame) -> bool {
+        let c = &self.config;
+        frame.channels[self.mode_index()] == c.auto_loiter_value
+            && frame.channels[self.pilot_index()] == c.no_receiver_value
+            && frame.channels[..4] == c.neutral[..4]
+    }
+
     /// The longest a scenario may wait for MultiRX to give control to a pilot.
     pub fn acquire_timeout(&self) -> Duration {
         let c = &self.config;
@@ -252,23 +280,71 @@ impl MultirxSession {
     /// `None` without a probe (a board: there the flight-controller side is
     /// all we see).
     pub fn device_cadence(&self) -> Result<Option<tx_probe::Cadence>> {
-        let Some(path) = &self.tx_log else {
+        let Some(emulator) = &self.emulator else {
             return Ok(None);
         };
+        let path = emulator.tx_log();
         let until = self.judged_until.lock().unwrap().unwrap_or_else(Mono::now);
-        let lines = tx_probe::read_past(path, until, std::time::Duration::from_millis(500))?;
-        Ok(Some(tx_probe::cadence(&lines, self.started, until)))
+        let from = *self.judged_from.lock().unwrap();
+        let lines = tx_probe::read_past(&path, until, std::time::Duration::from_millis(500))?;
+        Ok(Some(tx_probe::cadence(&lines, from, until)))
     }
 
-    /// PX4's view of the whole session so far.
+    /// PX4's view of the whole session so far (since the last reset, if any).
     pub fn px4_report(&self) -> RcReport {
-        let frames = self.fc.frames();
         let until = Mono::now();
         *self.judged_until.lock().unwrap() = Some(until);
+        self.px4_replay(*self.judged_from.lock().unwrap(), until)
+    }
+
+    /// PX4's view of the output between `from` and `until`.
+    pub fn px4_replay(&self, from: Mono, until: Mono) -> RcReport {
         Px4RcInput {
             mode_channel: self.config.flight_mode_channel + 1,
         }
-        .replay(&frames, self.started, until)
+        .replay(&self.fc.frames(), from, until)
+    }
+
+    /// Resets the device as a panic would, in flight: a board through its probe (a system
+    /// reset request); an emulated device is killed, every receiver it powered switched off
+    /// (a reset floats the power switches' gates, which their pull-downs turn off: see
+    /// `firmware/multirx/samd21/src/board.rs`) and the program started again, reporting a
+    /// `software` reset. Returns when the reset happened, and judges the session's figures
+    /// from `judge_from` on (the first frame after the reset, which the caller waits for).
+    pub fn reset_device(&self) -> Result<Mono> {
+        if let Some(emulator) = &self.emulator {
+            let reset = emulator.reset(|| {
+                for r in self.receivers.iter() {
+                    // A receiver already off ignores it.
+                    let _ = r.send("power off");
+                }
+            })?;
+            return Ok(reset);
+        }
+        let probe = self
+            .probe
+            .as_ref()
+            .context("neither an emulated device nor a board's probe to reset")?;
+        let name = probe.reset()?;
+        let reset = Mono::now();
+        tracing::info!(probe = %name, "MultiRX board reset through its probe");
+        Ok(reset)
+    }
+
+    /// The session's figures judge from `from` on (see [`Self::reset_device`]).
+    pub fn judge_from(&self, from: Mono) {
+        *self.judged_from.lock().unwrap() = from;
+    }
+
+    /// The first boot line read after `after` reporting `cause`, waiting up to `timeout`.
+    pub fn boot_after(
+        &self,
+        after: Mono,
+        cause: ResetCause,
+        timeout: Duration,
+    ) -> Option<multirx_core::BootReport> {
+        self.status
+            .wait_for_boot_after(after, timeout, |b| b.reset == cause)
     }
 
     /// Writes every frame the flight controller saw as CSV (evidence, and
@@ -303,6 +379,20 @@ impl MultirxSession {
         Ok(path)
     }
 
+    /// Writes every status line the device sent (power, link, control, overflow, boot) with
+    /// when the rig read it: what the device decided, next to what the flight controller saw.
+    fn write_status_events(&self) -> std::io::Result<PathBuf> {
+        use std::io::Write;
+        let path = self.log_dir.join("status-events.txt");
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+        writeln!(out, "# rig_t_ms  status line (device micros first)")?;
+        for (at, event) in self.status.events() {
+            writeln!(out, "{:.3}  {event}", at.ms_since(self.started))?;
+        }
+        out.flush()?;
+        Ok(path)
+    }
+
     /// Stops everything; returns the log and capture files written.
     pub fn finish(mut self) -> Vec<PathBuf> {
         let mut logs: Vec<PathBuf> = self
@@ -317,20 +407,18 @@ impl MultirxSession {
             ifs.stop();
             logs.push(ifs.log_path());
         }
-        if let Some(mut device) = self.device.take() {
-            device.stop(Duration::from_secs(2));
-            logs.push(device.log_path().to_path_buf());
-            let status = self.log_dir.join(EMU_STATUS);
-            if status.exists() {
-                logs.push(status);
-            }
+        if let Some(emulator) = self.emulator.take() {
+            logs.extend(emulator.stop());
         }
-        logs.extend(self.tx_log.clone().filter(|p| p.exists()));
         self.fc.stop();
         self.status.stop();
         match self.write_capture() {
             Ok(path) => logs.push(path),
             Err(e) => tracing::warn!(error = %e, "flight-controller capture not written"),
+        }
+        match self.write_status_events() {
+            Ok(path) => logs.push(path),
+            Err(e) => tracing::warn!(error = %e, "status events not written"),
         }
         logs
     }
@@ -505,36 +593,132 @@ fn start_receiver(rig: &RigFile, spec: &ReceiverSpec, log_dir: &Path) -> Result<
     )?)
 }
 
-/// Starts the emulated device (`program`, else `multirx-emu` next to the rig) with the config
-/// at `config` on its ends of the lines; fails if it exits at once.
-fn spawn_emulator(
-    program: Option<&Path>,
-    config: &Path,
-    ends: &DeviceEnds,
-    log_dir: &Path,
-) -> Result<Process> {
-    let program = match program {
-        Some(p) => p.to_path_buf(),
-        None => MULTIRX_EMU
-            .find()
-            .map_err(|e| anyhow::anyhow!("{e}, or set program in [multirx.device]"))?,
-    };
-    let mut command = Command::new(&program);
-    command.arg("--config").arg(config);
-    for path in &ends.receivers {
-        command.args(["--rx", path]);
+/// How the emulated device is started: `program` (else `multirx-emu` next to the rig) with
+/// the config at `config` on its ends of the lines.
+struct EmulatorLaunch {
+    program: Option<PathBuf>,
+    config: PathBuf,
+    ends: DeviceEnds,
+    log_dir: PathBuf,
+}
+
+/// One run of the emulated device's program: its process and files. The first run's files
+/// have the plain names; a run after a reset has `.reset-<n>` before the extension.
+struct EmulatorRun {
+    process: Process,
+    /// Its TX probe (see `multirx-emu --tx-log`).
+    tx_log: PathBuf,
+    /// Its status lines (`--status-json`).
+    status: PathBuf,
+}
+
+/// The emulated device across resets.
+struct Emulator {
+    launch: EmulatorLaunch,
+    current: Mutex<Option<EmulatorRun>>,
+    /// Files of runs a reset ended.
+    ended: Mutex<Vec<PathBuf>>,
+    runs: std::sync::atomic::AtomicUsize,
+}
+
+impl Emulator {
+    fn start(launch: EmulatorLaunch) -> Result<Emulator> {
+        let first = launch.spawn(0, ResetCause::Host)?;
+        Ok(Emulator {
+            launch,
+            current: Mutex::new(Some(first)),
+            ended: Mutex::new(Vec::new()),
+            runs: std::sync::atomic::AtomicUsize::new(1),
+        })
     }
-    command.args(["--fc", &ends.fc, "--status", &ends.status]);
-    if let Some(ifs) = &ends.ifs {
-        command.args(["--ifs", ifs]);
+
+    /// The TX probe of the run in progress.
+    fn tx_log(&self) -> PathBuf {
+        let current = self.current.lock().unwrap();
+        match &*current {
+            Some(run) => run.tx_log.clone(),
+            None => self.launch.log_dir.join(TX_LOG),
+        }
     }
-    command.arg("--tx-log").arg(log_dir.join(TX_LOG));
-    // Its counters as data, kept with the phase's evidence.
-    command.arg("--status-json").arg(log_dir.join(EMU_STATUS));
-    let mut process = Process::spawn("multirx-emu", command, &log_dir.join("multirx-emu.log"))?;
-    std::thread::sleep(Duration::from_millis(50));
-    process.check_running()?;
-    Ok(process)
+
+    /// Kills the running program (a reset stops the chip at once), calls `power_off` (what
+    /// the reset does to the receivers) and starts the program again; returns the kill's time.
+    fn reset(&self, power_off: impl FnOnce()) -> Result<Mono> {
+        let mut current = self.current.lock().unwrap();
+        let mut run = current
+            .take()
+            .context("the emulated device is not running")?;
+        let reset = Mono::now();
+        run.process.kill();
+        power_off();
+        self.ended.lock().unwrap().extend(run.files());
+        let n = self.runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        *current = Some(self.launch.spawn(n, ResetCause::Software)?);
+        Ok(reset)
+    }
+
+    /// Stops the program; returns every run's files that exist.
+    fn stop(self) -> Vec<PathBuf> {
+        let mut files = self.ended.into_inner().unwrap();
+        if let Some(mut run) = self.current.into_inner().unwrap() {
+            run.process.stop(Duration::from_secs(2));
+            files.extend(run.files());
+        }
+        files.retain(|p| p.exists());
+        files
+    }
+}
+
+impl EmulatorRun {
+    fn files(&self) -> [PathBuf; 3] {
+        [
+            self.process.log_path().to_path_buf(),
+            self.status.clone(),
+            self.tx_log.clone(),
+        ]
+    }
+}
+
+impl EmulatorLaunch {
+    /// Starts run `n` reporting `reset` on its boot line; fails if it exits at once.
+    fn spawn(&self, n: usize, reset: ResetCause) -> Result<EmulatorRun> {
+        let program = match &self.program {
+            Some(p) => p.clone(),
+            None => MULTIRX_EMU
+                .find()
+                .map_err(|e| anyhow::anyhow!("{e}, or set program in [multirx.device]"))?,
+        };
+        let file = |name: &str| {
+            let name = match (n, name.split_once('.')) {
+                (0, _) | (_, None) => name.to_owned(),
+                (n, Some((stem, ext))) => format!("{stem}.reset-{n}.{ext}"),
+            };
+            self.log_dir.join(name)
+        };
+        let (tx_log, status) = (file(TX_LOG), file(EMU_STATUS));
+        let ends = &self.ends;
+        let mut command = Command::new(&program);
+        command.arg("--config").arg(&self.config);
+        for path in &ends.receivers {
+            command.args(["--rx", path]);
+        }
+        command.args(["--fc", &ends.fc, "--status", &ends.status]);
+        if let Some(ifs) = &ends.ifs {
+            command.args(["--ifs", ifs]);
+        }
+        command.arg("--tx-log").arg(&tx_log);
+        // Its counters as data, kept with the phase's evidence.
+        command.arg("--status-json").arg(&status);
+        command.args(["--reset-cause", reset.name()]);
+        let mut process = Process::spawn("multirx-emu", command, &file("multirx-emu.log"))?;
+        std::thread::sleep(Duration::from_millis(50));
+        process.check_running()?;
+        Ok(EmulatorRun {
+            process,
+            tx_log,
+            status,
+        })
+    }
 }
 
 /// The emulated device's TX probe file, in the session's log folder.

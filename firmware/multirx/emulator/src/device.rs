@@ -107,13 +107,19 @@ pub struct Device {
 }
 
 impl Device {
-    pub fn new(config: Config, fc: Output, status: Option<Output>, tap: Option<TxTap>) -> Self {
+    pub fn new(
+        config: Config,
+        fc: Output,
+        status: Option<Output>,
+        tap: Option<TxTap>,
+        reset: ResetCause,
+    ) -> Self {
         let config_hash = config.identity_hash();
         let boot = BootReport {
             at: Instant::ZERO,
             build_id: emulated_build_id(config_hash),
             config_hash,
-            reset: ResetCause::Host,
+            reset,
             first_frame: Default::default(),
         };
         Device {

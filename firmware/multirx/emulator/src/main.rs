@@ -24,6 +24,7 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use hostio::status::StatusWriter;
 use multirx_core::Config;
+use multirx_core::boot::ResetCause;
 use serde::Serialize;
 
 use device::{Device, Status, StatusJson};
@@ -60,6 +61,19 @@ struct Args {
     /// Seconds between status lines in --status-json, 0.1..=86400.
     #[arg(long, default_value = "5", value_parser = seconds)]
     status_interval: Duration,
+    /// The reset cause the boot line reports: `host` (a process start), or, when the rig
+    /// restarts this program to play a chip reset in flight, that reset's cause (`software`:
+    /// a panic or a debugger's reset, `watchdog`, ...; the boot line's names).
+    #[arg(long, default_value = "host", value_parser = reset_cause)]
+    reset_cause: ResetCause,
+}
+
+/// A reset cause by its boot-line name.
+fn reset_cause(text: &str) -> Result<ResetCause, String> {
+    ResetCause::from_name(text).ok_or_else(|| {
+        let names: Vec<&str> = ResetCause::ALL.iter().map(|c| c.name()).collect();
+        format!("{text} is not a reset cause; one of {}", names.join(", "))
+    })
 }
 
 /// A period option: 0.1..=86400 seconds.
@@ -189,7 +203,7 @@ fn run(args: Args, json: &mut Option<StatusWriter>, last: &mut Option<Status>) -
     );
     hostio::realtime::request("engine");
     let tap = args.tx_log.as_deref().map(tap::TxTap::create).transpose()?;
-    let mut device = Device::new(config, fc, status, tap);
+    let mut device = Device::new(config, fc, status, tap, args.reset_cause);
     let every = args.status_interval;
     let stats = device.run(
         rx,

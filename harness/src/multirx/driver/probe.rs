@@ -54,6 +54,23 @@ impl ProbeDriver {
             elf.display()
         )
     }
+
+    /// Resets the chip as a panic does (a system reset request: `PM.RCAUSE` reads SYST, the
+    /// boot line `software`); returns the probe's name.
+    #[cfg(feature = "flash")]
+    pub fn reset(&self) -> Result<String> {
+        session::reset(self)
+    }
+
+    /// Built without probe-rs: says so, and how to get it.
+    #[cfg(not(feature = "flash"))]
+    pub fn reset(&self) -> Result<String> {
+        bail!(
+            "cannot reset the board through probe {}: this rig was built without its `flash` \
+             feature (probe-rs); build it with default features: cargo build --release -p harness",
+            self.selector
+        )
+    }
 }
 
 /// A chip or probe that cannot be flashed safely.

@@ -46,6 +46,9 @@ pub enum ReceiverEvent {
         period_ms: f64,
         boot_ms: f64,
         lost_frames: u32,
+        /// Whether it runs under SCHED_FIFO (refused without CAP_SYS_NICE: then its frames
+        /// follow host load).
+        realtime: bool,
     },
     /// Power after a `power` command.
     Power {
@@ -190,7 +193,7 @@ mod tests {
         );
         let e: ReceiverEvent = serde_json::from_str(
             r#"{"t": 1.0, "name": "rx0", "event": "ready", "port": "/dev/pts/3", "port_configured": false,
-                "power": false, "tx": false, "loss": "silent", "period_ms": 7.0, "boot_ms": 300.0, "lost_frames": 0}"#,
+                "power": false, "tx": false, "loss": "silent", "period_ms": 7.0, "boot_ms": 300.0, "lost_frames": 0, "realtime": false}"#,
         )
         .unwrap();
         assert!(matches!(

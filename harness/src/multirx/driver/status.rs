@@ -103,6 +103,29 @@ impl StatusMonitor {
         }
     }
 
+    /// The first boot line read after `after` that `wanted` accepts, waiting up to `timeout`
+    /// for one (a device reset in the session boots again; the lines the device wrote before
+    /// it may still be read just after).
+    pub fn wait_for_boot_after(
+        &self,
+        after: Mono,
+        timeout: Duration,
+        wanted: impl Fn(&BootReport) -> bool,
+    ) -> Option<BootReport> {
+        let deadline = std::time::Instant::now() + timeout;
+        loop {
+            let boots = self.boots.lock().unwrap();
+            if let Some((_, boot)) = boots.iter().find(|(at, b)| *at > after && wanted(b)) {
+                return Some(*boot);
+            }
+            drop(boots);
+            if std::time::Instant::now() >= deadline {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
     pub fn stop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         if let Some(r) = self.reader.take() {

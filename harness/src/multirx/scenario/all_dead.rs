@@ -64,12 +64,9 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, h: Handles) -> Result<()> {
     for rx in 0..s.config.receivers {
         s.receiver(rx).set_power(false)?;
     }
-    let (mode, pilot) = (s.mode_index(), s.pilot_index());
     let loiter =
         s.fc.wait_for(off, s.acquire_timeout(), "auto-loiter with no pilot", |f| {
-            f.channels[mode] == s.config.auto_loiter_value
-                && f.channels[pilot] == s.config.no_receiver_value
-                && f.channels[..4] == s.config.neutral[..4]
+            s.shows_loiter(f)
         })?;
     ctx.record(h.entry, loiter.at.ms_since(off));
     std::thread::sleep(DEAD);

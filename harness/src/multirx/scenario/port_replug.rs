@@ -33,6 +33,10 @@ const OUT: Duration = Duration::from_secs(1);
 /// away (multirx-emu's backoff ceiling): the most a returning port can go unnoticed.
 const REOPEN_MAX: Duration = Duration::from_secs(1);
 
+/// Scan mode: a replugged receiver is back in control within one scan cycle plus this (the
+/// reopen backoff, the receiver's boot and acquisition; issue 24's target).
+const REPLUG_SCAN_MARGIN_MS: f64 = 2000.0;
+
 struct Handles {
     entry: Handle,
     back: Handle,
@@ -49,15 +53,19 @@ fn plan(d: &mut Declarations, l: &ModeLimits) -> Script {
                 )
                 .at_most(l.handover_silent_ms),
         ),
-        back: d.declare(
-            l.spec("port_replug_recovery_ms", "ms")
-                // Bounded by the script (the device's reopen backoff ceiling plus the
-                // session's acquire timeout, else the phase fails): recorded.
-                .describe(
-                    "the wire plugged back → the pilot in control again: the device's reopen \
-                     (backoff up to 1 s) and acquisition",
-                ),
-        ),
+        back: d.declare({
+            let spec = l.spec("port_replug_recovery_ms", "ms").describe(
+                "the wire plugged back → the pilot in control again: the device's reopen \
+                 (backoff up to 1 s) and acquisition; scan mode: limit one scan cycle (every \
+                 receiver's window) plus 2 s (issue 24)",
+            );
+            match l.scan_cycle_ms {
+                Some(cycle) => spec.at_most(cycle + REPLUG_SCAN_MARGIN_MS),
+                // Parallel: bounded by the script (the reopen backoff ceiling plus the
+                // session's acquire timeout, else the phase fails); no requirement: recorded.
+                None => spec,
+            }
+        }),
     };
     Box::new(move |s, ctx, _| run(s, ctx, h))
 }
@@ -67,7 +75,6 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, h: Handles) -> Result<()> {
     s.receiver(0).set_channels(&[(fm, POSITION_MODE)])?;
     s.fly(0)?;
     ctx.log("pilot 1 in control in position mode");
-    let (mode, pilot) = (s.mode_index(), s.pilot_index());
     let replug = std::thread::scope(|scope| {
         let unplugged = Mono::now();
         let replug = scope.spawn(|| s.replug_receiver(0, OUT));
@@ -75,11 +82,7 @@ fn run(s: &MultirxSession, ctx: &mut PhaseContext, h: Handles) -> Result<()> {
             unplugged,
             s.acquire_timeout(),
             "auto-loiter with no pilot",
-            |f| {
-                f.channels[mode] == s.config.auto_loiter_value
-                    && f.channels[pilot] == s.config.no_receiver_value
-                    && f.channels[..4] == s.config.neutral[..4]
-            },
+            |f| s.shows_loiter(f),
         );
         let back = replug.join().expect("the replug thread panicked");
         (unplugged, loiter, back)

@@ -1,6 +1,6 @@
-//! The probe-rs session behind [`ProbeDriver::flash`]: find and open the probe, attach,
-//! check the device id and BOOTPROT, download with read-back, restart; each step under
-//! its time limit ([`run_steps`]).
+//! The probe-rs session behind [`ProbeDriver::flash`] and [`ProbeDriver::reset`]: find and
+//! open the probe, attach, check the device id and BOOTPROT, download with read-back,
+//! restart; each step under its time limit ([`run_steps`]).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -28,8 +28,29 @@ pub(super) fn flash(driver: &ProbeDriver, elf: &Path) -> Result<Flashed> {
     })
 }
 
-fn flash_steps(steps: &Steps, selector: &ProbeSelector, chip: &str, elf: &Path) -> Result<Flashed> {
-    let started = Instant::now();
+/// See [`ProbeDriver::reset`].
+pub(super) fn reset(driver: &ProbeDriver) -> Result<String> {
+    let selector = driver.selector.clone();
+    let chip = driver.chip.clone();
+    let label = format!("{}", driver.selector);
+    run_steps(&label, move |steps| {
+        let (mut session, name) = attach(steps, &selector, &chip)?;
+        steps.step("resetting the chip", limits::RESET);
+        session
+            .core(0)
+            .and_then(|mut core| core.reset())
+            .with_context(|| format!("probe {name}: cannot reset the chip"))?;
+        Ok(name)
+    })
+}
+
+/// Finds and opens the probe, and attaches to `chip`; returns the session and the probe's
+/// name for messages.
+fn attach(
+    steps: &Steps,
+    selector: &ProbeSelector,
+    chip: &str,
+) -> Result<(probe_rs::Session, String)> {
     steps.step("listing and opening the probe", limits::ATTACH);
     let lister = Lister::new();
     let probes = lister.list_all();
@@ -66,9 +87,15 @@ fn flash_steps(steps: &Steps, selector: &ProbeSelector, chip: &str, elf: &Path) 
     let name = format!("{} ({selector})", probe.get_name());
     steps.probe(&name);
     steps.step(&format!("attaching to {chip}"), limits::ATTACH);
-    let mut session = probe
+    let session = probe
         .attach(chip, Permissions::default())
         .with_context(|| format!("probe {name} cannot attach to {chip}"))?;
+    Ok((session, name))
+}
+
+fn flash_steps(steps: &Steps, selector: &ProbeSelector, chip: &str, elf: &Path) -> Result<Flashed> {
+    let started = Instant::now();
+    let (mut session, name) = attach(steps, selector, chip)?;
     steps.step("reading the device id (DSU DID)", limits::READ);
     let did = session
         .core(0)
