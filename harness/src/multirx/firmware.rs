@@ -1,8 +1,9 @@
 //! Built → flashed: compiles the MultiRX firmware with a mode's config baked
 //! in (as the paper did, but through the core's validation), checks the image
 //! as CI does (`ci/check-firmware-elf.py`: no panic reachable from the UART
-//! interrupts, a stack bound that fits) and flashes it. An image CI would
-//! refuse is never flashed.
+//! interrupts, a stack bound that fits, the reset handler's RAM
+//! initialisation within what the boot line's `first-frame-us` may leave
+//! out) and flashes it. An image CI would refuse is never flashed.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -232,7 +232,21 @@ pub struct BootReport {
     /// [`Config::identity_hash`] of the configuration it runs.
     pub config_hash: u64,
     pub reset: ResetCause,
-    /// From the device's clock start to its first SBUS frame to the flight controller.
+    /// From the device's clock start to its first SBUS frame to the flight
+    /// controller (queued for its UART; the frame's start bit follows within
+    /// a loop pass).
+    ///
+    /// On the SAMD21 the clock is the 1 MHz timer, started at the end of the
+    /// board's set-up, so the figure leaves out what comes before it, about
+    /// 0.5 ms by estimate from the datasheet (not measured): the reset
+    /// handler's RAM initialisation at the 1 MHz reset clock (56 µs with
+    /// 24 bytes of `.bss`; computed from the image and bounded at 500 µs by
+    /// `ci/check-firmware-elf.py`), the watchdog's two register
+    /// synchronisations at 32,768 Hz (at most 2 × 186 µs), and the GCLK,
+    /// BOD33, DFLL and SERCOM set-up (each synchronisation at most 6 periods
+    /// of its clock: tens of µs). Also left out: the supply's rise and the
+    /// chip's power-on start-up before its reset handler runs. The emulated
+    /// device counts from its process start.
     pub first_frame: Duration,
 }
 

@@ -11,6 +11,7 @@
 //! - [`power::PowerSequencer`]: receiver switch-ons staggered against inrush;
 //! - [`counter::Counter32`]: a wrapping 32-bit µs counter extended to an [`Instant`];
 //! - [`watchdog::FeedGate`]: whether the board may feed its watchdog (engine on time, FC bytes leaving);
+//! - [`clock_switch::quiet_window`]: whether the board may move its 48 MHz clock onto the crystal now (between frames);
 //! - [`board`]: how many UART inputs the board has ([`board::SAMD21_UARTS`]) and whether a config fits.
 //!
 //! The contract: no IO, no clock, no allocation, deterministic. Callers pass
@@ -22,6 +23,7 @@
 
 pub mod board;
 pub mod boot;
+pub mod clock_switch;
 pub mod config;
 pub mod counter;
 pub mod decoder;

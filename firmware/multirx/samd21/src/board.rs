@@ -282,18 +282,20 @@ pub fn timer_raw() -> u32 {
     tc4.count32().count().read().bits()
 }
 
-/// The watchdog, clocked at 1024 Hz; resets the chip after 256 cycles
-/// (250 ms) without [`feed`](Self::feed). Started by [`clocks::start_watchdog`]
-/// before anything else. Written here rather than taken from the HAL because its `feed` writes CLEAR even while the
-/// previous clear is still crossing into the 1 kHz clock domain, which stalls
-/// the bus (and every interrupt) for milliseconds.
+/// The watchdog, clocked at 32,768 Hz (OSCULP32K undivided); resets the chip
+/// after 8,192 cycles (250 ms) without [`feed`](Self::feed). Started by
+/// [`clocks::start_watchdog`] before anything else. Written here rather than
+/// taken from the HAL because its `feed` writes CLEAR even while the
+/// previous clear is still crossing into the watchdog's clock domain, which
+/// stalls the bus (and every interrupt) until it has.
 pub struct Watchdog {
     wdt: pac::Wdt,
 }
 
 impl Watchdog {
     /// Restarts the countdown without waiting: skipped while the previous
-    /// restart is still synchronising, which means it was at most ~3 ms ago.
+    /// restart is still synchronising, which means it was at most ~0.19 ms
+    /// ago (6 watchdog clock periods, datasheet 14.3.1.8).
     pub fn feed(&mut self) {
         if self.wdt.status().read().syncbusy().bit_is_clear() {
             self.wdt.clear().write(|w| w.clear().key());

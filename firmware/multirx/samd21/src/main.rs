@@ -3,7 +3,8 @@
 //!
 //! - [`Board::new`] starts the watchdog, the brown-out detector and the clocks,
 //!   in that order, without waiting for the crystal ([`clocks`]); the loop
-//!   polls [`clocks::CrystalSwitch`] to move onto the crystal once it runs.
+//!   polls [`clocks::CrystalSwitch`] to move onto the crystal once it runs,
+//!   only in a quiet window between output frames ([`quiet_window`]).
 //! - SBUS bytes from each receiver (and the IFS) arrive by RX interrupt into a
 //!   small lock-free SPSC queue per SERCOM, each stamped with the timer in the
 //!   interrupt; each loop pass hands the engine what a queue holds as one
@@ -48,6 +49,7 @@ mod config {
 
 use core::cell::RefCell;
 use core::fmt::Write as _;
+use core::mem::MaybeUninit;
 
 use atsamd_hal::ehal_nb::serial::{Read, Write};
 use atsamd_hal::pac::{self, NVIC, interrupt};
@@ -57,6 +59,7 @@ use critical_section::Mutex;
 use heapless::Deque;
 use heapless::spsc::{Consumer, Producer, Queue};
 use multirx_core::boot::BootReport;
+use multirx_core::clock_switch::{SAMD21_CRYSTAL_SWITCH, quiet_window};
 use multirx_core::mux::joins_slice;
 use multirx_core::power::{POWER_ON_STAGGER, PowerSequencer};
 use multirx_core::watchdog::FeedGate;
@@ -93,6 +96,31 @@ const STATUS_QUEUE: usize = 512;
 /// How often the boot line is repeated, so a rig that opens the status port
 /// after the board started still learns which image and config it runs.
 const BOOT_LINE_EVERY: Duration = Duration::from_secs(1);
+
+/// The receive queues, one per SBUS input: 3,120 of the image's RAM bytes.
+/// In cortex-m-rt's `.uninit` rather than `.bss`: the reset handler zeroes
+/// `.bss` at the reset clock (1 MHz), before the timer `first-frame-us`
+/// counts from starts, at 6 cycles a word (see `ci/check-firmware-elf.py`),
+/// so these 3 KiB cost 4.7 ms there; [`rx_queues`] initialises them at
+/// 48 MHz instead.
+#[unsafe(link_section = ".uninit.RX_QUEUES")]
+static mut RX_QUEUES: MaybeUninit<[Queue<RxEntry, RX_QUEUE>; RECEIVER_PORTS]> =
+    MaybeUninit::uninit();
+
+/// The receive queues, initialised: empty (`Queue::new` sets head and tail;
+/// its slots are `MaybeUninit` and need nothing).
+///
+/// # Safety
+///
+/// Once only, before any RX interrupt is unmasked: the reference is the
+/// only one to the queues until `split` hands their halves out.
+unsafe fn rx_queues() -> &'static mut [Queue<RxEntry, RX_QUEUE>; RECEIVER_PORTS] {
+    // `&raw mut`: no reference to the uninitialised static is made.
+    let slot = &raw mut RX_QUEUES;
+    // SAFETY: the caller's contract makes this the only access; `write`
+    // returns the reference to what it initialised.
+    unsafe { (*slot).write([const { Queue::new() }; RECEIVER_PORTS]) }
+}
 
 /// A queue entry: a received byte, or [`UART_ERROR`], and the timer's raw
 /// count when the interrupt read it. Stamped in the interrupt, not when the
@@ -291,10 +319,9 @@ fn main() -> ! {
     // stamp a byte.
     let mut fed: [u32; RECEIVER_PORTS] = [timer_raw(); RECEIVER_PORTS];
 
-    let queues = cortex_m::singleton!(
-        : [Queue<RxEntry, RX_QUEUE>; RECEIVER_PORTS] = [const { Queue::new() }; RECEIVER_PORTS]
-    )
-    .expect("created once");
+    // SAFETY: here only, and every RX interrupt is still masked (`install`
+    // unmasks them below).
+    let queues = unsafe { rx_queues() };
     let [q0, q1, q2, q3, q4, q5] = queues;
     let (p0, c0) = q0.split();
     let (p1, c1) = q1.split();
@@ -326,7 +353,6 @@ fn main() -> ! {
 
     loop {
         let now = clock.now();
-        crystal.poll();
         quick_boot.poll(now);
 
         for (port, input) in inputs.iter_mut().enumerate() {
@@ -405,6 +431,20 @@ fn main() -> ! {
 
         if feed_gate.may_feed(now, mux.poll_timeout()) {
             watchdog.feed();
+        }
+
+        // The 48 MHz onto the crystal between two frames, never while a
+        // byte for the flight controller is queued or shifting out.
+        if crystal.pending() {
+            let tx_idle = fc_queue.is_empty() && fc_out.read_flags().contains(Flags::TXC);
+            if quiet_window(
+                clock.now(),
+                mux.poll_timeout(),
+                tx_idle,
+                SAMD21_CRYSTAL_SWITCH,
+            ) {
+                crystal.poll();
+            }
         }
     }
 }
