@@ -25,6 +25,7 @@
 //! params = ["sik-64k", { radio = "lora-sf7", autopilots = ["px4"] }]  # an entry may name
 //! mission = ["sik-bursty"]            # which of the autopilots fly it (default: all of them)
 //! flight = ["sik-64k"]
+//! table_ii = [{ radio = "sik-64k", autopilots = ["px4"] }]  # Table II's limit + filter row
 //! ```
 
 use std::collections::BTreeMap;
@@ -120,6 +121,8 @@ pub struct SitlPlan {
     pub mission: Vec<SitlRun>,
     /// A whole flight: GUIDED, arm, takeoff, AUTO, RTL, landed.
     pub flight: Vec<SitlRun>,
+    /// Table II's limiting + filtering row with the autopilot's own streams.
+    pub table_ii: Vec<SitlRun>,
 }
 
 /// One radio a `sitl` scenario runs over, and which of the suite's autopilots fly it.
@@ -188,6 +191,7 @@ pub(crate) struct RawSitl {
     pub params: Option<Vec<RawSitlRun>>,
     pub mission: Option<Vec<RawSitlRun>>,
     pub flight: Option<Vec<RawSitlRun>>,
+    pub table_ii: Option<Vec<RawSitlRun>>,
 }
 
 /// A radio's name, or `{ radio = "...", autopilots = [...] }`.
@@ -407,6 +411,7 @@ impl Checker<'_> {
             params: many("params", raw.params)?,
             mission: many("mission", raw.mission)?,
             flight: many("flight", raw.flight)?,
+            table_ii: many("table_ii", raw.table_ii)?,
         })
     }
 

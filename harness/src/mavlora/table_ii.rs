@@ -7,6 +7,9 @@ use std::fmt::Write as _;
 
 use crate::mavlora::simulated::table_ii::{ARDUPILOT, paper_table};
 use crate::measurement::{Dimension, PTY, PX4, SIMULATED, Selector};
+
+/// The autopilot dimension of a real PX4 (`px4-sitl` in the rig file).
+const PX4_SITL: &str = "px4_sitl";
 use crate::record::RunRecord;
 
 /// The table, or `None` when the run measured none of its rows.
@@ -26,13 +29,31 @@ pub fn render(record: &RunRecord) -> Option<String> {
     };
     let value =
         |base: &str, transport: &str, variant: &str| value_of(PX4, base, transport, variant);
+    // Real PX4 (the `sitl` suite) on SiK 64k: its Table II phase for limiting + filtering, its
+    // telemetry phase (downlink bytes) for compact.
+    let sitl = |base: &str, variant: &str| {
+        let selector = Selector::base(base)
+            .dim(Dimension::Device, "mavlora")
+            .dim(Dimension::Transport, PTY)
+            .dim(Dimension::Autopilot, PX4_SITL)
+            .dim(Dimension::Radio, "sik_64k")
+            .dim(Dimension::Variant, variant);
+        record.select(&selector).find_map(|(_, m)| m.value)
+    };
     let fmt = |v: Option<f64>| v.map_or("-".to_owned(), |v| format!("{v:.1}"));
     let mut any = false;
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "Table II (UAV→GCS)  {:>11} {:>11}   {:>11} {:>11}   {:>11} {:>11}",
-        "paper B/s", "paper msg/s", "sim B/s", "sim msg/s", "pty B/s", "pty msg/s"
+        "Table II (UAV→GCS)  {:>11} {:>11}   {:>11} {:>11}   {:>11} {:>11}   {:>11} {:>11}",
+        "paper B/s",
+        "paper msg/s",
+        "sim B/s",
+        "sim msg/s",
+        "pty B/s",
+        "pty msg/s",
+        "PX4 B/s",
+        "PX4 msg/s"
     );
     for row in paper_table() {
         let v = row.variant;
@@ -41,7 +62,11 @@ pub fn render(record: &RunRecord) -> Option<String> {
             value("msgs_per_s", SIMULATED, v),
         );
         let pty = (value("bytes_per_s", PTY, v), value("msgs_per_s", PTY, v));
-        any |= sim.0.is_some() || pty.0.is_some();
+        let px4 = (
+            sitl("bytes_per_s", v).or_else(|| sitl("down_bytes_per_s", v)),
+            sitl("msgs_per_s", v),
+        );
+        any |= sim.0.is_some() || pty.0.is_some() || px4.0.is_some();
         let paper_bytes = if row.bound {
             format!("< {:.0}", row.bytes_per_s)
         } else {
@@ -49,12 +74,14 @@ pub fn render(record: &RunRecord) -> Option<String> {
         };
         let _ = writeln!(
             out,
-            "  {v:<17} {paper_bytes:>11} {:>11}   {:>11} {:>11}   {:>11} {:>11}",
+            "  {v:<17} {paper_bytes:>11} {:>11}   {:>11} {:>11}   {:>11} {:>11}   {:>11} {:>11}",
             row.msgs_per_s.map_or("-".to_owned(), |m| format!("{m:.2}")),
             fmt(sim.0),
             fmt(sim.1),
             fmt(pty.0),
             fmt(pty.1),
+            fmt(px4.0),
+            fmt(px4.1),
         );
     }
     let mut ap_any = false;
@@ -80,7 +107,8 @@ pub fn render(record: &RunRecord) -> Option<String> {
     }
     out.push_str(
         "  sim: the paper's 513 s flight under a virtual clock, frames on the radio; pty: the \
-         real binaries, msg/s as the ground station decoded them (compact frames expanded)\n",
+         real binaries, msg/s as the ground station decoded them (compact frames expanded); \
+         PX4: the real binaries behind PX4 SITL (the `sitl` suite) on SiK 64k\n",
     );
     if ap_any {
         let _ = writeln!(
@@ -131,6 +159,18 @@ mod tests {
             table("bytes_per_s", SIMULATED, "compact").dim(Dimension::Autopilot, ARDUPILOT),
         );
         d.record(ap, 31.5);
+        // Real PX4 on SiK 64k: its own column, never the fixture's; LoRa not shown.
+        let sitl = |base: &str, variant: &str, radio: &str| {
+            table(base, PTY, variant)
+                .dim(Dimension::Autopilot, PX4_SITL)
+                .dim(Dimension::Radio, radio)
+        };
+        let px4_lf = d.declare(sitl("bytes_per_s", "limit_filter", "sik_64k"));
+        d.record(px4_lf, 612.0);
+        let px4_compact_lora = d.declare(sitl("down_bytes_per_s", "compact", "lora_sf7"));
+        d.record(px4_compact_lora, 54.5);
+        let px4_compact = d.declare(sitl("down_bytes_per_s", "compact", "sik_64k"));
+        d.record(px4_compact, 58.2);
         record.phases.push(PhaseRecord::ran(
             "mavlora::simulated::table_ii",
             "2026-01-31T09:12:37.000Z",
@@ -148,11 +188,23 @@ mod tests {
         };
         assert_eq!(
             row("compact"),
-            ["compact", "<", "100", "-", "48.4", "-", "44.9", "-"]
+            [
+                "compact", "<", "100", "-", "48.4", "-", "44.9", "-", "58.2", "-"
+            ]
         );
         assert_eq!(
             row("limit_filter"),
-            ["limit_filter", "951", "35.23", "-", "-", "-", "9.7"]
+            [
+                "limit_filter",
+                "951",
+                "35.23",
+                "-",
+                "-",
+                "-",
+                "9.7",
+                "612.0",
+                "-"
+            ]
         );
         let ap_table = text.split("ArduPilot-like FC").nth(1).unwrap();
         let ap_compact = ap_table

@@ -10,7 +10,8 @@
 //! - [`mission`]: a 30-item plan uploaded and read back; the plan the vehicle holds must
 //!   be the one the ground was told ACCEPTED;
 //! - [`flight`]: GUIDED, arm, takeoff, AUTO through a mission, RTL, landed: every command
-//!   acked once and done, and each state change at the ground soon after the vehicle's.
+//!   acked once and done, and each state change at the ground soon after the vehicle's;
+//! - [`table_ii`]: the paper's limiting + filtering row with the autopilot's own streams.
 //!
 //! An autopilot whose program is missing makes its phases `skipped` (never passed), with how
 //! to get one.
@@ -20,6 +21,7 @@ pub mod freshness;
 pub mod mission;
 pub mod params;
 pub mod session;
+pub mod table_ii;
 pub mod telemetry;
 
 use std::path::Path;
@@ -132,6 +134,7 @@ pub fn scenarios() -> Vec<Scenario> {
         telemetry::SCENARIO,
         params::SCENARIO,
         mission::SCENARIO,
+        table_ii::SCENARIO,
     ]
 }
 
