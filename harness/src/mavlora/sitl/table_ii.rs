@@ -4,13 +4,8 @@
 //! to the paper's 951 B/s. The compact row with a real autopilot is the telemetry
 //! scenario's `down_bytes_per_s` (the summary's Table II shows both).
 
-use std::time::Duration;
-
-use anyhow::Context;
-
-use super::telemetry::{WARMUP_S, WINDOW_S};
+use super::telemetry::{STEADY_BUDGET, SteadyWindow, steady_args};
 use super::{Flavour, Scenario, Script, Target, options, run};
-use crate::mavlora::fixture::sitl::GroundEvent;
 use crate::mavlora::session::SessionDefaults;
 use crate::measurement::{Declarations, Dimension};
 use crate::runner::PhaseContext;
@@ -35,8 +30,9 @@ const RATE: u32 = 3000;
 fn plan(d: &mut Declarations, t: &Target) -> Script {
     let spec = |base: &str, unit: &str| t.spec(base, unit).dim(Dimension::Variant, VARIANT);
     let bytes = spec("bytes_per_s", "B/s").describe(
-        "UAV→GCS bytes the emulated radio put on air over the steady window (20 s after the \
-         ground station's connection, 30 s), non-compact profile, bridge --rate 3000",
+        "UAV→GCS bytes the emulated radio put on air over the steady window (as the telemetry \
+         scenario's: 20 s after the ground station's connection, 30 s), non-compact profile, \
+         bridge --rate 3000",
     );
     let bytes = match t.flavour() {
         Flavour::Px4 => bytes.at_most(PAPER_LIMIT_FILTER),
@@ -50,19 +46,8 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
     ));
     Box::new(
         move |ctx: &mut PhaseContext, defaults: &SessionDefaults, t: &Target| {
-            let args = [
-                "--scenario",
-                "telemetry",
-                "--listen",
-                &(WARMUP_S + WINDOW_S).to_string(),
-                "--warmup",
-                &WARMUP_S.to_string(),
-            ]
-            .map(String::from)
-            .to_vec();
             let dir = ctx.dir.clone();
-            let budget = Duration::from_secs_f64(WARMUP_S + WINDOW_S + 30.0);
-            let mut o = options(defaults, t, &dir, args, budget);
+            let mut o = options(defaults, t, &dir, steady_args(), STEADY_BUDGET);
             o.link.bridge_profile = defaults.profile_dir.join(match t.flavour() {
                 Flavour::Px4 => "px4-normal.toml",
                 Flavour::ArduPilot => "ardupilot-mavlink1.toml",
@@ -70,24 +55,15 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
             o.link.compact = false;
             o.link.rate = RATE;
             let report = run(ctx, o)?;
-            let (mut start, mut end) = (None, None);
-            for l in &report.ground {
-                match l.event {
-                    GroundEvent::WindowStart { t } => start = Some((t, l.snapshot.clone())),
-                    GroundEvent::WindowEnd { t } => end = Some((t, l.snapshot.clone())),
-                    _ => {}
-                }
-            }
-            let ((from, s0), (to, s1)) = start.zip(end).context("the ground station's window")?;
-            let seconds = to.since(from).as_secs_f64();
-            let down = (s1.0.bytes_sent - s0.0.bytes_sent) as f64 / seconds;
+            let w = SteadyWindow::of(&report)?;
+            let (seconds, down) = (w.seconds, w.down_bytes_per_s);
             let s = &report.ground_summary;
             let per_s = s.messages as f64 / seconds;
             ctx.log(format!(
-            "{VARIANT}: window {seconds:.2} s; radio {down:.1} B/s down; ground {per_s:.2} msg/s \
-             ({} B); by type {:?}",
-            s.bytes, s.by_type
-        ));
+                "{VARIANT}: window {seconds:.2} s; radio {down:.1} B/s down; ground {per_s:.2} \
+                 msg/s ({} B); by type {:?}",
+                s.bytes, s.by_type
+            ));
             ctx.record(bytes, down);
             ctx.record(msgs, per_s);
             Ok(())

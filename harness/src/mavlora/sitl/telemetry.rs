@@ -11,7 +11,9 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 
+use super::session::SitlReport;
 use super::{Scenario, Script, Target, freshness, options, run};
+use crate::clock::Mono;
 use crate::mavlora::fixture::sitl::GroundEvent;
 use crate::mavlora::session::SessionDefaults;
 use crate::measurement::{Declarations, Handle};
@@ -32,6 +34,55 @@ pub const WARMUP_S: f64 = 20.0;
 pub const WINDOW_S: f64 = 30.0;
 /// 10 % of LoRa SF7's 683.6 B/s (the EU 433 MHz duty-cycle rule).
 pub const DOWN_BYTES_MAX: f64 = 68.36;
+
+/// The ground station's arguments for a steady window: [`WARMUP_S`], then [`WINDOW_S`].
+pub fn steady_args() -> Vec<String> {
+    [
+        "--scenario",
+        "telemetry",
+        "--listen",
+        &(WARMUP_S + WINDOW_S).to_string(),
+        "--warmup",
+        &WARMUP_S.to_string(),
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// The longest a steady-window session may take.
+pub const STEADY_BUDGET: Duration = Duration::from_secs(WARMUP_S as u64 + WINDOW_S as u64 + 30);
+
+/// The ground station's steady window and what the radio carried each way in it.
+pub struct SteadyWindow {
+    pub from: Mono,
+    pub to: Mono,
+    pub seconds: f64,
+    pub down_bytes_per_s: f64,
+    pub up_bytes_per_s: f64,
+}
+
+impl SteadyWindow {
+    /// From the ground station's window events and the radio snapshots they carry.
+    pub fn of(report: &SitlReport) -> anyhow::Result<SteadyWindow> {
+        let (mut start, mut end) = (None, None);
+        for l in &report.ground {
+            match l.event {
+                GroundEvent::WindowStart { t } => start = Some((t, l.snapshot.clone())),
+                GroundEvent::WindowEnd { t } => end = Some((t, l.snapshot.clone())),
+                _ => {}
+            }
+        }
+        let ((from, s0), (to, s1)) = start.zip(end).context("the ground station's window")?;
+        let seconds = to.since(from).as_secs_f64();
+        Ok(SteadyWindow {
+            from,
+            to,
+            seconds,
+            down_bytes_per_s: (s1.0.bytes_sent - s0.0.bytes_sent) as f64 / seconds,
+            up_bytes_per_s: (s1.1.bytes_sent - s0.1.bytes_sent) as f64 / seconds,
+        })
+    }
+}
 
 /// The position figures every scenario that watches telemetry records.
 pub struct PositionHandles {
@@ -105,31 +156,15 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
             .describe("GCS→UAV bytes the emulated radio put on air over the window"),
     );
     Box::new(move |ctx, defaults: &SessionDefaults, t: &Target| {
-        let args = [
-            "--scenario",
-            "telemetry",
-            "--listen",
-            &(WARMUP_S + WINDOW_S).to_string(),
-            "--warmup",
-            &WARMUP_S.to_string(),
-        ]
-        .map(String::from)
-        .to_vec();
         let dir = ctx.dir.clone();
-        let budget = Duration::from_secs_f64(WARMUP_S + WINDOW_S + 30.0);
-        let report = run(ctx, options(defaults, t, &dir, args, budget))?;
-        let (mut start, mut end) = (None, None);
-        for l in &report.ground {
-            match l.event {
-                GroundEvent::WindowStart { t } => start = Some((t, l.snapshot.clone())),
-                GroundEvent::WindowEnd { t } => end = Some((t, l.snapshot.clone())),
-                _ => {}
-            }
-        }
-        let ((from, s0), (to, s1)) = start.zip(end).context("the ground station's window")?;
-        let seconds = to.since(from).as_secs_f64();
-        ctx.record(down, (s1.0.bytes_sent - s0.0.bytes_sent) as f64 / seconds);
-        ctx.record(up, (s1.1.bytes_sent - s0.1.bytes_sent) as f64 / seconds);
+        let report = run(
+            ctx,
+            options(defaults, t, &dir, steady_args(), STEADY_BUDGET),
+        )?;
+        let w = SteadyWindow::of(&report)?;
+        let (from, to) = (w.from, w.to);
+        ctx.record(down, w.down_bytes_per_s);
+        ctx.record(up, w.up_bytes_per_s);
         let ground: Vec<_> = report
             .ground_events()
             .filter_map(|e| match e {
