@@ -47,16 +47,30 @@ pub enum Event {
     Stop,
 }
 
-/// Bytes the main loop's [`Inbox`] holds at most (1 MB: a 64 KB datagram's frames fit 16
-/// times; serial ports stop at [`READ_AHEAD`]). What fills it is a flood from the ground,
-/// which it drops; its size keeps the router within 8 MB of peak RSS under a flood (the
-/// project's target for either program; a 4 MB inbox lets a flood take it to ~12 MB).
-pub const INBOX_BYTES: usize = 1024 * 1024;
+/// Bytes the main loop's [`Inbox`] holds at most, counted as memory ([`event_cost`]): 512 KB,
+/// 2,500 small frames, a 64 KB datagram's 1,600 frames and more; serial ports stop at
+/// [`READ_AHEAD`]. What fills it is a flood from the ground, which it drops; its size is most
+/// of what a flood adds to either program's RSS, which must stay within 8 MB (the project's
+/// target; `tests/cli_flood.rs`).
+pub const INBOX_BYTES: usize = 512 * 1024;
 /// Bytes a serial reader may have in the [`Inbox`] before it waits for the main loop (64 KB:
 /// 16 reads of a pty, 0.7 s of a 921600-baud autopilot).
 pub const READ_AHEAD: usize = 64 * 1024;
-/// What an event costs in the [`Inbox`] beyond its payload (the `Vec`'s allocation).
-const EVENT_OVERHEAD: usize = 64;
+
+/// What an event with `payload` bytes costs the process while it waits in the [`Inbox`]: its
+/// queue slot ([`Queue::SLOT_BYTES`]) and the payload's own allocation. Counting the payload
+/// plus 64 bytes held a flood's 40-byte frames at 2.4 MB of RSS in a "1 MB" inbox: 1.3 MB
+/// of slots (16,384 of 80 bytes), the rest allocations.
+fn event_cost(payload: usize) -> usize {
+    Queue::<Event>::SLOT_BYTES + allocation_bytes(payload)
+}
+
+/// What a heap allocation of `len` bytes takes from the allocator (glibc: 8 bytes of header,
+/// rounded up to 16, at least 32): a queue of small frames that counts only their length
+/// holds 2-3 times its bound.
+pub(crate) fn allocation_bytes(len: usize) -> usize {
+    (len + 8).next_multiple_of(16).max(32)
+}
 
 /// The main loop's bounded event queue: IO threads [`send`](Self::send) without blocking; a
 /// full inbox drops the oldest serial bytes and telemetry frames first and ground commands
@@ -85,7 +99,7 @@ impl Inbox {
             }
             Event::Serial(..) | Event::Stop => (0, Lane::Keep),
         };
-        self.0.push(event, bytes + EVENT_OVERHEAD, lane)
+        self.0.push_sized(event, bytes, event_cost(bytes), lane)
     }
 
     /// Waits until the inbox holds at most [`READ_AHEAD`] bytes, at most until `deadline`:

@@ -48,11 +48,12 @@ pub enum Order {
 pub struct QueueStats {
     /// Items dropped because the queue was full (or closed).
     pub dropped_items: u64,
-    /// Their bytes.
+    /// The bytes they carried.
     pub dropped_bytes: u64,
     /// Of those, priority items.
     pub dropped_priority: u64,
-    /// Most bytes held at once.
+    /// Most bytes held at once, as counted against the capacity (what holding the items
+    /// takes, for producers that use [`Queue::push_sized`]).
     pub peak_bytes: usize,
 }
 
@@ -68,7 +69,10 @@ pub enum PopError {
 #[derive(Debug)]
 struct Entry<T> {
     seq: u64,
+    /// What it counts against the capacity.
     bytes: usize,
+    /// What it counts in `dropped_bytes` if dropped.
+    len: usize,
     item: T,
 }
 
@@ -94,6 +98,11 @@ pub struct Queue<T> {
 }
 
 impl<T> Queue<T> {
+    /// What holding one item costs the queue itself, beyond whatever the item owns: its slot,
+    /// twice, because a lane's `VecDeque` doubles its capacity as it grows and keeps it. A
+    /// producer that counts this per item bounds the queue's real memory by `capacity`.
+    pub const SLOT_BYTES: usize = 2 * std::mem::size_of::<Entry<T>>();
+
     /// A queue holding at most `capacity` bytes (as the producers count them), priority items
     /// leaving first.
     pub fn new(capacity: usize) -> Self {
@@ -125,9 +134,17 @@ impl<T> Queue<T> {
     /// Queues `item` of `bytes` bytes; never blocks. Returns `false` if `item` itself was
     /// dropped (closed queue, or no room even after dropping every older droppable item).
     pub fn push(&self, item: T, bytes: usize, lane: Lane) -> bool {
+        self.push_sized(item, bytes, bytes, lane)
+    }
+
+    /// Queues `item` as [`push`](Self::push) does, counting `cost` against the capacity (what
+    /// holding it takes: its slot and allocation, see [`SLOT_BYTES`](Self::SLOT_BYTES)) and
+    /// `len` in [`QueueStats::dropped_bytes`] if it is dropped (the bytes it carries).
+    pub fn push_sized(&self, item: T, len: usize, cost: usize, lane: Lane) -> bool {
+        let bytes = cost;
         let mut s = self.lock();
         if s.closed {
-            s.drop_counted(bytes, lane);
+            s.drop_counted(len, lane);
             return false;
         }
         if lane != Lane::Keep {
@@ -137,21 +154,26 @@ impl<T> Queue<T> {
                 } else if lane == Lane::Priority && !s.lanes[1].is_empty() {
                     Lane::Priority
                 } else {
-                    s.drop_counted(bytes, lane);
+                    s.drop_counted(len, lane);
                     return false;
                 };
                 let old = s.lanes[victim as usize]
                     .pop_front()
                     .expect("non-empty lane");
                 s.bytes -= old.bytes;
-                s.drop_counted(old.bytes, victim);
+                s.drop_counted(old.len, victim);
             }
         }
         let seq = s.next_seq;
         s.next_seq += 1;
         s.bytes += bytes;
         s.stats.peak_bytes = s.stats.peak_bytes.max(s.bytes);
-        s.lanes[lane as usize].push_back(Entry { seq, bytes, item });
+        s.lanes[lane as usize].push_back(Entry {
+            seq,
+            bytes,
+            len,
+            item,
+        });
         drop(s);
         self.ready.notify_one();
         true
@@ -215,7 +237,7 @@ impl<T> Queue<T> {
             for lane in [Lane::Bulk, Lane::Priority, Lane::Keep] {
                 while let Some(old) = s.lanes[lane as usize].pop_front() {
                     s.bytes -= old.bytes;
-                    s.drop_counted(old.bytes, lane);
+                    s.drop_counted(old.len, lane);
                 }
             }
         }
@@ -231,7 +253,7 @@ impl<T> Queue<T> {
         for lane in [Lane::Bulk, Lane::Priority, Lane::Keep] {
             while let Some(old) = s.lanes[lane as usize].pop_front() {
                 s.bytes -= old.bytes;
-                s.drop_counted(old.bytes, lane);
+                s.drop_counted(old.len, lane);
             }
         }
         before
@@ -379,6 +401,22 @@ mod tests {
         q.push(1, 500, Lane::Bulk);
         assert!(!q.wait_room(100, Instant::now() + Duration::from_millis(20)));
         assert!(q.wait_room(500, Instant::now()));
+    }
+
+    #[test]
+    fn a_sized_push_counts_its_cost_against_the_capacity_and_its_length_when_dropped() {
+        let q = Queue::new(1000);
+        for i in 0..10 {
+            q.push_sized(i, 40, 200, Lane::Bulk);
+            assert!(q.bytes() <= 1000);
+        }
+        // Five fit: what they take, not the 400 bytes ten of them carry.
+        assert_eq!(drain(&q), [5, 6, 7, 8, 9]);
+        let s = q.stats();
+        assert_eq!(
+            (s.dropped_items, s.dropped_bytes, s.peak_bytes),
+            (5, 200, 1000)
+        );
     }
 
     #[test]

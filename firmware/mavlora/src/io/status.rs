@@ -100,7 +100,8 @@ pub struct RadioCounters {
     pub inbox_dropped: u64,
     /// Of those, ground commands and mission traffic.
     pub inbox_dropped_priority: u64,
-    /// Most bytes the inbox held at once (a maximum).
+    /// Most bytes the inbox held at once, counted as memory: events' slots and allocations
+    /// (a maximum).
     pub inbox_peak_bytes: u64,
 }
 

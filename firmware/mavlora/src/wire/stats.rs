@@ -27,12 +27,18 @@ pub struct StreamCounters {
     /// uncounted: 1 burst in 256.
     pub restarts: u64,
     /// Frames whose header named this stream but whose checksum failed. Counted only once the
-    /// stream has been seen in a good frame, so garbage cannot create streams.
+    /// stream has been seen in a good frame, so garbage cannot create streams (nor can a
+    /// frame of an unknown id, whose checksum cannot be checked).
     pub bad_crc: u64,
     last_sequence: Option<u8>,
     /// The sender said it restarted: the next gap is its new numbering.
     restart_expected: bool,
 }
+
+/// Streams a [`ReaderStats`] keeps counters for at most; frames of more senders count in the
+/// totals only. A MAVLink network has a handful of components; this bounds what a sender
+/// that makes up ids costs.
+pub const MAX_STREAMS: usize = 1024;
 
 /// Counters for everything a [`FrameReader`](super::FrameReader) has read.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -76,6 +82,14 @@ impl ReaderStats {
             self.frames_checked += 1;
         } else {
             self.frames_unchecked += 1;
+        }
+        // Only a checked frame opens a stream, and only up to `MAX_STREAMS`: a frame of an
+        // unknown id passes unchecked, so noise on a serial line (an 0xFD, then any id) opened
+        // a stream per random (system, component), up to 65,536 of ~60 bytes: the bridge's
+        // flight-controller port flooded with garbage grew it past 8 MB of RSS.
+        let opens = checked && self.streams.len() < MAX_STREAMS;
+        if !opens && !self.streams.contains_key(&id) {
+            return;
         }
         let stream = self.streams.entry(id).or_default();
         stream.received += 1;
@@ -178,6 +192,29 @@ mod tests {
         assert_eq!(stats.lost, 0);
         assert_eq!(stats.frames_checked, 3);
         assert_eq!(stats.frames_unchecked, 1);
+    }
+
+    /// Regression: garbage on the flight controller's port, read as frames of unknown ids from
+    /// random senders, opened a stream each (MBs of counters).
+    #[test]
+    fn made_up_senders_open_no_stream_beyond_the_bound() {
+        let mut stats = ReaderStats::default();
+        for n in 0..=u16::MAX {
+            let [system, component] = n.to_le_bytes();
+            stats.record_frame(StreamId { system, component }, 0, false);
+        }
+        assert_eq!(stats.streams().count(), 0);
+        assert_eq!(stats.frames_unchecked, 65_536);
+        for n in 0..=u16::MAX {
+            let [system, component] = n.to_le_bytes();
+            stats.record_frame(StreamId { system, component }, 0, true);
+        }
+        assert_eq!(stats.streams().count(), MAX_STREAMS);
+        assert_eq!(stats.frames(), 2 * 65_536);
+        // A stream seen checked counts its unchecked frames too.
+        let first = stats.streams().next().unwrap().0;
+        stats.record_frame(first, 1, false);
+        assert_eq!(stats.stream(first).unwrap().received, 2);
     }
 
     #[test]
