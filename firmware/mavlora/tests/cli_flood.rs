@@ -579,6 +579,13 @@ fn tcp_flood_keeps_router_memory_bounded_and_commands_flowing() {
         "the pilot's probe never reached the radio\n{log_text}"
     );
     assert!(pushed > 1 << 20, "the flood did not happen: {pushed} B");
+    // The radio is read throughout the flood: ten times the serial read-ahead (640 KB, 128 KB/s,
+    // a fraction of what a pty carries). While the flood's frames counted against the serial
+    // reader's room it was read once per wait: 16 KB to 3 MB in the same 5 s.
+    assert!(
+        streamed >= 10 * mavlora::io::READ_AHEAD as u64,
+        "the vehicle's telemetry stalled behind the ground flood: {streamed} B in 5 s\n{status}"
+    );
     assert!(
         connects > 100,
         "the connection churn did not happen: {connects}"

@@ -73,9 +73,11 @@ pub(crate) fn allocation_bytes(len: usize) -> usize {
 }
 
 /// The main loop's bounded event queue: IO threads [`send`](Self::send) without blocking; a
-/// full inbox drops the oldest serial bytes and telemetry frames first and ground commands
-/// last, and hands ground commands to the loop first (see [`Queue`]); port and stop events
-/// are never dropped.
+/// full inbox drops the oldest ground telemetry frames first and ground commands last, and
+/// hands ground commands to the loop first (see [`Queue`]). Serial bytes, port and stop
+/// events are never dropped: serial bytes have a lane of their own, bounded by their reader
+/// waiting ([`wait_room`](Self::wait_room)), so a ground station flooding the inbox can
+/// neither drop the vehicle's bytes nor stop the radio from being read.
 #[derive(Debug, Clone)]
 pub struct Inbox(std::sync::Arc<Queue<Event>>);
 
@@ -89,7 +91,8 @@ impl Inbox {
     pub fn send(&self, event: Event) -> bool {
         use crate::schedule::Class;
         let (bytes, lane) = match &event {
-            Event::Serial(_, SerialEvent::Bytes(b)) => (b.len(), Lane::Bulk),
+            // Its reader waits for room in this lane alone: never dropped, never behind a flood.
+            Event::Serial(_, SerialEvent::Bytes(b)) => (b.len(), Lane::Keep),
             Event::Udp(f, _) | Event::Tcp(f, _) => {
                 let lane = match crate::wire::Frame::new_checked(f.as_slice()) {
                     Ok(f) if Class::of(f.message_id()).is_protocol() => Lane::Priority,
@@ -102,11 +105,13 @@ impl Inbox {
         self.0.push_sized(event, bytes, event_cost(bytes), lane)
     }
 
-    /// Waits until the inbox holds at most [`READ_AHEAD`] bytes, at most until `deadline`:
-    /// a serial port is read no further ahead of the main loop (what is not read waits in
-    /// the kernel and the device, and the process's memory stays small whatever the rate).
+    /// Waits until the inbox holds at most [`READ_AHEAD`] bytes of serial data, at most until
+    /// `deadline`: a serial port is read no further ahead of the main loop (what is not read
+    /// waits in the kernel and the device, and the process's memory stays small whatever the
+    /// rate). Ground frames do not count: a flood of them once kept the inbox above
+    /// [`READ_AHEAD`] for as long as it lasted, and the radio went unread.
     pub fn wait_room(&self, deadline: std::time::Instant) -> bool {
-        self.0.wait_room(READ_AHEAD, deadline)
+        self.0.wait_room_in(Lane::Keep, READ_AHEAD, deadline)
     }
 
     /// The next event, waiting at most `timeout`.
@@ -151,5 +156,49 @@ pub fn exit_code(result: &anyhow::Result<()>) -> u8 {
             2
         }
         Err(_) => 1,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A ground station flooding the router keeps its inbox full: the radio's reader must
+    /// still get room at once, and none of the radio's bytes may be dropped for the flood.
+    #[test]
+    fn a_ground_flood_neither_drops_serial_bytes_nor_holds_their_reader_back() {
+        let inbox = Inbox::new(INBOX_BYTES);
+        let from: std::net::SocketAddr = "127.0.0.1:14550".parse().unwrap();
+        let now = std::time::Instant::now;
+        let (mut sent, mut got) = (Vec::new(), Vec::new());
+        let take = |event: Event, got: &mut Vec<Vec<u8>>| {
+            if let Event::Serial(_, SerialEvent::Bytes(b)) = event {
+                got.push(b);
+            }
+        };
+        for round in 0..200u32 {
+            // Four times what the inbox holds, between two reads of the radio.
+            for _ in 0..(4 * INBOX_BYTES / event_cost(40)) {
+                inbox.send(Event::Udp(vec![0xfd; 40], from));
+            }
+            assert!(
+                inbox.wait_room(now()),
+                "round {round}: the radio's reader waited behind the flood"
+            );
+            let bytes = round.to_le_bytes().to_vec();
+            sent.push(bytes.clone());
+            assert!(inbox.send(Event::Serial("radio", SerialEvent::Bytes(bytes))));
+            // The main loop takes a little, as it would under a flood.
+            for _ in 0..100 {
+                if let Ok(event) = inbox.recv_timeout(std::time::Duration::ZERO) {
+                    take(event, &mut got);
+                }
+            }
+        }
+        while let Ok(event) = inbox.recv_timeout(std::time::Duration::ZERO) {
+            take(event, &mut got);
+        }
+        assert_eq!(got, sent, "serial bytes lost or out of order");
+        assert!(inbox.stats().dropped_items > 0, "the flood was not dropped");
     }
 }

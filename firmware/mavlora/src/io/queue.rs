@@ -81,6 +81,8 @@ struct State<T> {
     lanes: [VecDeque<Entry<T>>; 3],
     next_seq: u64,
     bytes: usize,
+    /// Of `bytes`, per lane.
+    lane_bytes: [usize; 3],
     closed: bool,
     /// A producer waits in [`Queue::wait_room`]: pops must wake it.
     room_wanted: bool,
@@ -118,6 +120,7 @@ impl<T> Queue<T> {
                 lanes: [VecDeque::new(), VecDeque::new(), VecDeque::new()],
                 next_seq: 0,
                 bytes: 0,
+                lane_bytes: [0; 3],
                 closed: false,
                 room_wanted: false,
                 stats: QueueStats::default(),
@@ -161,12 +164,14 @@ impl<T> Queue<T> {
                     .pop_front()
                     .expect("non-empty lane");
                 s.bytes -= old.bytes;
+                s.lane_bytes[victim as usize] -= old.bytes;
                 s.drop_counted(old.len, victim);
             }
         }
         let seq = s.next_seq;
         s.next_seq += 1;
         s.bytes += bytes;
+        s.lane_bytes[lane as usize] += bytes;
         s.stats.peak_bytes = s.stats.peak_bytes.max(s.bytes);
         s.lanes[lane as usize].push_back(Entry {
             seq,
@@ -184,6 +189,26 @@ impl<T> Queue<T> {
     pub fn wait_room(&self, bytes: usize, deadline: Instant) -> bool {
         let mut s = self.lock();
         while s.bytes > bytes && !s.closed {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left == Duration::ZERO {
+                return false;
+            }
+            s.room_wanted = true;
+            s = self
+                .room
+                .wait_timeout(s, left)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+        true
+    }
+
+    /// As [`wait_room`](Self::wait_room), counting only what `lane` holds: a producer whose
+    /// items go in a lane of their own is bounded by its own backlog, not held back by what
+    /// others pushed (a UDP flood filling the bulk lane must not stop a serial port's reads).
+    pub fn wait_room_in(&self, lane: Lane, bytes: usize, deadline: Instant) -> bool {
+        let mut s = self.lock();
+        while s.lane_bytes[lane as usize] > bytes && !s.closed {
             let left = deadline.saturating_duration_since(Instant::now());
             if left == Duration::ZERO {
                 return false;
@@ -237,6 +262,7 @@ impl<T> Queue<T> {
             for lane in [Lane::Bulk, Lane::Priority, Lane::Keep] {
                 while let Some(old) = s.lanes[lane as usize].pop_front() {
                     s.bytes -= old.bytes;
+                    s.lane_bytes[lane as usize] -= old.bytes;
                     s.drop_counted(old.len, lane);
                 }
             }
@@ -253,6 +279,7 @@ impl<T> Queue<T> {
         for lane in [Lane::Bulk, Lane::Priority, Lane::Keep] {
             while let Some(old) = s.lanes[lane as usize].pop_front() {
                 s.bytes -= old.bytes;
+                s.lane_bytes[lane as usize] -= old.bytes;
                 s.drop_counted(old.len, lane);
             }
         }
@@ -288,6 +315,7 @@ impl<T> State<T> {
         };
         let e = self.lanes[lane].pop_front()?;
         self.bytes -= e.bytes;
+        self.lane_bytes[lane] -= e.bytes;
         Some(e.item)
     }
 
