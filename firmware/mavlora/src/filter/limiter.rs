@@ -121,7 +121,13 @@ impl RadioFilter {
             let end = p.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
             &p[..end]
         };
-        let verdict = if rule != RadioRule::Drop && self.take_request(id, now) {
+        // A request matters only where a frame could be held back other than by `drop`.
+        let holds = match rule {
+            RadioRule::Drop => false,
+            RadioRule::Pass => on_change,
+            RadioRule::MaxRate(_) => true,
+        };
+        let verdict = if holds && self.take_request(id, now) {
             self.stats.requested += 1;
             Verdict::Pass
         } else if on_change
@@ -289,6 +295,74 @@ mod tests {
             filter.check(&a, Instant::from_millis(10)),
             Verdict::RateLimited
         );
+    }
+
+    /// HOME_POSITION as the compact profiles treat it, and a dropped message.
+    fn home_profile() -> Profile {
+        Profile::parse(
+            "[messages.HOME_POSITION]\nradio = 0.1\non_change = true\n\
+             [messages.ATTITUDE]\nradio = \"drop\"\non_change = true\n",
+            "test",
+        )
+        .unwrap()
+    }
+
+    const HOME_POSITION: u32 = 242;
+
+    /// A HOME_POSITION from system `sysid` at latitude `lat` (1e-7 degrees).
+    fn home(sysid: u8, lat: i32) -> crate::wire::OwnedFrame {
+        use crate::dialect::{HOME_POSITION_DATA, MavMessage};
+        let msg = MavMessage::HOME_POSITION(HOME_POSITION_DATA {
+            latitude: lat,
+            ..Default::default()
+        });
+        crate::wire::encode(
+            mavlink::MavlinkVersion::V2,
+            crate::testutil::header(sysid, 1, 0),
+            &msg,
+        )
+    }
+
+    #[test]
+    fn on_change_holds_repeats_and_caps_changes() {
+        let mut filter = RadioFilter::new(home_profile());
+        let same = home(1, 7);
+        let at = |s: u64| Instant::from_millis(s * 1000);
+        assert_eq!(filter.check(&same, at(0)), Verdict::Pass);
+        assert_eq!(filter.check(&same, at(20)), Verdict::Unchanged);
+        // a change passes once its slot (10 s) allows, not before
+        let moved = home(1, 8);
+        assert_eq!(filter.check(&moved, at(20)), Verdict::Pass);
+        let again = home(1, 9);
+        assert_eq!(filter.check(&again, at(22)), Verdict::RateLimited);
+        assert_eq!(filter.check(&again, at(30)), Verdict::Pass);
+        // another sender's home is its own
+        assert_eq!(filter.check(&home(2, 9), at(30)), Verdict::Pass);
+        let s = filter.stats();
+        assert_eq!((s.unchanged, s.rate_limited, s.passed), (1, 1, 4));
+    }
+
+    #[test]
+    fn a_requested_frame_passes_once_within_the_window_but_never_a_drop() {
+        let mut filter = RadioFilter::new(home_profile());
+        let home = home(1, 7);
+        let ms = Instant::from_millis;
+        assert_eq!(filter.check(&home, ms(0)), Verdict::Pass);
+        filter.requested(HOME_POSITION, ms(1000));
+        assert_eq!(filter.check(&home, ms(1001)), Verdict::Pass, "the answer");
+        assert_eq!(filter.check(&home, ms(1002)), Verdict::Unchanged, "once");
+        // a request the autopilot did not answer in time lets nothing through later
+        filter.requested(HOME_POSITION, ms(2000));
+        assert_eq!(
+            filter.check(&home, ms(2000) + REQUEST_WINDOW),
+            Verdict::Unchanged
+        );
+        filter.requested(30, ms(8000));
+        assert_eq!(
+            filter.check(&frame(30, 1, 1, 0), ms(8001)),
+            Verdict::Filtered
+        );
+        assert_eq!(filter.stats().requested, 1);
     }
 
     proptest! {
