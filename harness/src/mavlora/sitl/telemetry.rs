@@ -104,6 +104,16 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
         t.spec("up_bytes_per_s", "B/s")
             .describe("GCS→UAV bytes the emulated radio put on air over the window"),
     );
+    let home = d.declare(
+        t.spec("home_position_s", "s")
+            .describe(
+                "from the ground station's connection to its first HOME_POSITION, asked for \
+                 once at the connection as QGroundControl does (ArduPilot sets its home ~20 s \
+                 after boot and sends it then): compact profiles answer a request and carry a \
+                 changed home",
+            )
+            .at_most(WARMUP_S + WINDOW_S),
+    );
     Box::new(move |ctx, defaults: &SessionDefaults, t: &Target| {
         let args = [
             "--scenario",
@@ -112,6 +122,7 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
             &(WARMUP_S + WINDOW_S).to_string(),
             "--warmup",
             &WARMUP_S.to_string(),
+            "--ask-home",
         ]
         .map(String::from)
         .to_vec();
@@ -127,6 +138,21 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
             }
         }
         let ((from, s0), (to, s1)) = start.zip(end).context("the ground station's window")?;
+        let connected = report.ground_events().find_map(|e| match e {
+            GroundEvent::Connected { t, .. } => Some(*t),
+            _ => None,
+        });
+        let homed = report.ground_events().find_map(|e| match e {
+            GroundEvent::Home { t, .. } => Some(*t),
+            _ => None,
+        });
+        ctx.record(
+            home,
+            match (connected, homed) {
+                (Some(c), Some(h)) => h.since(c).as_secs_f64(),
+                _ => f64::NAN,
+            },
+        );
         let seconds = to.since(from).as_secs_f64();
         ctx.record(down, (s1.0.bytes_sent - s0.0.bytes_sent) as f64 / seconds);
         ctx.record(up, (s1.1.bytes_sent - s0.1.bytes_sent) as f64 / seconds);
