@@ -65,6 +65,8 @@ const BRIDGE_COUNTERS: &[&str] = &[
     "fc_refused_opens",
     "filtered",
     "rate_limited",
+    "unchanged",
+    "requested",
     "replaced",
     "compact_batches",
     "config_acks",

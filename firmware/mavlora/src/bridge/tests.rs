@@ -992,3 +992,103 @@ fn a_bridge_without_signing_state_and_a_clock_a_day_behind_does_not_run_a_record
         }
     }
 }
+
+/// What a compact profile lets reach the radio of an autopilot's HOME_POSITION frames,
+/// `home_of(k)` for the k-th, 20 a second from `from` to `to` (ms): their ids' times.
+fn home_flood(
+    b: &mut Bridge,
+    fc: &mut Sender,
+    (from, to): (u64, u64),
+    home_of: impl Fn(u64) -> crate::dialect::HOME_POSITION_DATA,
+) -> Vec<u64> {
+    let mut passed = Vec::new();
+    for (k, t) in (from..to).step_by(50).enumerate() {
+        if t % 1000 == 0 {
+            b.handle_fc_bytes(ms(t), fc_heartbeat(fc).as_bytes());
+        }
+        let home = MavMessage::HOME_POSITION(home_of(k as u64));
+        b.handle_fc_bytes(ms(t), fc.frame(&home).as_bytes());
+        let out = to_radio(b, ms(t));
+        passed.extend(
+            out.iter()
+                .filter(|f| f.message_id() == ids::HOME_POSITION)
+                .map(|_| t),
+        );
+    }
+    passed
+}
+
+#[test]
+fn compact_profiles_answer_a_home_position_request_and_cap_an_autopilot_that_floods_it() {
+    // Regression: with a compact profile HOME_POSITION never reached the ground, not even
+    // as the answer to MAV_CMD_REQUEST_MESSAGE, and MAVSDK's health check waited for it for
+    // ever. PX4 streams it at 0.5 Hz, the same bytes each time, ArduPilot sends it when home
+    // is set or moves; both answer a request at once.
+    use crate::dialect::HOME_POSITION_DATA;
+    for name in ["px4-compact.toml", "ardupilot-compact.toml"] {
+        let text =
+            std::fs::read_to_string(format!("{}/profiles/{name}", env!("CARGO_MANIFEST_DIR")))
+                .unwrap();
+        let mut c = BridgeConfig::new(
+            Profile::parse(&text, name).unwrap(),
+            SchedulerConfig {
+                rate_bytes_per_s: 3000,
+                burst_bytes: 600,
+                max_queued_bytes: 8000,
+            },
+        );
+        c.compact = Some(CompactConfig::default());
+        let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+        let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+        let home = |lat: i32| HOME_POSITION_DATA {
+            latitude: 473_977_436 + lat,
+            longitude: 85_455_934,
+            altitude: 489_513,
+            time_usec: 3_612_000,
+            ..Default::default()
+        };
+        // home set, then the same home streamed for a minute: it goes once
+        let steady = home_flood(&mut b, &mut fc, (1_000, 61_000), |_| home(0));
+        assert_eq!(steady, vec![1_000], "{name}: the home once, then nothing");
+        // the ground asks (MAVSDK: MAV_CMD_REQUEST_MESSAGE, param1 = 242); the autopilot
+        // answers at once with the same bytes: they go, cap or not
+        for (at, command, param1) in [
+            (61_500, MavCmd::MAV_CMD_REQUEST_MESSAGE, 242.0),
+            (62_500, MavCmd::MAV_CMD_GET_HOME_POSITION, 0.0),
+        ] {
+            let mut gcs = Sender::new(245, 190, MavlinkVersion::V2);
+            let ask = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+                target_system: 1,
+                target_component: 1,
+                command,
+                param1,
+                ..Default::default()
+            });
+            let tag = crate::command::CommandTag {
+                epoch: 1,
+                confirmation: 0,
+                age: Duration::ZERO,
+            };
+            let frame = crate::command::ack_tag::tag_command(&gcs.frame(&ask), &ask, tag);
+            b.handle_radio_bytes(ms(at), frame.as_bytes());
+            to_fc(&mut b, ms(at));
+            let answered = home_flood(&mut b, &mut fc, (at + 10, at + 20), |_| home(0));
+            assert_eq!(answered, vec![at + 10], "{name}: {command:?} answered");
+        }
+        // a home that moves goes, at most one a cap's interval (10 s) however fast it moves
+        let moved = home_flood(&mut b, &mut fc, (63_000, 183_000), |k| home(k as i32 + 1));
+        assert_eq!(
+            moved.first(),
+            Some(&63_000),
+            "{name}: a change goes at once"
+        );
+        assert!(
+            moved.len() <= 13,
+            "{name}: {} changes in 120 s, cap 0.1 Hz",
+            moved.len()
+        );
+        let s = b.stats().filter;
+        assert!(s.unchanged >= 1_190, "{name}: {s:?}");
+        assert_eq!(s.requested, 2, "{name}");
+    }
+}
