@@ -77,7 +77,7 @@ impl ModeLimits {
         // for 14 ms) are not met in the worst case by this measure: it runs to the frame the
         // flight controller gets, so it adds the wait for the next output frame (0-7 ms; PX4
         // wants frames at least 7 ms apart, so the frame cannot go sooner) to the device's
-        // timeout of three frames, the 2 ms a healthy frame may be late and a 1 ms margin
+        // timeout of three frames, a third of a period for a late frame and a 1 ms margin
         // (24.3-25.5 ms): 29.5-31 ms worst on the emulated rig, 27 ms median. Meeting 30 ms
         // in every phase would need the output's slots to follow the receiver in control.
         let silent_sla = 100.0;
