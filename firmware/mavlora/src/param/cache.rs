@@ -399,6 +399,7 @@ impl<T> ParamCache<T> {
             if e.explains(hash) {
                 if !e.bound {
                     self.stats.binds += 1;
+                    tracing::info!(%now, system, component, count = e.count, hash = format_args!("{hash:#010x}"), "parameter cache bound to the vehicle's hash");
                 }
                 e.bound = true;
                 e.reference = Some(hash);
@@ -408,17 +409,20 @@ impl<T> ParamCache<T> {
                 // the vehicle's set is not what the cache holds: fill afresh from the next
                 // list, which starts from this hash
                 self.stats.dropped += 1;
+                tracing::info!(%now, system, component, hash = format_args!("{hash:#010x}"), reference = ?e.reference, changes = e.changes.len(), "parameter cache dropped: the vehicle's hash is not the cached set's");
                 e.clear(e.count);
                 e.reference = Some(hash);
             }
-        } else if e.filled == 0 {
-            // a list starts: values from here on are the set this hash stands for
+        } else if e.reference != Some(hash) {
+            // A list starts (PX4 sends its hash first), or the set moved while one was filling:
+            // values from here on are the set this hash stands for; those before it may be
+            // older (PX4 broadcasts values it changes at boot, before any list) and go.
+            if e.filled > 0 {
+                e.clear(e.count);
+            }
             e.reference = Some(hash);
             e.changes.clear();
             e.untraceable = false;
-        } else if e.reference != Some(hash) && !e.explains(hash) {
-            // the set moved while the list was filling
-            e.reference = None;
         }
         if let Some(check) = e.check.take() {
             if serve {
@@ -657,6 +661,24 @@ mod tests {
         c.value(ms(300), 1, 1, &hash_value(px4_hash(&now_list, &[]), 50));
         assert!(!c.bound(1, 1));
         assert_eq!(c.request_list(ms(400), 1, 1, 7), Some(7));
+    }
+
+    /// PX4 broadcasts values it changes at boot, before any list: a list's hash that comes
+    /// after them starts the fill afresh, so the list binds (before, those values, with no
+    /// hash before them, left the fill without a reference and the cache never served).
+    #[test]
+    fn values_before_a_lists_hash_do_not_keep_the_list_from_binding() {
+        let list: Vec<_> = (0..20).map(|i| param(i, 20, i as f32)).collect();
+        let mut c = ParamCache::<u32>::default();
+        c.value(ms(0), 1, 1, &param(4, 20, -3.0)); // at boot, older than the list
+        let h = px4_hash(&list, &[]);
+        c.value(ms(100), 1, 1, &hash_value(h, 20));
+        for v in &list {
+            c.value(ms(200), 1, 1, v);
+        }
+        assert!(matches!(c.poll_radio(), Some(CacheRadio::HashCheck { .. })));
+        c.value(ms(300), 1, 1, &hash_value(h, 20));
+        assert!(c.bound(1, 1));
     }
 
     #[test]

@@ -752,6 +752,7 @@ impl Router {
         while let Some(out) = self.param_cache.poll_radio() {
             match out {
                 CacheRadio::HashCheck { system, component } => {
+                    tracing::debug!(%now, system, component, "asking the vehicle for its _HASH_CHECK");
                     let read = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
                         target_system: system,
                         target_component: component,
@@ -768,6 +769,7 @@ impl Router {
             }
         }
         while let Some((system, component, values)) = self.param_cache.poll_served() {
+            tracing::info!(%now, system, component, values = values.len(), "parameter list given from the cache: the vehicle's hash says unchanged");
             for value in &values {
                 let sequence = self.next_sequence((system, component));
                 self.enqueue_gcs(now, param_value_frame(system, component, sequence, value));

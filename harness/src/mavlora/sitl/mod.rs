@@ -6,7 +6,8 @@
 //! Scenarios, each run with every autopilot of `[mavlora.sitl]` over each of its radios:
 //! - [`telemetry`]: steady telemetry: bytes each way, position rate and freshness;
 //! - [`params`]: the whole parameter list as a ground station downloads it, with a
-//!   PARAM_SET in flight, and the position rate meanwhile;
+//!   PARAM_SET in flight, and the position rate meanwhile; and ([`params::CACHE`]) the list
+//!   asked for again, as a reconnecting ground station does (the router's cache);
 //! - [`mission`]: a 30-item plan uploaded and read back; the plan the vehicle holds must
 //!   be the one the ground was told ACCEPTED;
 //! - [`flight`]: GUIDED, arm, takeoff, AUTO through a mission, RTL, landed: every command
@@ -131,6 +132,7 @@ pub fn scenarios() -> Vec<Scenario> {
         flight::SCENARIO,
         telemetry::SCENARIO,
         params::SCENARIO,
+        params::CACHE,
         mission::SCENARIO,
     ]
 }
