@@ -107,6 +107,9 @@ const ROUTER_COUNTERS: &[&str] = &[
     "commands_refused_after_restart",
     "command_foreign_acks",
     "ground_rejected",
+    "param_lists_cached",
+    "param_cache_misses",
+    "param_cache_checks",
 ];
 
 fn all(radio: &[&'static str], own: &[&'static str]) -> Vec<&'static str> {

@@ -94,6 +94,28 @@ struct Fc {
     next_heartbeat: Instant,
     /// When the list's value of each index left the autopilot.
     listed_at: BTreeMap<u16, Instant>,
+    /// PX4's way: a `_HASH_CHECK` (`None`: ArduPilot's way, no hash, sets echoed with index
+    /// 65535), leaving out these indices (PX4's volatile parameters).
+    hash_check: Option<Vec<u16>>,
+}
+
+/// PX4's `_HASH_CHECK` name.
+const HASH_NAME: &[u8] = b"_HASH_CHECK";
+
+/// PX4's `crc32part`, written out again here (bit by bit) to judge the router's: CRC-32,
+/// reflected polynomial 0xEDB88320, no inversion.
+fn crc32_part(bytes: &[u8], mut crc: u32) -> u32 {
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    crc
 }
 
 impl Fc {
@@ -110,6 +132,53 @@ impl Fc {
             streaming: None,
             next_heartbeat: Instant::ZERO,
             listed_at: BTreeMap::new(),
+            hash_check: None,
+        }
+    }
+
+    /// PX4's way: `_HASH_CHECK` over every parameter but the `volatile` indices; sets echoed
+    /// with their index.
+    fn px4(mut self, volatile: Vec<u16>) -> Self {
+        self.hash_check = Some(volatile);
+        self
+    }
+
+    /// PX4's `param_hash_check()`: CRC-32 over each name (up to its first zero) and value.
+    fn hash(&self) -> u32 {
+        let volatile = self.hash_check.as_deref().unwrap_or_default();
+        self.params
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !volatile.contains(&(*i as u16)))
+            .fold(0, |h, (_, p)| {
+                let len = p.name.iter().position(|&b| b == 0).unwrap_or(16);
+                crc32_part(&p.value, crc32_part(&p.name[..len], h))
+            })
+    }
+
+    /// The `_HASH_CHECK` `PARAM_VALUE` (type UINT32, index -1).
+    fn send_hash(&mut self) {
+        let p = Param {
+            name: name(HASH_NAME),
+            value: self.hash().to_le_bytes(),
+            param_type: 5,
+        };
+        let bytes = raw_frame(
+            self.version,
+            self.ids,
+            self.seq,
+            &payload(&p, self.count(), u16::MAX),
+        );
+        self.seq = self.seq.wrapping_add(1);
+        self.out.push_back(bytes);
+    }
+
+    /// The autopilot changes parameter `index` by itself; `broadcast`: it tells of it (PX4
+    /// does), else its `PARAM_VALUE` is as good as lost.
+    fn change(&mut self, index: u16, value: f32, broadcast: bool) {
+        self.params[usize::from(index)].value = value.to_le_bytes();
+        if broadcast {
+            self.send_param(index, false);
         }
     }
 
@@ -135,7 +204,19 @@ impl Fc {
         while let Some(rx) = self.reader.next_frame() {
             match rx.frame.decode::<MavMessage>() {
                 Ok(MavMessage::PARAM_REQUEST_LIST(r)) if r.target_system == self.ids.0 => {
+                    // PX4 sends its hash first
+                    if self.hash_check.is_some() {
+                        self.send_hash();
+                    }
                     self.streaming = Some((0, now));
+                }
+                Ok(MavMessage::PARAM_REQUEST_READ(r))
+                    if r.target_system == self.ids.0
+                        && r.param_index == -1
+                        && *r.param_id == name(HASH_NAME)
+                        && self.hash_check.is_some() =>
+                {
+                    self.send_hash();
                 }
                 Ok(MavMessage::PARAM_REQUEST_READ(r)) if r.target_system == self.ids.0 => {
                     if let Ok(i) = u16::try_from(r.param_index)
@@ -148,7 +229,8 @@ impl Fc {
                     let wanted: [u8; 16] = s.param_id.into();
                     if let Some(i) = self.params.iter().position(|p| p.name == wanted) {
                         self.params[i].value = s.param_value.to_le_bytes();
-                        self.send_param(i as u16, true);
+                        // ArduPilot echoes with index 65535, PX4 with the index
+                        self.send_param(i as u16, self.hash_check.is_none());
                     }
                 }
                 _ => {}
@@ -376,6 +458,8 @@ struct World {
     bridge: Bridge,
     router: Router,
     ground: Ground,
+    /// Another ground station on the same router (it gets every frame too).
+    ground2: Option<Ground>,
     down: VecDeque<(Instant, OwnedFrame)>,
     up: VecDeque<(Instant, OwnedFrame)>,
     lose: Box<dyn FnMut(&OwnedFrame) -> bool>,
@@ -397,6 +481,7 @@ impl World {
             bridge,
             router,
             ground: Ground::new(vehicle),
+            ground2: None,
             down: VecDeque::new(),
             up: VecDeque::new(),
             lose: Box::new(|_| false),
@@ -439,9 +524,18 @@ impl World {
         while let Some(f) = self.ground.out.pop_front() {
             self.router.handle_gcs_bytes(now, f.as_bytes());
         }
+        if let Some(g) = &mut self.ground2 {
+            g.tick(now);
+            while let Some(f) = g.out.pop_front() {
+                self.router.handle_gcs_bytes(now, f.as_bytes());
+            }
+        }
         self.router.handle_timeout(now);
         while let Some(f) = self.router.poll_gcs_transmit() {
             self.ground.handle(now, f.as_bytes());
+            if let Some(g) = &mut self.ground2 {
+                g.handle(now, f.as_bytes());
+            }
         }
         while let Some(f) = self.router.poll_radio_transmit(now, usize::MAX) {
             self.up.push_back((now + LATENCY, f));
@@ -517,6 +611,14 @@ fn assert_exact(w: &World) {
     }
     for (from, p) in &w.ground.received {
         assert_eq!(*from, w.fc.ids, "a PARAM_VALUE not from the autopilot");
+        if p[8..24] == name(HASH_NAME) {
+            // PX4's hash of its set, as it sent it: no parameter
+            assert!(
+                w.fc.hash_check.is_some(),
+                "a hash from an autopilot without one"
+            );
+            continue;
+        }
         let index = u16::from_le_bytes([p[6], p[7]]);
         let i = if index == u16::MAX {
             w.fc.params.iter().position(|q| q.name == p[8..24]).unwrap() as u16
@@ -672,4 +774,252 @@ fn a_param_set_echo_overtakes_the_packed_list_and_no_older_copy_follows() {
     assert_exact(&w);
     assert!(w.bridge.stats().params.superseded >= 1);
     eprintln!("echo after {echo:?}; list complete at {:?}", w.now);
+}
+
+/// A list shaped like PX4's: names in ASCII order, int32 (type 6) and float (type 9) values,
+/// `seed` moving the values (another vehicle, a reboot with other parameters).
+fn px4_like(n: usize, seed: u32) -> Vec<Param> {
+    let groups = [
+        "ASPD_",
+        "CAL_ACC0_",
+        "COM_",
+        "EKF2_",
+        "MC_",
+        "MPC_",
+        "NAV_",
+        "RTL_",
+    ];
+    (0..n)
+        .map(|i| {
+            let g = groups[i * groups.len() / n];
+            let text = format!("{g}{i:04}");
+            let (value, param_type) = if i % 3 == 0 {
+                ((i as u32 % 7 + seed).to_le_bytes(), 6)
+            } else {
+                ((0.25 * i as f32 + seed as f32).to_le_bytes(), 9)
+            };
+            Param {
+                name: name(&text.as_bytes()[..text.len().min(16)]),
+                value,
+                param_type,
+            }
+        })
+        .collect()
+}
+
+/// PX4's volatile parameters in the model (left out of its hash).
+const VOLATILE: [u16; 3] = [3, 17, 200];
+
+/// A PX4-like autopilot (1, 1) with `n` parameters behind a radio of `rate` bytes/s.
+fn px4_world(n: usize, rate: u32) -> World {
+    let fc = Fc::new((1, 1), MavlinkVersion::V2, px4_like(n, 0), 300.0).px4(VOLATILE.to_vec());
+    World::new(fc, rate, true)
+}
+
+/// The ground station asks for the list; how long until it holds every value.
+fn download(w: &mut World, limit: f64) -> Duration {
+    let start = w.now;
+    w.ground.list(start);
+    let until = start + Duration::from_secs_f64(limit);
+    assert!(
+        w.run_until(until, |w| w.ground.complete()),
+        "{} of {} after {limit} s",
+        w.ground.got.len(),
+        w.fc.count()
+    );
+    w.now.saturating_duration_since(start)
+}
+
+/// A ground station connects afresh (a reconnect, or another station) and downloads the
+/// list; how long it took.
+fn reconnect(w: &mut World, limit: f64) -> Duration {
+    w.ground = Ground::new(w.fc.ids);
+    download(w, limit)
+}
+
+/// Lets checks and their answers cross the radio.
+fn settle(w: &mut World) {
+    w.run_until(w.now + Duration::from_secs(4), |_| false);
+}
+
+/// Packed parameter frames the bridge put on the radio so far.
+fn packed_down(w: &World) -> u64 {
+    w.down_frames
+        .get(&ids::MAVLORA_PARAM_VALUES)
+        .copied()
+        .unwrap_or(0)
+}
+
+/// After a first download, a ground station that connects again gets PX4's whole list from the
+/// router in at most 5 s on LoRa SF7's budget and on SiK's, byte for byte, and the list does
+/// not cross the radio again. Before, every list crossed the radio: ~60 s on LoRa SF7.
+#[test]
+fn a_reconnecting_ground_gets_px4s_list_from_the_router_within_5_s() {
+    for rate in [250, 2400] {
+        let mut w = px4_world(904, rate);
+        let first = download(&mut w, 300.0);
+        assert_exact(&w);
+        settle(&mut w);
+        let packed = packed_down(&w);
+        let second = reconnect(&mut w, 60.0);
+        assert_exact(&w);
+        assert!(
+            second <= Duration::from_secs(5),
+            "{rate} B/s: second list after {second:?} (first {first:?})"
+        );
+        assert_eq!(packed_down(&w), packed, "the list crossed the radio again");
+        assert_eq!(w.ground.rereads, 0);
+        eprintln!("{rate} B/s: 904 values, first list {first:?}, second {second:?}");
+    }
+}
+
+/// A value the autopilot changes while the list is in flight (a value already delivered),
+/// the echo of a ground's `PARAM_SET` after it, and a change the autopilot broadcasts by
+/// itself: each updates the cache, which still answers the next station, with the new
+/// values.
+#[test]
+fn changes_during_and_after_the_download_are_served_from_the_cache() {
+    let mut w = px4_world(300, 2400);
+    w.ground.list(Instant::ZERO);
+    assert!(w.run_until(secs(30.0), |w| w.ground.got.contains_key(&10)
+        && !w.ground.complete()));
+    w.fc.change(10, 42.0, true);
+    assert!(w.run_until(secs(60.0), |w| w.ground.complete()));
+    settle(&mut w);
+    // a set from the ground: PX4 echoes it with its index
+    let set_name = w.fc.params[50].name;
+    let text: Vec<u8> = set_name.iter().take_while(|&&b| b != 0).copied().collect();
+    w.ground.set(w.now, &text, 1234.5);
+    settle(&mut w);
+    assert!(w.ground.echoed_at.is_some());
+    w.fc.change(60, -7.5, true);
+    settle(&mut w);
+    let packed = packed_down(&w);
+    let second = reconnect(&mut w, 60.0);
+    assert_exact(&w);
+    for (i, v) in [(10, 42.0f32), (50, 1234.5), (60, -7.5)] {
+        assert_eq!(w.ground.got[&i].payload[..4], v.to_le_bytes(), "index {i}");
+    }
+    assert!(
+        second <= Duration::from_secs(5),
+        "second list after {second:?}"
+    );
+    assert_eq!(packed_down(&w), packed, "the list crossed the radio again");
+}
+
+/// A cache hit first; then `stale` makes the vehicle's set differ from the cache without the
+/// router hearing of it: the next station must get the vehicle's values, the list crossing the
+/// radio again, never a cached one; and the list after that is cached again.
+fn never_served_stale(stale: impl FnOnce(&mut World)) {
+    let mut w = px4_world(300, 2400);
+    download(&mut w, 60.0);
+    settle(&mut w);
+    let hit = reconnect(&mut w, 60.0);
+    assert!(hit <= Duration::from_secs(5), "a hit after {hit:?}");
+    stale(&mut w);
+    settle(&mut w);
+    let packed = packed_down(&w);
+    reconnect(&mut w, 60.0);
+    assert_exact(&w);
+    assert!(packed_down(&w) > packed, "served from the cache");
+    settle(&mut w);
+    let packed = packed_down(&w);
+    let again = reconnect(&mut w, 60.0);
+    assert_exact(&w);
+    assert!(again <= Duration::from_secs(5), "cached again: {again:?}");
+    assert_eq!(packed_down(&w), packed);
+}
+
+/// A change whose `PARAM_VALUE` never reached the router: the vehicle's hash differs.
+#[test]
+fn a_change_whose_value_was_lost_is_never_served_stale() {
+    never_served_stale(|w| w.fc.change(120, 3.25, false));
+}
+
+/// A change of a value PX4 leaves out of its hash and one that is in it, both lost: the
+/// hash moved by more than a volatile value explains.
+#[test]
+fn a_lost_change_beside_a_volatile_one_is_never_served_stale() {
+    never_served_stale(|w| {
+        w.fc.change(VOLATILE[1], 5.0, true);
+        w.fc.change(121, 9.0, false);
+    });
+}
+
+/// The vehicle rebooted with other parameters (new values, same names and count).
+#[test]
+fn a_vehicle_rebooted_with_other_parameters_is_never_served_stale() {
+    never_served_stale(|w| {
+        let mut params = w.fc.params.clone();
+        for i in [5, 150, 299] {
+            params[i].value = [0x11, 0x22, 0x33, 0x44];
+        }
+        w.fc = Fc::new(w.fc.ids, MavlinkVersion::V2, params, 300.0).px4(VOLATILE.to_vec());
+    });
+}
+
+/// Another vehicle with the same system id: the same list's names with other values, or
+/// another list altogether.
+#[test]
+fn another_vehicle_with_the_same_system_id_is_never_served_stale() {
+    never_served_stale(|w| {
+        w.fc =
+            Fc::new(w.fc.ids, MavlinkVersion::V2, px4_like(300, 1), 300.0).px4(VOLATILE.to_vec());
+    });
+    never_served_stale(|w| {
+        w.fc =
+            Fc::new(w.fc.ids, MavlinkVersion::V2, px4_like(280, 2), 300.0).px4(VOLATILE.to_vec());
+    });
+}
+
+/// A second station asks while the first one's download is in flight: the cache does not
+/// answer a list it does not hold whole, both get every value, and a third station is then
+/// served from the cache.
+#[test]
+fn a_list_asked_for_while_a_download_is_in_flight_reaches_both_then_is_cached() {
+    let mut w = px4_world(904, 2400);
+    w.ground.list(Instant::ZERO);
+    w.run_until(secs(2.0), |_| false);
+    assert!(!w.ground.complete() && !w.ground.got.is_empty());
+    let mut second = Ground::new(w.fc.ids);
+    second.list(w.now);
+    w.ground2 = Some(second);
+    assert!(w.run_until(secs(120.0), |w| w.ground.complete()
+        && w.ground2.as_ref().is_some_and(Ground::complete)));
+    assert_exact(&w);
+    let g2 = w.ground2.take().unwrap();
+    for (i, p) in w.fc.params.iter().enumerate() {
+        assert_eq!(g2.got[&(i as u16)].payload, payload(p, 904, i as u16));
+    }
+    // PX4 streams the list again from its start for the second request; what still waits at
+    // the bridge is not sent twice, what left already is (SiK: most of the first 2 s)
+    let carried = w.router.stats().param_values_expanded;
+    assert!(carried < 2 * 904, "{carried} values crossed the radio");
+    settle(&mut w);
+    let packed = packed_down(&w);
+    let third = reconnect(&mut w, 60.0);
+    assert_exact(&w);
+    assert!(
+        third <= Duration::from_secs(5),
+        "third list after {third:?}"
+    );
+    assert_eq!(packed_down(&w), packed);
+}
+
+/// ArduPilot answers no `_HASH_CHECK`: its lists cross the radio every time, exact, and no
+/// list waits for a check. (Unchanged behaviour: this held before the cache too.)
+#[test]
+fn an_autopilot_without_a_hash_check_lists_over_the_radio_every_time() {
+    let fc = Fc::new((1, 1), MavlinkVersion::V2, ardupilot_like(300), 300.0);
+    let mut w = World::new(fc, 2400, true);
+    let first = download(&mut w, 60.0);
+    settle(&mut w);
+    let packed = packed_down(&w);
+    let second = reconnect(&mut w, 60.0);
+    assert_exact(&w);
+    assert!(packed_down(&w) > packed);
+    assert!(
+        second <= first + Duration::from_millis(500),
+        "{second:?} vs {first:?}"
+    );
 }

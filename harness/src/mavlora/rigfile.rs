@@ -23,7 +23,8 @@
 //! autopilots = ["arducopter", "px4"]  # [autopilots] names; each scenario runs with each
 //! telemetry = ["sik-64k", "lora-sf7", "sik-bursty"]   # radios of each scenario
 //! params = ["sik-64k", { radio = "lora-sf7", autopilots = ["px4"] }]  # an entry may name
-//! mission = ["sik-bursty"]            # which of the autopilots fly it (default: all of them)
+//! params_cache = [{ radio = "sik-64k", autopilots = ["px4"] }]  # which of the autopilots
+//! mission = ["sik-bursty"]            # fly it (default: all of them)
 //! flight = ["sik-64k"]
 //! table_ii = [{ radio = "sik-64k", autopilots = ["px4"] }]  # Table II's limit + filter row
 //! ```
@@ -117,6 +118,9 @@ pub struct SitlPlan {
     pub telemetry: Vec<SitlRun>,
     /// Parameter download as a ground station does it, with a PARAM_SET in flight.
     pub params: Vec<SitlRun>,
+    /// A parameter download, then the same list asked for again (a reconnect): the router's
+    /// cache.
+    pub params_cache: Vec<SitlRun>,
     /// Mission, fence and rally upload and download.
     pub mission: Vec<SitlRun>,
     /// A whole flight: GUIDED, arm, takeoff, AUTO, RTL, landed.
@@ -189,6 +193,7 @@ pub(crate) struct RawSitl {
     pub autopilots: Option<Vec<String>>,
     pub telemetry: Option<Vec<RawSitlRun>>,
     pub params: Option<Vec<RawSitlRun>>,
+    pub params_cache: Option<Vec<RawSitlRun>>,
     pub mission: Option<Vec<RawSitlRun>>,
     pub flight: Option<Vec<RawSitlRun>>,
     pub table_ii: Option<Vec<RawSitlRun>>,
@@ -409,6 +414,7 @@ impl Checker<'_> {
             autopilots: chosen,
             telemetry: many("telemetry", raw.telemetry)?,
             params: many("params", raw.params)?,
+            params_cache: many("params_cache", raw.params_cache)?,
             mission: many("mission", raw.mission)?,
             flight: many("flight", raw.flight)?,
             table_ii: many("table_ii", raw.table_ii)?,

@@ -303,6 +303,9 @@ struct RouterCounters {
     commands_refused_after_restart: u64,
     command_foreign_acks: u64,
     ground_rejected: u64,
+    param_lists_cached: u64,
+    param_cache_misses: u64,
+    param_cache_checks: u64,
 }
 
 /// The router's levels beyond the radio link's.
@@ -397,6 +400,9 @@ impl Side<Router> for GroundSide {
             commands_refused_after_restart: s.commands.refused_after_restart,
             command_foreign_acks: s.commands.foreign_acks,
             ground_rejected: s.ground.total(),
+            param_lists_cached: s.param_cache.lists_served,
+            param_cache_misses: s.param_cache.misses,
+            param_cache_checks: s.param_cache.checks_sent,
         };
         let gauges = RouterGauges {
             tcp_clients: t.clients,

@@ -9,16 +9,20 @@
 //! - [`param_value_frame`] (router): one standard frame from a value's bytes.
 //! - [`ReadGate`] (router): a ground's reads of values the list in flight is about to bring,
 //!   and its repeats of a read in flight, wait at the router instead of crowding the radio.
+//! - [`ParamCache`] (router): a list asked for again is given from the ground side once the
+//!   vehicle's own hash (PX4's `_HASH_CHECK`) says its parameters are those cached.
 //!
 //! What stays standard: a lost frame is read again by index (`PARAM_REQUEST_READ`), and the
 //! autopilot's answers to a ground's own `PARAM_SET` or `PARAM_REQUEST_READ` go raw, ahead of
 //! the list (the bridge's `param_answers`; answers to reads within a quarter of the budget,
 //! so that a ground reading many cannot starve position).
 
+pub mod cache;
 pub mod pack;
 mod packer;
 mod reads;
 
+pub use cache::{CacheRadio, HASH_CHECK_NAME, ParamCache, ParamCacheStats};
 pub use pack::{ParamPackError, ParamValue};
 pub use packer::{
     BACKLOG, FRAME_OVERHEAD, FRAME_PERIOD, ParamPackConfig, ParamPackStats, ParamPacker,

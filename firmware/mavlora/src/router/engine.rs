@@ -13,10 +13,15 @@ use crate::command::{
     Admission, CommandRetransmitter, Redundancy, RetransmitStats, link_loss, random_epoch,
 };
 use crate::compact::Expander;
-use crate::dialect::{MavMessage, MavSeverity, RADIO_STATUS_DATA, STATUSTEXT_DATA};
+use crate::dialect::{
+    MavMessage, MavSeverity, PARAM_REQUEST_READ_DATA, RADIO_STATUS_DATA, STATUSTEXT_DATA,
+};
 use crate::filter::{FilterStats, Profile, RadioFilter, Verdict};
 use crate::mission::{MissionTerminator, TerminatorConfig, TerminatorStats};
-use crate::param::{ParamValue, ReadGate, ReadGateStats, pack as param_pack, param_value_frame};
+use crate::param::{
+    CacheRadio, HASH_CHECK_NAME, ParamCache, ParamCacheStats, ParamValue, ReadGate, ReadGateStats,
+    pack as param_pack, param_value_frame,
+};
 use crate::quality::{
     LinkMonitor, LinkQuality, LinkQualityConfig, MonitorConfig, Notice, is_local_radio_status,
 };
@@ -72,6 +77,10 @@ pub struct RouterConfig {
     /// link's): frames from the ground must be signed with it (and fresh), frames to the
     /// ground are signed with it. `None`: the ground side is unsigned.
     pub ground_signing: Option<SigningConfig>,
+    /// Answer a ground's `PARAM_REQUEST_LIST` from the parameter cache when the vehicle's
+    /// `_HASH_CHECK` says its parameters are unchanged (see [`ParamCache`]); `false`: every
+    /// list crosses the radio.
+    pub param_cache: bool,
 }
 
 /// The share of the radio budget the ground's heartbeats may take by default.
@@ -111,6 +120,7 @@ impl RouterConfig {
             signing: None,
             ground: GroundPolicy::default(),
             ground_signing: None,
+            param_cache: true,
         }
     }
 }
@@ -142,6 +152,8 @@ pub struct RouterStats {
     /// The ground's reads by index: forwarded, and held (the list in flight brings the value,
     /// or the same read is in flight).
     pub param_reads: ReadGateStats,
+    /// The parameter cache: lists served from it, checks, misses.
+    pub param_cache: ParamCacheStats,
     /// Frames sent to the ground station.
     pub to_gcs_frames: u64,
     /// Bytes sent to the ground station.
@@ -182,6 +194,9 @@ pub struct Router {
     expander: Expander,
     /// The ground's reads of values a list in flight brings wait here.
     param_reads: ReadGate,
+    /// Lists delivered, given again from here while the vehicle's hash says unchanged; a
+    /// held request keeps its frame and the scheduler origin of its sender.
+    param_cache: ParamCache<(OwnedFrame, Origin)>,
     mission: MissionTerminator,
     commands: CommandRetransmitter,
     sender: Sender,
@@ -240,6 +255,7 @@ impl Router {
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
             param_reads: ReadGate::default(),
+            param_cache: ParamCache::default(),
             mission: MissionTerminator::new(TerminatorConfig {
                 pace_bytes_per_s: config
                     .mission
@@ -308,6 +324,7 @@ impl Router {
             signing: self.radio_leg.stats(),
             compact_undecodable: self.expander.undecodable(),
             param_reads: self.param_reads.stats(),
+            param_cache: self.param_cache.stats(),
             ground_signing: self
                 .ground_signer
                 .as_ref()
@@ -452,6 +469,24 @@ impl Router {
             {
                 continue;
             }
+            // A list the cache may answer waits for the vehicle's hash.
+            if id == ids::PARAM_REQUEST_LIST
+                && self.config.param_cache
+                && let Ok(MavMessage::PARAM_REQUEST_LIST(r)) = frame.decode::<MavMessage>()
+            {
+                let origin = Origin::tagged(&frame, from);
+                let back = self.param_cache.request_list(
+                    now,
+                    r.target_system,
+                    r.target_component,
+                    (frame, origin),
+                );
+                self.drain_param_cache(now);
+                if let Some((frame, origin)) = back {
+                    self.scheduler.push_from(frame, Class::of(id), origin, now);
+                }
+                continue;
+            }
             if id == ids::HEARTBEAT {
                 if self.heartbeat_filter.check(&frame, now) != Verdict::Pass {
                     continue;
@@ -588,15 +623,17 @@ impl Router {
                 }
                 ids::MAVLORA_PARAM_VALUES => self.expand_params(now, &frame),
                 ids::PARAM_VALUE => {
-                    if let Some(v) = ParamValue::from_payload(frame.payload()) {
-                        self.param_reads.answered(
-                            now,
-                            frame.system_id(),
-                            frame.component_id(),
-                            v.index,
-                        );
+                    let value = ParamValue::from_payload(frame.payload());
+                    let from = (frame.system_id(), frame.component_id());
+                    if let Some(v) = &value {
+                        self.param_reads.answered(now, from.0, from.1, v.index);
                     }
                     self.push_gcs(now, frame);
+                    // after the frame: the vehicle's hash goes first, as on a list of its own
+                    if let Some(v) = value {
+                        self.param_cache.value(now, from.0, from.1, &v);
+                        self.drain_param_cache(now);
+                    }
                 }
                 ids::MISSION_REQUEST
                 | ids::MISSION_REQUEST_INT
@@ -703,6 +740,40 @@ impl Router {
             self.stats.param_values_expanded += 1;
             let sequence = self.next_sequence((system, component));
             self.enqueue_gcs(now, param_value_frame(system, component, sequence, value));
+            self.param_cache.value(now, system, component, value);
+        }
+        self.drain_param_cache(now);
+    }
+
+    /// The parameter cache's checks and the requests it gives back to the radio; the lists
+    /// it serves to the ground, each value as the component that sent it, in that stream's
+    /// numbering.
+    fn drain_param_cache(&mut self, now: Instant) {
+        while let Some(out) = self.param_cache.poll_radio() {
+            match out {
+                CacheRadio::HashCheck { system, component } => {
+                    tracing::debug!(%now, system, component, "asking the vehicle for its _HASH_CHECK");
+                    let read = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+                        target_system: system,
+                        target_component: component,
+                        param_id: HASH_CHECK_NAME.into(),
+                        param_index: -1,
+                    });
+                    let frame = self.sender.frame(&read);
+                    self.scheduler.push(frame, Class::Command, now);
+                }
+                CacheRadio::Forward((frame, origin)) => {
+                    let class = Class::of(frame.message_id());
+                    self.scheduler.push_from(frame, class, origin, now);
+                }
+            }
+        }
+        while let Some((system, component, values)) = self.param_cache.poll_served() {
+            tracing::info!(%now, system, component, values = values.len(), "parameter list given from the cache: the vehicle's hash says unchanged");
+            for value in &values {
+                let sequence = self.next_sequence((system, component));
+                self.enqueue_gcs(now, param_value_frame(system, component, sequence, value));
+            }
         }
     }
 
@@ -784,6 +855,8 @@ impl Router {
         }
         self.mission.handle_timeout(now);
         self.drain_mission(now);
+        self.param_cache.handle_timeout(now);
+        self.drain_param_cache(now);
         self.commands.set_link_loss(now, self.link_loss(now));
         self.commands.handle_timeout(now);
         while let Some(frame) = self.commands.poll_retransmit() {
@@ -897,6 +970,7 @@ impl Router {
             self.commands.poll_timeout(),
             self.mission.poll_timeout(),
             self.expander.poll_timeout(),
+            self.param_cache.poll_timeout(),
             // Frames waiting for the ground stations: due at once.
             (!self.to_gcs.is_empty()).then_some(Instant::ZERO),
         ]

@@ -6,7 +6,8 @@
 //! Scenarios, each run with every autopilot of `[mavlora.sitl]` over each of its radios:
 //! - [`telemetry`]: steady telemetry: bytes each way, position rate and freshness;
 //! - [`params`]: the whole parameter list as a ground station downloads it, with a
-//!   PARAM_SET in flight, and the position rate meanwhile;
+//!   PARAM_SET in flight, and the position rate meanwhile; and ([`params::CACHE`]) the list
+//!   asked for again, as a reconnecting ground station does (the router's cache);
 //! - [`mission`]: a 30-item plan uploaded and read back; the plan the vehicle holds must
 //!   be the one the ground was told ACCEPTED;
 //! - [`flight`]: GUIDED, arm, takeoff, AUTO through a mission, RTL, landed: every command
@@ -130,13 +131,14 @@ pub type Script =
 pub fn scenarios() -> Vec<Scenario> {
     // Longest first, so the shorter phases fill the other slots: the flights take ~125 s
     // each, PX4's parameters over LoRa SF7 ~115 s, Table II and telemetry ~53 s, the
-    // missions ~20 s (CI's times; in this order four lanes end after ~190 s by those times,
+    // reconnecting ground's parameters and the missions ~20 s (CI's times; in this order four lanes end after ~190 s by those times,
     // against ~230 s with the parameters after the telemetry).
     vec![
         flight::SCENARIO,
         params::SCENARIO,
         table_ii::SCENARIO,
         telemetry::SCENARIO,
+        params::CACHE,
         mission::SCENARIO,
     ]
 }

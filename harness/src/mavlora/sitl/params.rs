@@ -155,3 +155,91 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
         Ok(())
     })
 }
+
+/// A reconnecting ground station's list: the router answers it from its cache once the
+/// vehicle's `_HASH_CHECK` says the parameters are unchanged (PX4; ArduPilot has no such
+/// hash, so its second list crosses the radio again and is measured without a limit).
+pub const CACHE: Scenario = Scenario {
+    name: "params_cache",
+    summary: "The whole parameter list asked for again after a first download, as a \
+              reconnecting ground station does: PX4 <= 5 s on any radio (the router's cache, \
+              checked with PX4's _HASH_CHECK); ArduPilot measured (no hash: over the radio)",
+    plan: plan_cache,
+    radios: |p| &p.params_cache,
+};
+
+/// The second list's limit (issue target): PX4's, whatever the radio; none for ArduPilot.
+fn again_limit(f: Flavour) -> Option<f64> {
+    match f {
+        Flavour::Px4 => Some(5.0),
+        Flavour::ArduPilot => None,
+    }
+}
+
+fn plan_cache(d: &mut Declarations, t: &Target) -> Script {
+    let first = d.declare(
+        t.spec("params_cache_first_s", "s")
+            .describe("the first download, from PARAM_REQUEST_LIST to the last parameter"),
+    );
+    let again = t
+        .spec("params_again_s", "s")
+        .describe("the list asked for again 5 s after the first download: to its last parameter");
+    let again = d.declare(match again_limit(t.flavour()) {
+        Some(max) => again.at_most(max),
+        None => again,
+    });
+    let missing = d.declare(
+        t.spec("params_again_missing", "")
+            .describe("parameters of the second list that never arrived")
+            .equal_to(0.0),
+    );
+    Box::new(move |ctx, defaults: &SessionDefaults, t: &Target| {
+        let args = vec![
+            "--scenario".into(),
+            "params".into(),
+            "--param-timeout".into(),
+            LIST_TIMEOUT_S.to_string(),
+            "--relist".into(),
+        ];
+        let dir = ctx.dir.clone();
+        let budget = Duration::from_secs_f64(2.0 * LIST_TIMEOUT_S + 40.0);
+        let o = options(defaults, t, &dir, args, budget);
+        let report = run(ctx, o)?;
+        let done = report.ground_events().find_map(|e| match e {
+            GroundEvent::Params {
+                count,
+                total,
+                seconds,
+                ..
+            } => Some((*count, *total, *seconds)),
+            _ => None,
+        });
+        let Some((count, total, seconds)) = done else {
+            bail!("the ground station reported no parameter download");
+        };
+        if count == total && total > 0 {
+            ctx.record(first, seconds);
+        }
+        let done = report.ground_events().find_map(|e| match e {
+            GroundEvent::ParamsAgain {
+                count,
+                total,
+                seconds,
+                rereads,
+                ..
+            } => Some((*count, *total, *seconds, *rereads)),
+            _ => None,
+        });
+        let Some((count, total, seconds, rereads)) = done else {
+            bail!("the ground station reported no second download");
+        };
+        ctx.record(missing, f64::from(total.saturating_sub(count)));
+        ctx.log(format!(
+            "second list: {count} of {total} in {seconds:.2} s, {rereads} read by index"
+        ));
+        if count == total && total > 0 {
+            ctx.record(again, seconds);
+        }
+        Ok(())
+    })
+}
