@@ -65,8 +65,6 @@ const BRIDGE_COUNTERS: &[&str] = &[
     "fc_refused_opens",
     "filtered",
     "rate_limited",
-    "unchanged",
-    "requested",
     "replaced",
     "compact_batches",
     "config_acks",

@@ -704,12 +704,7 @@ impl Bridge {
                 if let Ok(msg) = frame.decode::<MavMessage>() {
                     self.commands.set_link_loss(now, self.link_loss(now));
                     match self.commands.command(&frame, &msg, now) {
-                        CacheVerdict::Forward(f) => {
-                            if let Some(asked) = requested_message(&msg) {
-                                self.filter.requested(asked, now);
-                            }
-                            return self.forward_to_fc(f);
-                        }
+                        CacheVerdict::Forward(f) => return self.forward_to_fc(f),
                         CacheVerdict::Replay(ack) => {
                             self.scheduler.push(ack, Class::Command, now);
                             return;
@@ -960,26 +955,6 @@ impl Bridge {
         .into_iter()
         .flatten()
         .min()
-    }
-}
-
-/// The message a ground's command asks the autopilot to send once: `MAV_CMD_REQUEST_MESSAGE`
-/// (param1; MAVSDK 4.1 asks for HOME_POSITION so about once a second until it has one) or the older
-/// `MAV_CMD_GET_HOME_POSITION`.
-// MAV_CMD_GET_HOME_POSITION is superseded, but PX4 1.16 and ArduPilot 4.6 still answer it.
-#[allow(deprecated)]
-fn requested_message(msg: &MavMessage) -> Option<u32> {
-    let (command, param1) = match msg {
-        MavMessage::COMMAND_LONG(c) => (c.command, c.param1),
-        MavMessage::COMMAND_INT(c) => (c.command, c.param1),
-        _ => return None,
-    };
-    match command {
-        MavCmd::MAV_CMD_REQUEST_MESSAGE if (0.0..16_777_216.0).contains(&param1) => {
-            Some(param1 as u32)
-        }
-        MavCmd::MAV_CMD_GET_HOME_POSITION => Some(ids::HOME_POSITION),
-        _ => None,
     }
 }
 

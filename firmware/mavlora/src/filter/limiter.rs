@@ -18,8 +18,6 @@ pub enum Verdict {
     Filtered,
     /// Too soon after the last forwarded frame of this message from this sender.
     RateLimited,
-    /// An `on_change` message the same as the last one forwarded from this sender.
-    Unchanged,
 }
 
 /// Frames counted by outcome.
@@ -31,20 +29,7 @@ pub struct FilterStats {
     pub filtered: u64,
     /// Dropped by a rate limit.
     pub rate_limited: u64,
-    /// Dropped by an `on_change` rule: the same as the last one forwarded.
-    pub unchanged: u64,
-    /// Forwarded past a rate limit or an `on_change` rule as the answer to a request.
-    pub requested: u64,
 }
-
-/// How long after a ground's request the message asked for passes whatever its rate: PX4
-/// 1.16 and ArduPilot 4.6 answer within milliseconds, a busy flight-controller link within
-/// a second.
-pub const REQUEST_WINDOW: Duration = Duration::from_secs(5);
-/// Requests in flight that are remembered (message ids asked for at once).
-const REQUESTS_KEPT: usize = 16;
-/// Answers one message id lets through in one window: a few ground stations asking at once.
-const ANSWERS_PER_REQUEST: u8 = 4;
 
 /// Sans-IO filter applying a [`Profile`]'s radio rules.
 ///
@@ -55,19 +40,10 @@ const ANSWERS_PER_REQUEST: u8 = 4;
 /// 2.5 Hz a plain minimum spacing would, and a jittery 4 Hz still gives 3 Hz). Catching up
 /// is bounded: two forwarded frames are never closer than a quarter of an interval, k apart
 /// never closer than k - 3/4 intervals, and a quiet period earns no burst.
-///
-/// A message the ground asked for ([`RadioFilter::requested`]: `MAV_CMD_REQUEST_MESSAGE`)
-/// passes its rate limit and `on_change` rule once per request within [`REQUEST_WINDOW`]:
-/// the answer is what the ground waits for, and its requests are what it costs.
 #[derive(Debug)]
 pub struct RadioFilter {
     profile: Profile,
     next_due: HashMap<(StreamId, u32), Instant>,
-    /// `on_change` messages: the payload last forwarded, trailing zeros cut (as MAVLink 2
-    /// sends it), per sender.
-    last_sent: HashMap<(StreamId, u32), Vec<u8>>,
-    /// Message id asked for → (until when, answers still to let through).
-    requests: HashMap<u32, (Instant, u8)>,
     stats: FilterStats,
 }
 
@@ -77,8 +53,6 @@ impl RadioFilter {
         Self {
             profile,
             next_due: HashMap::new(),
-            last_sent: HashMap::new(),
-            requests: HashMap::new(),
             stats: FilterStats::default(),
         }
     }
@@ -93,19 +67,6 @@ impl RadioFilter {
         self.stats
     }
 
-    /// The ground asked for message `id` at `now` (a `MAV_CMD_REQUEST_MESSAGE` on its way to
-    /// the flight controller): the next frame of it passes whatever its rate or `on_change`
-    /// rule (a `drop` rule still drops it).
-    pub fn requested(&mut self, id: u32, now: Instant) {
-        self.requests.retain(|_, (until, _)| *until > now);
-        if self.requests.len() >= REQUESTS_KEPT && !self.requests.contains_key(&id) {
-            return;
-        }
-        let entry = self.requests.entry(id).or_insert((now, 0));
-        entry.0 = now + REQUEST_WINDOW;
-        entry.1 = (entry.1 + 1).min(ANSWERS_PER_REQUEST);
-    }
-
     /// Decides whether `frame`, arriving at `now`, goes to the radio. A `Pass` counts as sent
     /// for the rate limit.
     pub fn check<T: AsRef<[u8]>>(&mut self, frame: &Frame<T>, now: Instant) -> Verdict {
@@ -114,63 +75,18 @@ impl RadioFilter {
             system: frame.system_id(),
             component: frame.component_id(),
         };
-        let rule = self.profile.radio_rule(id);
-        let on_change = self.profile.on_change(id);
-        let payload = || {
-            let p = frame.payload();
-            let end = p.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
-            &p[..end]
-        };
-        // A request matters only where a frame could be held back other than by `drop`.
-        let holds = match rule {
-            RadioRule::Drop => false,
-            RadioRule::Pass => on_change,
-            RadioRule::MaxRate(_) => true,
-        };
-        let verdict = if holds && self.take_request(id, now) {
-            self.stats.requested += 1;
-            Verdict::Pass
-        } else if on_change
-            && self
-                .last_sent
-                .get(&(stream, id))
-                .is_some_and(|last| last.as_slice() == payload())
-        {
-            Verdict::Unchanged
-        } else {
-            match rule {
-                RadioRule::Pass => Verdict::Pass,
-                RadioRule::Drop => Verdict::Filtered,
-                RadioRule::MaxRate(hz) => self.limit(stream, id, hz, now),
-            }
+        let verdict = match self.profile.radio_rule(id) {
+            RadioRule::Pass => Verdict::Pass,
+            RadioRule::Drop => Verdict::Filtered,
+            RadioRule::MaxRate(hz) => self.limit(stream, id, hz, now),
         };
         match verdict {
             Verdict::Pass => self.stats.passed += 1,
             Verdict::Filtered => self.stats.filtered += 1,
             Verdict::RateLimited => self.stats.rate_limited += 1,
-            Verdict::Unchanged => self.stats.unchanged += 1,
-        }
-        if verdict == Verdict::Pass && on_change {
-            self.last_sent.insert((stream, id), payload().to_vec());
         }
         trace!(msgid = id, ?verdict, "radio filter");
         verdict
-    }
-
-    /// Uses up one answer to a request for `id`, if one is open at `now`.
-    fn take_request(&mut self, id: u32, now: Instant) -> bool {
-        let Some((until, left)) = self.requests.get_mut(&id) else {
-            return false;
-        };
-        if *until <= now {
-            self.requests.remove(&id);
-            return false;
-        }
-        *left -= 1;
-        if *left == 0 {
-            self.requests.remove(&id);
-        }
-        true
     }
 
     fn limit(&mut self, stream: StreamId, id: u32, hz: f64, now: Instant) -> Verdict {
@@ -232,7 +148,7 @@ mod tests {
             FilterStats {
                 passed: 1,
                 filtered: 1,
-                ..FilterStats::default()
+                rate_limited: 0
             }
         );
     }
@@ -295,74 +211,6 @@ mod tests {
             filter.check(&a, Instant::from_millis(10)),
             Verdict::RateLimited
         );
-    }
-
-    /// HOME_POSITION as the compact profiles treat it, and a dropped message.
-    fn home_profile() -> Profile {
-        Profile::parse(
-            "[messages.HOME_POSITION]\nradio = 0.1\non_change = true\n\
-             [messages.ATTITUDE]\nradio = \"drop\"\non_change = true\n",
-            "test",
-        )
-        .unwrap()
-    }
-
-    const HOME_POSITION: u32 = 242;
-
-    /// A HOME_POSITION from system `sysid` at latitude `lat` (1e-7 degrees).
-    fn home(sysid: u8, lat: i32) -> crate::wire::OwnedFrame {
-        use crate::dialect::{HOME_POSITION_DATA, MavMessage};
-        let msg = MavMessage::HOME_POSITION(HOME_POSITION_DATA {
-            latitude: lat,
-            ..Default::default()
-        });
-        crate::wire::encode(
-            mavlink::MavlinkVersion::V2,
-            crate::testutil::header(sysid, 1, 0),
-            &msg,
-        )
-    }
-
-    #[test]
-    fn on_change_holds_repeats_and_caps_changes() {
-        let mut filter = RadioFilter::new(home_profile());
-        let same = home(1, 7);
-        let at = |s: u64| Instant::from_millis(s * 1000);
-        assert_eq!(filter.check(&same, at(0)), Verdict::Pass);
-        assert_eq!(filter.check(&same, at(20)), Verdict::Unchanged);
-        // a change passes once its slot (10 s) allows, not before
-        let moved = home(1, 8);
-        assert_eq!(filter.check(&moved, at(20)), Verdict::Pass);
-        let again = home(1, 9);
-        assert_eq!(filter.check(&again, at(22)), Verdict::RateLimited);
-        assert_eq!(filter.check(&again, at(30)), Verdict::Pass);
-        // another sender's home is its own
-        assert_eq!(filter.check(&home(2, 9), at(30)), Verdict::Pass);
-        let s = filter.stats();
-        assert_eq!((s.unchanged, s.rate_limited, s.passed), (1, 1, 4));
-    }
-
-    #[test]
-    fn a_requested_frame_passes_once_within_the_window_but_never_a_drop() {
-        let mut filter = RadioFilter::new(home_profile());
-        let home = home(1, 7);
-        let ms = Instant::from_millis;
-        assert_eq!(filter.check(&home, ms(0)), Verdict::Pass);
-        filter.requested(HOME_POSITION, ms(1000));
-        assert_eq!(filter.check(&home, ms(1001)), Verdict::Pass, "the answer");
-        assert_eq!(filter.check(&home, ms(1002)), Verdict::Unchanged, "once");
-        // a request the autopilot did not answer in time lets nothing through later
-        filter.requested(HOME_POSITION, ms(2000));
-        assert_eq!(
-            filter.check(&home, ms(2000) + REQUEST_WINDOW),
-            Verdict::Unchanged
-        );
-        filter.requested(30, ms(8000));
-        assert_eq!(
-            filter.check(&frame(30, 1, 1, 0), ms(8001)),
-            Verdict::Filtered
-        );
-        assert_eq!(filter.stats().requested, 1);
     }
 
     proptest! {

@@ -58,11 +58,6 @@ pub struct MessageRule {
     /// Rate to request from the flight controller; `Some(0.0)` stops the stream, `None`
     /// leaves the flight controller's own rate.
     pub stream_hz: Option<f64>,
-    /// `on_change = true`: a frame with the same payload as the last one sent of this
-    /// message from its sender stays off the radio (`radio` still caps the ones that
-    /// differ); an answer to the ground's own request goes anyway. For a state that is
-    /// streamed but rarely changes (PX4's HOME_POSITION at 0.5 Hz, the same bytes each time).
-    pub on_change: bool,
 }
 
 /// What happens on the radio to periodic telemetry the profile does not list (an autopilot
@@ -257,8 +252,6 @@ struct DefaultsFile {
 struct RuleFile {
     radio: Option<Spanned<RadioValue>>,
     stream_hz: Option<Spanned<f64>>,
-    #[serde(default)]
-    on_change: bool,
 }
 
 #[derive(Deserialize, Debug)]
@@ -328,14 +321,7 @@ impl Profile {
                     });
                 }
             };
-            rules.insert(
-                id,
-                MessageRule {
-                    radio,
-                    stream_hz,
-                    on_change: rule.on_change,
-                },
-            );
+            rules.insert(id, MessageRule { radio, stream_hz });
         }
 
         let mut data_streams = Vec::new();
@@ -387,11 +373,6 @@ impl Profile {
     /// Radio treatment of message `id`.
     pub fn radio_rule(&self, id: u32) -> RadioRule {
         self.rules.get(&id).map_or(self.default_radio, |r| r.radio)
-    }
-
-    /// Whether message `id` goes to the radio only when it changed (`on_change = true`).
-    pub fn on_change(&self, id: u32) -> bool {
-        self.rules.get(&id).is_some_and(|r| r.on_change)
     }
 
     /// Radio treatment of messages the profile does not list.

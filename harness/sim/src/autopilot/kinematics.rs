@@ -145,8 +145,8 @@ impl Flight {
 }
 
 /// Home, near Odense (the paper's test area), in 1e-7 degrees.
-pub(crate) const HOME_LAT: i32 = 553_700_000;
-pub(crate) const HOME_LON: i32 = 103_900_000;
+const HOME_LAT: i32 = 553_700_000;
+const HOME_LON: i32 = 103_900_000;
 /// Metres per 1e-7 degree of latitude, and of longitude at home's latitude.
 const M_PER_LAT: f64 = 0.011_132;
 const M_PER_LON: f64 = 0.011_132 * 0.5664;

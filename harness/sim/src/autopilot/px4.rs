@@ -7,16 +7,15 @@ use std::collections::VecDeque;
 
 use mavlink::MavlinkVersion;
 
-use super::kinematics::{Flight, HOME_LAT, HOME_LON, Kinematics};
+use super::kinematics::{Flight, Kinematics};
 use super::mission::MissionStore;
 use super::params::{ParamServer, ParamTable, SetEcho, param_value_frame};
 use crate::rng::SplitMix64;
 use mavlora::Instant;
 use mavlora::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA,
-    HOME_POSITION_DATA, MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionType,
-    MavModeFlag, MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA,
-    VFR_HUD_DATA,
+    MISSION_ITEM_INT_DATA, MavAutopilot, MavCmd, MavMessage, MavMissionType, MavModeFlag,
+    MavResult, MavState, MavSysStatusSensorExtended, MavType, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use mavlora::wire::{FrameReader, OwnedFrame, Sender, known};
 
@@ -488,16 +487,6 @@ impl Px4Fc {
                 climb: k.vu as f32,
                 heading: (hdg / 100) as i16,
                 throttle: 55,
-            }),
-            // PX4 1.16 streams its home as it is, the same bytes each time (`time_usec`: when
-            // it was set), until it moves: SITL sends 55 payload bytes of 60.
-            242 => MavMessage::HOME_POSITION(HOME_POSITION_DATA {
-                latitude: HOME_LAT,
-                longitude: HOME_LON,
-                altitude: 10_000,
-                q: [1.0, 0.0, 0.0, 0.0],
-                time_usec: 2_472_000,
-                ..Default::default()
             }),
             _ => return self.filler(spec),
         };

@@ -155,39 +155,14 @@ fn plan(d: &mut Declarations, t: &Target) -> Script {
         t.spec("up_bytes_per_s", "B/s")
             .describe("GCS→UAV bytes the emulated radio put on air over the window"),
     );
-    let home = d.declare(
-        t.spec("home_position_s", "s")
-            .describe(
-                "from the ground station's connection to its first HOME_POSITION, asked for \
-                 once at the connection as QGroundControl does (ArduPilot sets its home ~20 s \
-                 after boot and sends it then): compact profiles answer a request and carry a \
-                 changed home",
-            )
-            .at_most(WARMUP_S + WINDOW_S),
-    );
     Box::new(move |ctx, defaults: &SessionDefaults, t: &Target| {
         let dir = ctx.dir.clone();
-        // Asks for HOME_POSITION once at the connection, as QGroundControl does.
-        let mut args = steady_args();
-        args.push("--ask-home".into());
-        let report = run(ctx, options(defaults, t, &dir, args, STEADY_BUDGET))?;
+        let report = run(
+            ctx,
+            options(defaults, t, &dir, steady_args(), STEADY_BUDGET),
+        )?;
         let w = SteadyWindow::of(&report)?;
         let (from, to) = (w.from, w.to);
-        let connected = report.ground_events().find_map(|e| match e {
-            GroundEvent::Connected { t, .. } => Some(*t),
-            _ => None,
-        });
-        let homed = report.ground_events().find_map(|e| match e {
-            GroundEvent::Home { t, .. } => Some(*t),
-            _ => None,
-        });
-        ctx.record(
-            home,
-            match (connected, homed) {
-                (Some(c), Some(h)) => h.since(c).as_secs_f64(),
-                _ => f64::NAN,
-            },
-        );
         ctx.record(down, w.down_bytes_per_s);
         ctx.record(up, w.up_bytes_per_s);
         let ground: Vec<_> = report
