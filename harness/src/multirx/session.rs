@@ -133,7 +133,6 @@ impl MultirxSession {
             }),
         )?;
         let fc = FcMonitor::start(wiring.fc)?;
-        let started = Mono::now();
         let (emulator, probe) = match &section.device.setup {
             DeviceSetup::Emulated { program } => {
                 let launch = EmulatorLaunch {
@@ -153,6 +152,9 @@ impl MultirxSession {
             ),
         };
 
+        // Once the device runs (the emulated one has been up 50 ms): the session is judged
+        // from here, not from its start-up.
+        let started = Mono::now();
         let mut session = MultirxSession {
             mode,
             config,
