@@ -62,13 +62,13 @@ step "build the programs the rig runs (release; clippy -D warnings on the worksp
 # as the tests see them.
 cargo build --release --locked --workspace --bins --test model "${features[@]}"
 # The rest of `--all-targets` (test binaries, benchmarks) shares every unit just built.
-# SCHED_IDLE where chrt allows it, niced in any case: an idle-class task runs only on a core
-# nothing else wants, so the suite's fixtures and programs, woken every 7 ms, never wait
-# behind the compiler (a fixture held 60 ms loses its receiver's link at the device).
+# Niced, not SCHED_IDLE: an idle-class linker that holds a kernel lock (a file system's,
+# the page cache's) while every core has other work is not run again for seconds, and
+# whoever waits on that lock waits with it: twice a 3 s stall of every fixture at once
+# during the final link (both realtime::ardupilot bridges saw their autopilot "reboot" at
+# the same instant). The MultiRX fixtures that once needed the idle class to keep their
+# 7 ms cadence run SCHED_FIFO themselves now (fixtures/sbus_receiver.py).
 background="nice -n 19"
-if command -v chrt > /dev/null && chrt --idle 0 true 2> /dev/null; then
-    background="chrt --idle 0 nice -n 19"
-fi
 step "build the tests, benchmarks and firmware, and measure the firmware's cycle budget (in the background, $background; logs: target/test-build.log, target/firmware-build.log)"
 $background cargo build --release --locked --workspace --all-targets "${features[@]}" \
     > target/test-build.log 2>&1 &
