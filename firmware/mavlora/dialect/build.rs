@@ -10,7 +10,11 @@ use std::process::ExitCode;
 use mavlink_bindgen::XmlDefinitions;
 
 fn main() -> ExitCode {
-    let manifest_dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    // Read when run, not when compiled: a build script binary reused from another checkout
+    // sharing the target folder would otherwise read that checkout's definitions.
+    let manifest_dir = PathBuf::from(
+        std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"),
+    );
     let definitions = manifest_dir.join("../message_definitions");
     let out_dir = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
 
