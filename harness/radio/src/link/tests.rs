@@ -170,6 +170,239 @@ fn a_sparse_uplink_does_not_stretch_a_burst_over_seconds() {
     );
 }
 
+/// The ms steps `[first, last)` a packet on air overlaps: where the burst chain judges it.
+fn chain_steps(p: &AirPacket) -> (u64, u64) {
+    let first = p.start.as_micros() / 1000;
+    let last = (p.start + p.airtime)
+        .as_micros()
+        .div_ceil(1000)
+        .max(first + 1);
+    (first, last)
+}
+
+/// Gilbert model (loss_good 0, loss_bad 1): probability that no piece of a frame is
+/// hit, i.e. the chain is good at every step the pieces overlap, given its state
+/// (`from_bad`) at step `from`, before the first piece.
+fn p_clean(ge: &GilbertElliott, from_bad: bool, from: u64, pieces: &[(u64, u64)]) -> f64 {
+    let (mut p, mut bad, mut at) = (1.0, from_bad, from);
+    for &(first, last) in pieces {
+        let stay_good = (1.0 - ge.p_good_to_bad).powi((last - first - 1) as i32);
+        p *= (1.0 - ge.p_bad_after(bad, first - at)) * stay_good;
+        (bad, at) = (false, last - 1);
+    }
+    p
+}
+
+/// Regression guard for a CI run over the rig's `sik-64k-bursty` (10 % bad, 250 ms
+/// fades) where 4 mission-item requests 1.5 s apart were lost in a row. The
+/// ground's sparse traffic, a 40-byte frame every 500 ± 50 ms for 15 s, goes through
+/// the `Radio` the emulator runs, built from the rig file's own table, over 2,000
+/// seeds. Every expectation is the model's, computed from where each frame was on
+/// air (the trace) with `GilbertElliott::p_bad_after`, the chain starting good at 0:
+/// - the loss share is the sum of the frames' marginal loss probabilities;
+/// - after a lost frame the next one `d` frames on is lost with a probability between
+///   the one from a good and the one from a bad state at the lost frame's end (by
+///   the Markov property; weighted by a lower bound on still being bad): ≈ 0.2 at
+///   0.5 s, ≈ the 10 % marginal at 1.5 s, where a chain stepped per packet or judged
+///   at the wrong time would carry the fade over;
+/// - 4 frames 1.5 s apart are all lost no more than 10× as often as if independent;
+/// - no streak of lost frames is longer than one the chain rule bounds below 1e-3.
+#[test]
+fn a_bursty_sik_uplink_forgets_its_fades_between_sparse_frames() {
+    use crate::{Direction, RadioSetup};
+    use rand::{RngExt, SeedableRng};
+
+    const SEEDS: u64 = 2000;
+    const FRAMES: usize = 30;
+    const FRAME_BYTES: usize = 40;
+    let rig: toml::Table = toml::from_str(include_str!("../../../../rigs/emulated.toml")).unwrap();
+    let setup: RadioSetup = rig["radios"]["sik-64k-bursty"].clone().try_into().unwrap();
+    let ge = setup.uplink.burst.unwrap();
+    assert!(
+        (ge.loss_good, ge.loss_bad) == (0.0, 1.0) && setup.uplink.packet_loss == 0.0,
+        "the expectations below are for the Gilbert model alone: {setup:?}"
+    );
+    let preset = setup.preset.resolve().unwrap();
+    assert!(setup.uplink.budget.reference_per(&preset) < 1e-6);
+
+    struct Frame {
+        pieces: Vec<(u64, u64)>,
+        lost: bool,
+    }
+    impl Frame {
+        fn start(&self) -> u64 {
+            self.pieces[0].0
+        }
+        fn end(&self) -> u64 {
+            self.pieces.last().unwrap().1 - 1
+        }
+    }
+    // Bounds on P(`next` lost | `prev` lost and all before): (low, high).
+    let after_loss = |prev: &Frame, next: &Frame| {
+        let hi = 1.0 - p_clean(&ge, true, prev.end(), &next.pieces);
+        let lo = 1.0 - p_clean(&ge, false, prev.end(), &next.pieces);
+        // Lost means bad at some step of `prev`; still bad at its end at least this often.
+        let w = ge.p_bad_after(true, prev.end() - prev.start());
+        (w * hi + (1.0 - w) * lo, hi)
+    };
+
+    let (mut lost, mut expected, mut var) = (0usize, 0.0, 0.0);
+    // Per lag (1 frame = 0.5 s, 3 frames = 1.5 s): losses followed by a loss, bounds, variance.
+    let mut lag = [
+        (1usize, 0usize, 0usize, 0.0, 0.0, 0.0),
+        (3, 0, 0, 0.0, 0.0, 0.0),
+    ];
+    let (mut fours, mut runs_with_four, mut fours_independent, mut fours_bound) =
+        (0usize, 0usize, 0.0, 0.0);
+    let (mut longest, mut streak_bound) = (0usize, vec![0.0; FRAMES + 1]);
+    let mut windows_like_ci = 0usize;
+    for seed in 0..SEEDS {
+        let mut setup = setup.clone();
+        setup.uplink.seed = seed;
+        setup.downlink.seed = seed + SEEDS;
+        let mut radio = setup.radio().unwrap();
+        radio.link_mut(Direction::Uplink).set_trace(true);
+        let mut got = [0usize; FRAMES];
+        let mut run_until = |radio: &mut crate::Radio, until: Instant| {
+            while let Some(t) = radio.poll_timeout().filter(|&t| t <= until) {
+                radio.handle_timeout(t);
+                while let Some(b) = radio.poll_output(Direction::Uplink) {
+                    b.iter().for_each(|&k| got[k as usize] += 1);
+                }
+            }
+        };
+        let mut traffic = ChaCha8Rng::seed_from_u64(seed);
+        traffic.set_stream(9);
+        for k in 0..FRAMES {
+            let jitter = Duration::from_micros((traffic.random::<f64>() * 100_000.0) as u64);
+            let t = at(MS * (450 + 500 * k as u32) + jitter);
+            run_until(&mut radio, t);
+            radio.handle_input(t, Direction::Uplink, &[k as u8; FRAME_BYTES]);
+        }
+        run_until(&mut radio, Instant::from_secs(20));
+
+        // Air packets to frames: a frame leaves before the next is written.
+        let mut frames: Vec<Frame> = (0..FRAMES)
+            .map(|_| Frame {
+                pieces: Vec::new(),
+                lost: false,
+            })
+            .collect();
+        let mut sent = 0;
+        for p in radio.link_mut(Direction::Uplink).take_trace() {
+            let k = sent / FRAME_BYTES;
+            assert!(sent % FRAME_BYTES + p.bytes <= FRAME_BYTES);
+            frames[k].pieces.push(chain_steps(&p));
+            frames[k].lost |= p.lost;
+            sent += p.bytes;
+        }
+        assert_eq!(sent, FRAMES * FRAME_BYTES);
+        for (f, &n) in frames.iter().zip(&got) {
+            assert_eq!(
+                f.lost,
+                n < FRAME_BYTES,
+                "the far port sees what the trace says"
+            );
+        }
+
+        let p: Vec<f64> = frames
+            .iter()
+            .map(|f| 1.0 - p_clean(&ge, false, 0, &f.pieces))
+            .collect();
+        lost += frames.iter().filter(|f| f.lost).count();
+        expected += p.iter().sum::<f64>();
+        var += p.iter().map(|p| p * (1.0 - p)).sum::<f64>();
+        for (d, prev_lost, both, lo_sum, hi_sum, v) in &mut lag {
+            for j in 0..FRAMES - *d {
+                if frames[j].lost {
+                    let (lo, hi) = after_loss(&frames[j], &frames[j + *d]);
+                    *prev_lost += 1;
+                    *both += frames[j + *d].lost as usize;
+                    (*lo_sum, *hi_sum, *v) = (*lo_sum + lo, *hi_sum + hi, *v + hi * (1.0 - lo));
+                }
+            }
+        }
+        let mut any_four = false;
+        for j in 0..FRAMES - 9 {
+            let w = [j, j + 3, j + 6, j + 9];
+            fours_independent += w.iter().map(|&i| p[i]).product::<f64>();
+            fours_bound += p[j]
+                * w.windows(2)
+                    .map(|s| after_loss(&frames[s[0]], &frames[s[1]]).1)
+                    .product::<f64>();
+            if w.iter().all(|&i| frames[i].lost) {
+                fours += 1;
+                any_four = true;
+            }
+        }
+        runs_with_four += any_four as usize;
+        // Streaks: P(frames i..i+L all lost) ≤ p_i · Π high bounds, by the chain rule.
+        let mut run = 0;
+        for f in &frames {
+            run = if f.lost { run + 1 } else { 0 };
+            longest = longest.max(run);
+        }
+        for i in 0..FRAMES {
+            let mut bound = p[i];
+            streak_bound[1] += bound;
+            for l in 2..=FRAMES - i {
+                bound *= after_loss(&frames[i + l - 2], &frames[i + l - 1]).1;
+                streak_bound[l] += bound;
+            }
+        }
+        // The CI run's look: 7 or more of 17 frames (8 s) lost.
+        windows_like_ci += frames
+            .windows(17)
+            .any(|w| w.iter().filter(|f| f.lost).count() >= 7) as usize;
+    }
+
+    let n = SEEDS as usize * FRAMES;
+    let share = lost as f64 / n as f64;
+    eprintln!(
+        "frames lost {lost} of {n} ({share:.4}), model {:.4}; bad share {:.4}",
+        expected / n as f64,
+        ge.bad_share()
+    );
+    // Neighbours 0.5 s apart are correlated (memory (1 − a − b)^~490 ≈ 0.11), so
+    // the binomial variance is widened by 2 (1 + 2·Σρ ≈ 1.25 here).
+    let sd = (2.0 * var).sqrt();
+    assert!(
+        (lost as f64 - expected).abs() < 5.0 * sd,
+        "{lost} frames lost, model {expected:.0} ± {sd:.0}"
+    );
+    for &(d, prev_lost, both, lo, hi, v) in &lag {
+        // Martingale differences (d interleaved sequences for lag d).
+        let sd = (d as f64 * v).sqrt();
+        eprintln!(
+            "lost {} ms after a loss: {both} of {prev_lost} ({:.4}), model {:.4}..{:.4}",
+            d * 500,
+            both as f64 / prev_lost as f64,
+            lo / prev_lost as f64,
+            hi / prev_lost as f64
+        );
+        assert!(
+            lo - 5.0 * sd < both as f64 && (both as f64) < hi + 5.0 * sd,
+            "lag {d}: {both} of {prev_lost} losses followed by a loss, model {lo:.0}..{hi:.0} ± {sd:.0}"
+        );
+    }
+    eprintln!(
+        "4 in a row 1.5 s apart: {fours} windows in {runs_with_four} of {SEEDS} runs \
+         ({:.2e} per 15 s run), independent {fours_independent:.2} windows, model ≤ {fours_bound:.2}",
+        runs_with_four as f64 / SEEDS as f64
+    );
+    assert!(
+        (fours as f64) < 10.0 * fours_independent,
+        "{fours} windows of 4 frames 1.5 s apart all lost; independent loss gives {fours_independent:.2}"
+    );
+    let limit = (1..=FRAMES).find(|&l| streak_bound[l] < 1e-3).unwrap();
+    eprintln!(
+        "longest streak {longest} frames, P(≥ {limit}) ≤ {:.1e} by the model; \
+         runs with ≥ 7 of 17 frames lost: {windows_like_ci} of {SEEDS}",
+        streak_bound[limit]
+    );
+    assert!(longest < limit, "{longest} frames lost in a row");
+}
+
 #[test]
 fn nothing_on_air_in_a_silence_arrives_and_the_link_comes_back_after_it() {
     let cfg = LinkConfig {
