@@ -67,6 +67,8 @@ const BRIDGE_COUNTERS: &[&str] = &[
     "rate_limited",
     "replaced",
     "compact_batches",
+    "compact_merged",
+    "compact_samples_dropped",
     "config_acks",
     "fc_reboots",
     "missions",

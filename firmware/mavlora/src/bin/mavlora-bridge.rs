@@ -123,6 +123,7 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
     }
     config.signing = setup.signing.config.clone();
     config.quality = setup.quality;
+    config.radio_backlog = setup.radio_backlog;
 
     let fc_baud = o.fc_baud.unwrap_or(FC_BAUD);
     if fc_baud == 0 {
@@ -166,6 +167,8 @@ struct BridgeCounters {
     rate_limited: u64,
     replaced: u64,
     compact_batches: u64,
+    compact_merged: u64,
+    compact_samples_dropped: u64,
     config_acks: u64,
     fc_reboots: u64,
     missions: u64,
@@ -216,6 +219,8 @@ impl Side<Bridge> for FcSide {
             rate_limited: s.filter.rate_limited,
             replaced: s.scheduler.replaced,
             compact_batches: s.compact.batches,
+            compact_merged: s.compact_merged,
+            compact_samples_dropped: s.compact_samples_dropped,
             config_acks: s.config_acks,
             fc_reboots: s.fc_reboots,
             missions: s.mission.completed,

@@ -139,6 +139,7 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
     }
     config.signing = setup.signing.config.clone();
     config.quality = setup.quality;
+    config.radio_backlog = setup.radio_backlog;
     if let Some(p) = o.link_degraded {
         config.monitor.degraded = p.fraction();
     }

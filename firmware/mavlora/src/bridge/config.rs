@@ -18,6 +18,11 @@ pub struct BridgeConfig {
     pub profile: Profile,
     /// The radio's byte budget.
     pub scheduler: SchedulerConfig,
+    /// The most the radio may hold unsent ([`LinkScheduler::with_radio_backlog`]); `None`:
+    /// no limit but the budget's burst.
+    ///
+    /// [`LinkScheduler::with_radio_backlog`]: crate::schedule::LinkScheduler::with_radio_backlog
+    pub radio_backlog: Option<Duration>,
     /// Link-quality reports.
     pub quality: LinkQualityConfig,
     /// Compact telemetry instead of the standard periodic messages; `None` forwards them
@@ -61,6 +66,7 @@ impl BridgeConfig {
         Self {
             profile,
             scheduler,
+            radio_backlog: None,
             quality: LinkQualityConfig::for_budget(scheduler.rate_bytes_per_s, false),
             compact: None,
             mission: MissionConfig::for_rate(scheduler.rate_bytes_per_s),

@@ -10,7 +10,7 @@ use super::fc_watch::{FcEvent, FcWatch};
 use super::gcs_heartbeat::GcsHeartbeat;
 use super::param_answers::{Asked, ParamAnswers};
 use crate::command::{ACK_HOLD, AckCache, AckCacheStats, CacheVerdict, link_loss};
-use crate::compact::{CompactStats, Compactor, REPLACED_IDS};
+use crate::compact::{self, CompactFrame, CompactStats, Compactor, REPLACED_IDS};
 use crate::dialect::{
     MISSION_ACK_DATA, MavCmd, MavMessage, MavMissionResult, MavMissionType, MavResult, MavType,
     RADIO_STATUS_DATA,
@@ -71,6 +71,11 @@ pub struct BridgeStats {
     pub fc_own_commands_dropped: u64,
     /// Ground heartbeats regenerated towards the flight controller.
     pub gcs_heartbeats_regenerated: u64,
+    /// Compact frames folded into the one still waiting for the radio ([`crate::compact::merge`]).
+    pub compact_merged: u64,
+    /// Position samples those merges dropped (past a frame's limit, or under an altitude
+    /// offset that moved).
+    pub compact_samples_dropped: u64,
     /// `LINK_QUALITY` reports sent to the radio.
     pub link_quality_sent: u64,
     /// `LINK_QUALITY` reports received from the radio.
@@ -140,6 +145,9 @@ pub struct Bridge {
     scheduler: LinkScheduler,
     quality: LinkQuality,
     compactor: Option<Compactor>,
+    /// The compact frame last handed to the scheduler, decoded: while it waits there, the
+    /// next one is merged into it.
+    queued_compact: Option<CompactFrame>,
     mission: MissionRelay,
     commands: AckCache,
     watch: FcWatch,
@@ -171,8 +179,9 @@ impl Bridge {
     /// heartbeat: the configuration needs its ids as target.
     pub fn new(config: BridgeConfig, now: Instant) -> Result<Self, ScheduleError> {
         let radio_leg = RadioLeg::new(config.signing.as_ref());
-        let scheduler =
-            LinkScheduler::new(config.scheduler, now)?.with_frame_extra(radio_leg.frame_extra());
+        let scheduler = LinkScheduler::new(config.scheduler, now)?
+            .with_frame_extra(radio_leg.frame_extra())
+            .with_radio_backlog(config.radio_backlog, now);
         let sys = config.system_id;
         let comp = config.component_id;
         Ok(Self {
@@ -182,6 +191,7 @@ impl Bridge {
             scheduler,
             quality: LinkQuality::new(config.quality, now),
             compactor: config.compact.map(Compactor::new),
+            queued_compact: None,
             mission: MissionRelay::new(config.mission),
             commands: {
                 let c = AckCache::new(ACK_HOLD, now);
@@ -825,9 +835,12 @@ impl Bridge {
             } else {
                 Class::Periodic
             };
-            while let Some(msg) = compactor.poll(now) {
-                let frame = self.radio_sender.frame(&msg);
-                self.scheduler.push(frame, class, now);
+            let mut frames = Vec::new();
+            while let Some(polled) = compactor.poll_urgency(now) {
+                frames.push(polled);
+            }
+            for (msg, urgent) in frames {
+                self.push_compact(msg, urgent, class, now);
             }
         }
         while let Some(frame) = self.gcs_heartbeat.poll(now) {
@@ -841,6 +854,54 @@ impl Bridge {
         self.commands.set_link_loss(now, self.link_loss(now));
         while let Some(ack) = self.commands.poll_repeat(now) {
             self.scheduler.push(ack, Class::Command, now);
+        }
+    }
+
+    /// Queues a compact frame for the radio. At most one waits at a time: while the one
+    /// before it still waits (the radio is behind), the two go as one in the older one's
+    /// place, so the next frame out carries the newest status and positions instead of what
+    /// the vehicle said seconds ago. A copy of a change made at once (`urgent`) goes with the
+    /// commands, what waited folded into it: a mode change is a command's visible effect, and
+    /// must not wait behind telemetry, nor behind an older copy saying the mode before (on
+    /// LoRa SF7 with real PX4, 1.2 s late at the ground).
+    fn push_compact(&mut self, msg: MavMessage, urgent: bool, class: Class, now: Instant) {
+        let newer = match &msg {
+            MavMessage::MAVLORA_COMPACT(data) if class == Class::Periodic => {
+                CompactFrame::decode(data).ok()
+            }
+            _ => None,
+        };
+        let Some(newer) = newer else {
+            let frame = self.radio_sender.frame(&msg);
+            self.scheduler.push(frame, class, now);
+            return;
+        };
+        let (system, component) = (self.radio_sender.system(), self.radio_sender.component());
+        let id = ids::MAVLORA_COMPACT;
+        let waiting = self.scheduler.waiting(system, component, id);
+        let older = self.queued_compact.take().filter(|_| waiting.is_some());
+        let merged = older.map(|older| compact::merge(&older, &newer));
+        // Nothing waits (or, never: ten samples at most always encode, the merge did not):
+        // the new frame goes on its own.
+        let encoded = merged.and_then(|(m, loss)| m.encode().ok().map(|data| (m, data, loss)));
+        let Some((content, data, loss)) = encoded else {
+            self.queued_compact = Some(newer);
+            let frame = self.radio_sender.frame(&msg);
+            let class = if urgent { Class::Command } else { class };
+            self.scheduler.push(frame, class, now);
+            return;
+        };
+        self.stats.compact_merged += 1;
+        self.stats.compact_samples_dropped += loss.samples as u64;
+        self.queued_compact = Some(content);
+        let frame = self.radio_sender.frame(&MavMessage::MAVLORA_COMPACT(data));
+        if urgent && waiting == Some(Class::Periodic) {
+            // to the commands' queue, and nothing older left behind to arrive after it
+            self.scheduler.take_telemetry(system, component, id);
+            self.scheduler.push(frame, Class::Command, now);
+        } else if let Err(frame) = self.scheduler.replace_waiting(frame) {
+            // cannot happen: it waited a moment ago
+            self.scheduler.push(frame, class, now);
         }
     }
 

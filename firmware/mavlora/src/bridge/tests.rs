@@ -992,3 +992,85 @@ fn a_bridge_without_signing_state_and_a_clock_a_day_behind_does_not_run_a_record
         }
     }
 }
+
+/// Issue 21: with real PX4 on LoRa SF7 a mode change reached the ground 1.5 s late: three
+/// older compact frames saying the old mode waited ahead of it, first in the radio, then in
+/// the scheduler. A radio that is behind now holds one compact frame at most, folded with
+/// each new one, and a change goes with the commands: the first status out says the new mode,
+/// none after it the old one, and no position is lost on the way.
+#[test]
+fn a_mode_change_behind_a_busy_radio_leaves_first_and_nothing_older_follows_it() {
+    const OLD: u32 = 0x0003_0000;
+    const NEW: u32 = 0x0404_0000;
+    let mut c = config();
+    c.compact = Some(CompactConfig::default());
+    let mut b = Bridge::new(c, Instant::ZERO).unwrap();
+    let mut fc = Sender::new(1, 1, MavlinkVersion::V2);
+    let heartbeat = |fc: &mut Sender, custom_mode| {
+        fc.frame(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode,
+            mavtype: MavType::MAV_TYPE_QUADROTOR,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+            ..HEARTBEAT_DATA::default()
+        }))
+    };
+    let mut fed = Vec::new();
+    let mut out = Vec::new();
+    for k in 0..=60u64 {
+        let now = ms(k * 100);
+        if k % 10 == 0 {
+            let mode = if k >= 40 { NEW } else { OLD };
+            b.handle_fc_bytes(now, heartbeat(&mut fc, mode).as_bytes());
+        }
+        // 2.5 Hz: under the compactor's 3 Hz, so it takes every one
+        if k % 4 == 0 {
+            let t = (k * 100) as u32;
+            fed.push(t);
+            let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+                time_boot_ms: t,
+                lat: 553_700_000 + k as i32 * 90,
+                ..Default::default()
+            });
+            b.handle_fc_bytes(now, fc.frame(&pos).as_bytes());
+        }
+        b.handle_timeout(now);
+        // the radio takes the first status, then nothing from 0.5 s to 4 s (it is behind)
+        let room = if (5..40).contains(&k) { 0 } else { usize::MAX };
+        out.extend(std::iter::from_fn(|| b.poll_radio_transmit(now, room)).map(|f| (k, f)));
+    }
+    let frames: Vec<(u64, crate::compact::CompactFrame)> = out
+        .iter()
+        .filter_map(|(k, f)| match f.decode::<MavMessage>().unwrap() {
+            MavMessage::MAVLORA_COMPACT(d) => {
+                Some((*k, crate::compact::CompactFrame::decode(&d).unwrap()))
+            }
+            _ => None,
+        })
+        .collect();
+    let modes_after: Vec<u32> = frames
+        .iter()
+        .filter(|(k, _)| *k >= 40)
+        .filter_map(|(_, f)| f.status.and_then(|s| s.heartbeat).map(|h| h.custom_mode))
+        .collect();
+    assert!(!modes_after.is_empty(), "{frames:?}");
+    assert!(
+        modes_after.iter().all(|&m| m == NEW),
+        "a frame saying the old mode after the change: {modes_after:?}"
+    );
+    let first = frames.iter().find(|(k, _)| *k >= 40).unwrap();
+    assert_eq!(first.0, 40, "the change leaves at once");
+    // every position fed, once and in order (the merged frames carry them all)
+    let times: Vec<u32> = frames
+        .iter()
+        .filter_map(|(_, f)| f.positions.as_ref())
+        .flat_map(|p| p.samples.iter().map(|s| s.time_boot_ms))
+        .collect();
+    let sent: Vec<u32> = fed.iter().copied().filter(|t| times.contains(t)).collect();
+    assert_eq!(times, sent, "in order, no repeats");
+    // all but the last batch, still being filled at the end
+    assert!(
+        fed.iter().filter(|&&t| t <= 4800).all(|t| times.contains(t)),
+        "positions lost: fed {fed:?}, sent {times:?}"
+    );
+    assert!(b.stats().compact_merged > 0);
+}

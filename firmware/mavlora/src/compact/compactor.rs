@@ -176,7 +176,8 @@ pub struct Compactor {
     /// A link report waiting for the next frame, and since when.
     link: Option<(LINK_QUALITY_DATA, Instant)>,
     last_sent: Option<Instant>,
-    out: VecDeque<MavMessage>,
+    /// Frames made, each with whether it carries a change at once (an urgent copy).
+    out: VecDeque<(MavMessage, bool)>,
     /// When the first frame now in `out` was ready (coalescing).
     held_since: Option<Instant>,
     /// A coalesced group is leaving: hand out the rest of `out` without waiting.
@@ -537,11 +538,19 @@ impl Compactor {
         if self.out.is_empty() {
             self.held_since = Some(now);
         }
-        self.out.push_back(MavMessage::MAVLORA_COMPACT(data));
+        self.out
+            .push_back((MavMessage::MAVLORA_COMPACT(data), urgent));
     }
 
     /// The next compact message due at `now`, if any.
     pub fn poll(&mut self, now: Instant) -> Option<MavMessage> {
+        self.poll_urgency(now).map(|(msg, _)| msg)
+    }
+
+    /// [`poll`](Self::poll), and whether the message is a copy of a change of mode, arming or
+    /// state made at once (the bridge sends those with the commands: they are a command's
+    /// visible effect).
+    pub fn poll_urgency(&mut self, now: Instant) -> Option<(MavMessage, bool)> {
         self.tick(now);
         if !self.releasing
             && let Some(since) = self.held_since

@@ -41,6 +41,7 @@
 mod codec;
 mod compactor;
 mod expander;
+mod merge;
 
 pub use codec::{
     AirPart, CompactFrame, DATA_LEN, DecodeError, EncodeError, GpsPart, HeartbeatPart, MAX_SAMPLES,
@@ -52,6 +53,7 @@ pub use compactor::{
     URGENT_FOLLOW, URGENT_SPACING,
 };
 pub use expander::{Expanded, Expander, HEARTBEAT_HOLD, HEARTBEAT_PERIOD, MAX_VEHICLES};
+pub use merge::{MergeLoss, merge};
 
 #[cfg(test)]
 mod tests;

@@ -36,6 +36,12 @@ pub struct RadioOptions {
     /// Radio burst in bytes [default: 600].
     #[arg(long)]
     pub burst: Option<u32>,
+    /// Most the radio may hold unsent, in ms at --rate, before the next frame is handed to it:
+    /// a backlog waits in the bridge or router, where commands and a mode change overtake it,
+    /// not in the radio's buffer, where nothing does; 0: no limit but --burst [default: 200,
+    /// so a change of mode reaches the ground within 0.5 s on LoRa SF7].
+    #[arg(long)]
+    pub radio_backlog_ms: Option<u32>,
     /// Longest time between LINK_QUALITY reports (the keep-alive; reports go early when the
     /// loss changes or the peer goes quiet), 0.1..=86400 s [default: 0.4 % of --rate:
     /// 8.8 s at 683 B/s, 13.5 s signed].
@@ -103,6 +109,14 @@ impl RadioOptions {
         self.burst.unwrap_or(600)
     }
 
+    /// The most the radio may hold unsent (`None`: no limit but the burst).
+    pub fn radio_backlog(&self) -> Option<Duration> {
+        match self.radio_backlog_ms.unwrap_or(200) {
+            0 => None,
+            ms => Some(Duration::from_millis(ms.into())),
+        }
+    }
+
     /// The radio budget scheduler's settings: a rate of at least 1 byte/s and a burst that
     /// holds one largest frame.
     pub fn scheduler(&self) -> Result<SchedulerConfig, UsageError> {
@@ -150,6 +164,7 @@ impl RadioOptions {
             "radio_baud": self.radio_baud(),
             "rate": self.rate(),
             "burst": self.burst(),
+            "radio_backlog_ms": self.radio_backlog().map_or(0, |d| d.as_millis()),
             "signing": if self.unsigned.unwrap_or(false) { "OFF" } else { "on" },
             "status_interval_s": self.status_every().as_secs_f64(),
         })

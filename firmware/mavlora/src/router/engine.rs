@@ -39,6 +39,9 @@ use crate::wire::{
 pub struct RouterConfig {
     /// The ground→air radio byte budget.
     pub scheduler: SchedulerConfig,
+    /// The most the radio may hold unsent ([`LinkScheduler::with_radio_backlog`]); `None`:
+    /// no limit but the budget's burst.
+    pub radio_backlog: Option<Duration>,
     /// Link-quality reports.
     pub quality: LinkQualityConfig,
     /// What the ground station is told about the link (`RADIO_STATUS`, `STATUSTEXT`).
@@ -106,6 +109,7 @@ impl RouterConfig {
     pub fn new(scheduler: SchedulerConfig) -> Self {
         Self {
             scheduler,
+            radio_backlog: None,
             quality: LinkQualityConfig::for_budget(scheduler.rate_bytes_per_s, false),
             monitor: MonitorConfig::default(),
             system_id: 255,
@@ -251,7 +255,8 @@ impl Router {
             monitor: LinkMonitor::new(config.monitor),
             vehicle: None,
             scheduler: LinkScheduler::new(config.scheduler, now)?
-                .with_frame_extra(radio_leg.frame_extra()),
+                .with_frame_extra(radio_leg.frame_extra())
+                .with_radio_backlog(config.radio_backlog, now),
             heartbeat_filter: RadioFilter::new(profile),
             expander: Expander::new(),
             param_reads: ReadGate::default(),

@@ -117,6 +117,32 @@ impl FairQueue {
         Some(frame)
     }
 
+    /// Whether a waiting frame matches.
+    pub fn any(&self, matches: impl Fn(&OwnedFrame) -> bool) -> bool {
+        self.flows.iter().any(|f| f.frames.iter().any(&matches))
+    }
+
+    /// Puts `frame` in the place of the newest waiting frame that matches (its origin's turn
+    /// and order kept); gives `frame` back if none does.
+    pub fn replace_newest(
+        &mut self,
+        matches: impl Fn(&OwnedFrame) -> bool,
+        frame: OwnedFrame,
+    ) -> Result<(), OwnedFrame> {
+        let found = self.flows.iter_mut().rev().find_map(|flow| {
+            let i = flow.frames.iter().rposition(&matches)?;
+            Some((flow, i))
+        });
+        let Some((flow, i)) = found else {
+            return Err(frame);
+        };
+        let (old, new) = (flow.frames[i].as_bytes().len(), frame.as_bytes().len());
+        flow.bytes = flow.bytes - old + new;
+        self.bytes = self.bytes - old + new;
+        flow.frames[i] = frame;
+        Ok(())
+    }
+
     pub fn bytes(&self) -> usize {
         self.bytes
     }

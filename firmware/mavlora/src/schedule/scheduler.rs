@@ -167,6 +167,8 @@ pub struct LinkScheduler {
     bucket: TokenBucket,
     /// Moves the bucket's rate by the radio's free buffer.
     pacer: super::TxbufPacer,
+    /// What the radio holds unsent, kept under a limit ([`Self::with_radio_backlog`]).
+    backlog: Option<super::RadioBacklog>,
     commands: FairQueue,
     transfers: FairQueue,
     status: FairQueue,
@@ -213,6 +215,7 @@ impl LinkScheduler {
             config,
             bucket: TokenBucket::new(config.rate_bytes_per_s, config.burst_bytes, now),
             pacer: super::TxbufPacer::new(config.rate_bytes_per_s),
+            backlog: None,
             commands: FairQueue::default(),
             transfers: FairQueue::default(),
             status: FairQueue::default(),
@@ -238,12 +241,28 @@ impl LinkScheduler {
         self
     }
 
+    /// Hands the radio a frame only while it holds less than `limit` of unsent bytes (as
+    /// time at the budget's rate, [`super::RadioBacklog`]): a backlog then waits here, where
+    /// commands and a mode change overtake it, not in the radio's buffer. `None`: no limit
+    /// but the burst.
+    pub fn with_radio_backlog(
+        mut self,
+        limit: Option<crate::time::Duration>,
+        now: Instant,
+    ) -> Self {
+        self.backlog = limit.map(|l| super::RadioBacklog::new(self.bucket.rate(), l, now));
+        self
+    }
+
     /// The local radio reported `txbuf_pct` % of its transmit buffer free: the budget's rate
     /// follows ([`super::TxbufPacer`]; the configured rate is the ceiling).
     pub fn handle_txbuf(&mut self, txbuf_pct: u8) {
         if let Some(rate) = self.pacer.handle_txbuf(txbuf_pct) {
             tracing::debug!(txbuf_pct, rate, "radio budget paced by the radio's buffer");
             self.bucket.set_rate(rate.max(1));
+            if let Some(b) = &mut self.backlog {
+                b.set_rate(rate.max(1));
+            }
         }
     }
 
@@ -386,6 +405,78 @@ impl LinkScheduler {
         }
     }
 
+    /// Where a frame of `message` from (`system`, `component`) waits, if one does: with the
+    /// commands ([`Class::Command`]) or the telemetry ([`Class::Periodic`], also for
+    /// [`Class::Unlisted`]).
+    pub fn waiting(&self, system: u8, component: u8, message: u32) -> Option<Class> {
+        let same = |f: &OwnedFrame| {
+            (f.system_id(), f.component_id(), f.message_id()) == (system, component, message)
+        };
+        if self.commands.any(same) {
+            Some(Class::Command)
+        } else if self
+            .periodic
+            .iter()
+            .chain(&self.unlisted)
+            .any(|(_, f)| same(f))
+        {
+            Some(Class::Periodic)
+        } else {
+            None
+        }
+    }
+
+    /// Puts `frame` in the place of the newest waiting frame of its sender and message id,
+    /// with the commands or the telemetry, a part of a sequence included (the caller made
+    /// `frame` carry what that one did: merged compact frames); gives `frame` back if none
+    /// waits.
+    pub fn replace_waiting(&mut self, frame: OwnedFrame) -> Result<(), OwnedFrame> {
+        let (system, component, message) =
+            (frame.system_id(), frame.component_id(), frame.message_id());
+        let same = move |f: &OwnedFrame| {
+            (f.system_id(), f.component_id(), f.message_id()) == (system, component, message)
+        };
+        let frame = match self.commands.replace_newest(same, frame) {
+            Ok(()) => {
+                self.stats.replaced += 1;
+                return Ok(());
+            }
+            Err(frame) => frame,
+        };
+        let slot = match self.periodic.iter().rposition(|(_, f)| same(f)) {
+            Some(i) => &mut self.periodic[i],
+            None => match self.unlisted.iter().rposition(|(_, f)| same(f)) {
+                Some(i) => &mut self.unlisted[i],
+                None => return Err(frame),
+            },
+        };
+        self.telemetry_bytes =
+            self.telemetry_bytes - slot.1.as_bytes().len() + frame.as_bytes().len();
+        slot.1 = frame;
+        self.stats.replaced += 1;
+        Ok(())
+    }
+
+    /// Takes out every waiting telemetry frame of `message` from (`system`, `component`),
+    /// oldest first: the caller sends what they carried another way (an urgent compact frame
+    /// with the commands, folded into it).
+    pub fn take_telemetry(&mut self, system: u8, component: u8, message: u32) -> Vec<OwnedFrame> {
+        let mut taken = Vec::new();
+        for queue in [&mut self.periodic, &mut self.unlisted] {
+            let mut kept = VecDeque::with_capacity(queue.len());
+            for (k, f) in queue.drain(..) {
+                if (k.system, k.component, k.message) == (system, component, message) {
+                    self.telemetry_bytes -= f.as_bytes().len();
+                    taken.push(f);
+                } else {
+                    kept.push_back((k, f));
+                }
+            }
+            *queue = kept;
+        }
+        taken
+    }
+
     fn lane_is_empty(&self, lane: Lane) -> bool {
         match lane {
             Lane::Periodic => self.periodic.is_empty(),
@@ -400,6 +491,9 @@ impl LinkScheduler {
     pub fn poll_transmit(&mut self, now: Instant, room: usize) -> Option<OwnedFrame> {
         let (source, len) = self.next_source()?;
         let cost = len + self.frame_extra;
+        if self.backlog.as_mut().is_some_and(|b| !b.admits(now)) {
+            return None;
+        }
         if cost > room
             || !self
                 .bucket
@@ -436,6 +530,9 @@ impl LinkScheduler {
                 f
             }
         };
+        if let Some(b) = &mut self.backlog {
+            b.add(cost);
+        }
         self.stats.sent_frames += 1;
         self.stats.sent_bytes += cost as u64;
         Some(frame)
@@ -445,8 +542,13 @@ impl LinkScheduler {
     /// `None` if nothing is queued.
     pub fn poll_timeout(&self) -> Option<Instant> {
         let (source, len) = self.next_source()?;
-        self.bucket
-            .ready_at(len + self.frame_extra + self.reserve_for(source))
+        let budget = self
+            .bucket
+            .ready_at(len + self.frame_extra + self.reserve_for(source))?;
+        match &self.backlog {
+            Some(b) => Some(budget.max(b.ready_at()?)),
+            None => Some(budget),
+        }
     }
 
     fn reserve_for(&self, source: Source) -> usize {

@@ -566,3 +566,83 @@ proptest! {
         );
     }
 }
+
+/// Issue 21: on LoRa SF7 the burst (280 bytes, half a second on air) went into the radio at
+/// once, and a command or a mode change queued after it waited there, where nothing
+/// overtakes. With a backlog limit the radio gets at most the limit and one frame; the rest
+/// waits here, and a command pushed later leaves first.
+#[test]
+fn with_a_radio_backlog_limit_a_burst_waits_here_and_a_later_command_overtakes_it() {
+    let mut c = config(250);
+    c.burst_bytes = 600;
+    let telemetry = |s: &mut LinkScheduler| {
+        for sys in 1..=6 {
+            s.push(
+                frame(GLOBAL_POSITION_INT, sys, 1, 0),
+                Class::Periodic,
+                ms(0),
+            );
+        }
+    };
+    // without a limit the whole burst goes at once (six frames of 40 bytes)
+    let mut s = LinkScheduler::new(c, ms(0)).unwrap();
+    telemetry(&mut s);
+    assert_eq!(drain(&mut s, ms(0)).len(), 6);
+
+    // 200 ms at 250 B/s: 50 bytes
+    let mut s = LinkScheduler::new(c, ms(0))
+        .unwrap()
+        .with_radio_backlog(Some(crate::time::Duration::from_millis(200)), ms(0));
+    telemetry(&mut s);
+    let first: usize = drain(&mut s, ms(0))
+        .iter()
+        .map(|f| f.as_bytes().len())
+        .sum();
+    // the limit and the frame that crossed it: two of 40 bytes, not six
+    assert_eq!(first, 80, "{first} bytes at once");
+    s.push(frame(COMMAND_LONG, 255, 190, 0), Class::Command, ms(10));
+    let at = s.poll_timeout().unwrap();
+    assert!(at > ms(10), "it waits for the radio: {at:?}");
+    let next = drain(&mut s, at);
+    assert_eq!(next[0].message_id(), COMMAND_LONG, "the command goes first");
+    // and the average rate still holds: the six frames and the command by ~1.2 s
+    let mut now = at;
+    let mut left = s.queued_frames().1;
+    while left > 0 {
+        now = s.poll_timeout().unwrap();
+        drain(&mut s, now);
+        left = s.queued_frames().1;
+    }
+    assert!(now <= ms(1300), "{now:?}");
+}
+
+#[test]
+fn a_waiting_frame_is_found_replaced_in_place_or_taken_out() {
+    let mut s = LinkScheduler::new(config(100), ms(0)).unwrap();
+    // parts of a sequence: never replaced by push, only by replace_waiting
+    let id = crate::wire::ids::MAVLORA_COMPACT;
+    let compact =
+        |seq: u8, len: usize| raw_frame(MavlinkVersion::V2, 1, 191, seq, id, &vec![0x55; len]);
+    s.push(frame(GLOBAL_POSITION_INT, 1, 1, 0), Class::Periodic, ms(0));
+    s.push(compact(1, 30), Class::Periodic, ms(0));
+    s.push(frame(HEARTBEAT, 1, 1, 0), Class::Periodic, ms(0));
+    assert_eq!(s.waiting(1, 191, id), Some(Class::Periodic));
+    assert_eq!(s.waiting(1, 192, id), None);
+    let before = s.queued_bytes();
+    s.replace_waiting(compact(2, 60)).unwrap();
+    assert_eq!(s.queued_bytes(), before + 30);
+    assert_eq!(s.queued_frames().1, 3, "replaced, not added");
+    // taken out, the others stay in their order
+    let taken = s.take_telemetry(1, 191, id);
+    assert_eq!((taken.len(), taken[0].sequence()), (1, 2));
+    assert_eq!(s.queued_bytes(), before - 42, "the 72 bytes it took");
+    assert!(s.replace_waiting(compact(3, 30)).is_err());
+    // with the commands
+    s.push(compact(4, 30), Class::Command, ms(0));
+    assert_eq!(s.waiting(1, 191, id), Some(Class::Command));
+    s.replace_waiting(compact(5, 40)).unwrap();
+    let out = drain(&mut s, ms(10_000));
+    assert_eq!(out[0].message_id(), id);
+    assert_eq!(out[0].sequence(), 5);
+    assert_eq!(out.len(), 3);
+}
