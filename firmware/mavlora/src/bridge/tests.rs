@@ -1069,7 +1069,9 @@ fn a_mode_change_behind_a_busy_radio_leaves_first_and_nothing_older_follows_it()
     assert_eq!(times, sent, "in order, no repeats");
     // all but the last batch, still being filled at the end
     assert!(
-        fed.iter().filter(|&&t| t <= 4800).all(|t| times.contains(t)),
+        fed.iter()
+            .filter(|&&t| t <= 4800)
+            .all(|t| times.contains(t)),
         "positions lost: fed {fed:?}, sent {times:?}"
     );
     assert!(b.stats().compact_merged > 0);
