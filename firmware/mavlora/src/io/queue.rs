@@ -80,8 +80,7 @@ struct Entry<T> {
 struct State<T> {
     lanes: [VecDeque<Entry<T>>; 3],
     next_seq: u64,
-    bytes: usize,
-    /// Of `bytes`, per lane.
+    /// Bytes held, per lane (as counted against the capacity).
     lane_bytes: [usize; 3],
     closed: bool,
     /// A producer waits in [`Queue::wait_room`]: pops must wake it.
@@ -119,7 +118,6 @@ impl<T> Queue<T> {
             state: Mutex::new(State {
                 lanes: [VecDeque::new(), VecDeque::new(), VecDeque::new()],
                 next_seq: 0,
-                bytes: 0,
                 lane_bytes: [0; 3],
                 closed: false,
                 room_wanted: false,
@@ -151,7 +149,7 @@ impl<T> Queue<T> {
             return false;
         }
         if lane != Lane::Keep {
-            while s.bytes + bytes > self.capacity {
+            while s.bytes() + bytes > self.capacity {
                 let victim = if !s.lanes[0].is_empty() {
                     Lane::Bulk
                 } else if lane == Lane::Priority && !s.lanes[1].is_empty() {
@@ -163,16 +161,14 @@ impl<T> Queue<T> {
                 let old = s.lanes[victim as usize]
                     .pop_front()
                     .expect("non-empty lane");
-                s.bytes -= old.bytes;
                 s.lane_bytes[victim as usize] -= old.bytes;
                 s.drop_counted(old.len, victim);
             }
         }
         let seq = s.next_seq;
         s.next_seq += 1;
-        s.bytes += bytes;
         s.lane_bytes[lane as usize] += bytes;
-        s.stats.peak_bytes = s.stats.peak_bytes.max(s.bytes);
+        s.stats.peak_bytes = s.stats.peak_bytes.max(s.bytes());
         s.lanes[lane as usize].push_back(Entry {
             seq,
             bytes,
@@ -187,28 +183,21 @@ impl<T> Queue<T> {
     /// Waits until the queue holds at most `bytes` bytes, or is closed, or `deadline`
     /// passes; returns whether it does now.
     pub fn wait_room(&self, bytes: usize, deadline: Instant) -> bool {
-        let mut s = self.lock();
-        while s.bytes > bytes && !s.closed {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left == Duration::ZERO {
-                return false;
-            }
-            s.room_wanted = true;
-            s = self
-                .room
-                .wait_timeout(s, left)
-                .unwrap_or_else(|e| e.into_inner())
-                .0;
-        }
-        true
+        self.wait_until(deadline, |s| s.bytes() <= bytes)
     }
 
     /// As [`wait_room`](Self::wait_room), counting only what `lane` holds: a producer whose
     /// items go in a lane of their own is bounded by its own backlog, not held back by what
     /// others pushed (a UDP flood filling the bulk lane must not stop a serial port's reads).
     pub fn wait_room_in(&self, lane: Lane, bytes: usize, deadline: Instant) -> bool {
+        self.wait_until(deadline, |s| s.lane_bytes[lane as usize] <= bytes)
+    }
+
+    /// Waits until `room` holds or the queue is closed, at most until `deadline`; returns
+    /// whether it does now.
+    fn wait_until(&self, deadline: Instant, room: impl Fn(&State<T>) -> bool) -> bool {
         let mut s = self.lock();
-        while s.lane_bytes[lane as usize] > bytes && !s.closed {
+        while !room(&s) && !s.closed {
             let left = deadline.saturating_duration_since(Instant::now());
             if left == Duration::ZERO {
                 return false;
@@ -261,7 +250,6 @@ impl<T> Queue<T> {
         if discard {
             for lane in [Lane::Bulk, Lane::Priority, Lane::Keep] {
                 while let Some(old) = s.lanes[lane as usize].pop_front() {
-                    s.bytes -= old.bytes;
                     s.lane_bytes[lane as usize] -= old.bytes;
                     s.drop_counted(old.len, lane);
                 }
@@ -275,10 +263,9 @@ impl<T> Queue<T> {
     /// Drops everything queued now (counted), leaving the queue open.
     pub fn discard(&self) -> usize {
         let mut s = self.lock();
-        let before = s.bytes;
+        let before = s.bytes();
         for lane in [Lane::Bulk, Lane::Priority, Lane::Keep] {
             while let Some(old) = s.lanes[lane as usize].pop_front() {
-                s.bytes -= old.bytes;
                 s.lane_bytes[lane as usize] -= old.bytes;
                 s.drop_counted(old.len, lane);
             }
@@ -288,7 +275,7 @@ impl<T> Queue<T> {
 
     /// Bytes queued now.
     pub fn bytes(&self) -> usize {
-        self.lock().bytes
+        self.lock().bytes()
     }
 
     /// Counters so far.
@@ -298,6 +285,11 @@ impl<T> Queue<T> {
 }
 
 impl<T> State<T> {
+    /// Bytes held, all lanes.
+    fn bytes(&self) -> usize {
+        self.lane_bytes.iter().sum()
+    }
+
     fn pop(&mut self, order: Order) -> Option<T> {
         let lane = if order == Order::Arrival {
             (0..self.lanes.len())
@@ -314,7 +306,6 @@ impl<T> State<T> {
             Lane::Priority as usize
         };
         let e = self.lanes[lane].pop_front()?;
-        self.bytes -= e.bytes;
         self.lane_bytes[lane] -= e.bytes;
         Some(e.item)
     }
