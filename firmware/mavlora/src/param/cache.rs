@@ -288,6 +288,8 @@ impl<T> ParamCache<T> {
             .any(|e| (e.system, e.component) == (system, component) && e.bound && e.complete())
     }
 
+    /// The entry of (`system`, `component`), made if new and started again if its list's
+    /// `count` changed; `None` for a count no list has.
     fn entry(&mut self, system: u8, component: u8, count: u16) -> Option<usize> {
         if count == 0 || count > MAX_COUNT {
             return None;
@@ -312,6 +314,14 @@ impl<T> ParamCache<T> {
                 self.entries.len() - 1
             }
         };
+        let e = &mut self.entries[at];
+        if count != e.count {
+            // another parameter set (a reboot, another vehicle): start again
+            if e.filled > 0 {
+                self.stats.dropped += 1;
+            }
+            e.clear(count);
+        }
         Some(at)
     }
 
@@ -325,13 +335,6 @@ impl<T> ParamCache<T> {
             return;
         };
         let e = &mut self.entries[at];
-        if v.count != e.count {
-            // another parameter set (a reboot, another vehicle): start again
-            if e.filled > 0 {
-                self.stats.dropped += 1;
-            }
-            e.clear(v.count);
-        }
         let index = if v.index < v.count {
             Some(v.index)
         } else {
@@ -387,12 +390,6 @@ impl<T> ParamCache<T> {
             return;
         };
         let e = &mut self.entries[at];
-        if v.count != e.count {
-            if e.filled > 0 {
-                self.stats.dropped += 1;
-            }
-            e.clear(v.count);
-        }
         let mut forward = Vec::new();
         let mut serve = false;
         if e.complete() {
