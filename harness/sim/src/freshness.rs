@@ -16,6 +16,7 @@ use mavlora::compact::CompactConfig;
 use mavlora::filter::Profile;
 use mavlora::quality::LinkQualityConfig;
 use mavlora::router::RouterConfig;
+use mavlora::schedule::DEFAULT_RADIO_BACKLOG;
 use mavlora::signing::{SigningConfig, SigningKey};
 use mavlora::{Duration, Instant};
 
@@ -195,6 +196,8 @@ impl FreshnessRun {
         let preset = self.radio.preset();
         let budget = scheduler_for(Some(&preset));
         let mut b = BridgeConfig::new(profile.clone(), budget);
+        // As the binaries run it (the router: none).
+        b.radio_backlog = Some(DEFAULT_RADIO_BACKLOG);
         b.compact = Some(
             self.compact
                 .unwrap_or_else(|| profile.compact().unwrap_or_default()),
@@ -280,6 +283,7 @@ pub fn mode_latencies(radio: FreshnessRadio, seed: u64, until_s: f64) -> Vec<f64
     let profile = Profile::parse(text, "freshness").expect("profile parses");
     let budget = scheduler_for(Some(&radio.preset()));
     let mut b = BridgeConfig::new(profile.clone(), budget);
+    b.radio_backlog = Some(DEFAULT_RADIO_BACKLOG);
     b.compact = Some(profile.compact().unwrap_or_default());
     b.signing = Some(signing(1));
     b.quality = LinkQualityConfig::for_budget(budget.rate_bytes_per_s, true);

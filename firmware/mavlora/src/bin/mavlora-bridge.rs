@@ -18,6 +18,7 @@ use mavlora::io::{
     Event, Program, RadioOptions, SerialEvent, SerialLink, Side, StatusReport, UsageError,
     frame_gap,
 };
+use mavlora::schedule::DEFAULT_RADIO_BACKLOG;
 
 /// MavLora bridge: flight controller serial port <-> radio serial port.
 #[derive(Parser, Deserialize, Default, Debug)]
@@ -62,6 +63,7 @@ impl Program for Options {
         serde_json::json!({
             "fc": self.fc,
             "fc_baud": self.fc_baud.unwrap_or(FC_BAUD),
+            "radio_backlog_ms": self.shared.radio_backlog(Some(DEFAULT_RADIO_BACKLOG)).map_or(0, |d| d.as_millis()),
             "profile": self.profile,
             "compact": self.compact.unwrap_or(false),
             // What runs: the flag, else the profile's [compact] table (read again at start).
@@ -123,7 +125,7 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
     }
     config.signing = setup.signing.config.clone();
     config.quality = setup.quality;
-    config.radio_backlog = setup.radio_backlog;
+    config.radio_backlog = o.shared.radio_backlog(Some(DEFAULT_RADIO_BACKLOG));
 
     let fc_baud = o.fc_baud.unwrap_or(FC_BAUD);
     if fc_baud == 0 {

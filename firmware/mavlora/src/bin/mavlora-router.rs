@@ -106,6 +106,7 @@ impl Program for Options {
             (self.allow.as_ref()).map(|a| a.iter().map(ToString::to_string).collect());
         serde_json::json!({
             "ground_signing": if self.ground_key.is_some() { "on" } else { "OFF" },
+            "radio_backlog_ms": self.shared.radio_backlog(None).map_or(0, |d| d.as_millis()),
             // Where the ground signer's replay state lives: a restart without it would take
             // captured ground frames again.
             "ground_signing_state": self.ground_key.as_ref().map(|key| {
@@ -139,7 +140,10 @@ fn run(o: Options, report: &mut StatusReport) -> Result<()> {
     }
     config.signing = setup.signing.config.clone();
     config.quality = setup.quality;
-    config.radio_backlog = setup.radio_backlog;
+    // Off unless asked: in the simulated world at 10 % bursty loss on LoRa SF7 a limit on the
+    // uplink left two mode changes unseen at the ground (not understood yet; the bridge's
+    // limit alone: 23 of 25 within 0.5 s, against 22 without).
+    config.radio_backlog = o.shared.radio_backlog(None);
     if let Some(p) = o.link_degraded {
         config.monitor.degraded = p.fraction();
     }

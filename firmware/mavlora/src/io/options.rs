@@ -38,8 +38,8 @@ pub struct RadioOptions {
     pub burst: Option<u32>,
     /// Most the radio may hold unsent, in ms at --rate, before the next frame is handed to it:
     /// a backlog waits in the bridge or router, where commands and a mode change overtake it,
-    /// not in the radio's buffer, where nothing does; 0: no limit but --burst [default: 200,
-    /// so a change of mode reaches the ground within 0.5 s on LoRa SF7].
+    /// not in the radio's buffer, where nothing does; 0: no limit but --burst [default: the
+    /// bridge 200, so a change of mode reaches the ground in ~0.5 s on LoRa SF7; the router 0].
     #[arg(long)]
     pub radio_backlog_ms: Option<u32>,
     /// Longest time between LINK_QUALITY reports (the keep-alive; reports go early when the
@@ -109,11 +109,13 @@ impl RadioOptions {
         self.burst.unwrap_or(600)
     }
 
-    /// The most the radio may hold unsent (`None`: no limit but the burst).
-    pub fn radio_backlog(&self) -> Option<Duration> {
-        match self.radio_backlog_ms.unwrap_or(200) {
-            0 => None,
-            ms => Some(Duration::from_millis(ms.into())),
+    /// The most the radio may hold unsent (`None`: no limit but the burst), `default` unless
+    /// the option says.
+    pub fn radio_backlog(&self, default: Option<Duration>) -> Option<Duration> {
+        match self.radio_backlog_ms {
+            None => default,
+            Some(0) => None,
+            Some(ms) => Some(Duration::from_millis(ms.into())),
         }
     }
 
@@ -164,7 +166,6 @@ impl RadioOptions {
             "radio_baud": self.radio_baud(),
             "rate": self.rate(),
             "burst": self.burst(),
-            "radio_backlog_ms": self.radio_backlog().map_or(0, |d| d.as_millis()),
             "signing": if self.unsigned.unwrap_or(false) { "OFF" } else { "on" },
             "status_interval_s": self.status_every().as_secs_f64(),
         })

@@ -131,8 +131,6 @@ pub struct Setup {
     pub rate: u32,
     /// The radio burst, bytes.
     pub burst: u32,
-    /// The most the radio may hold unsent (`--radio-backlog-ms`).
-    pub radio_backlog: Option<Duration>,
     radio_path: String,
     radio_baud: u32,
     status_every: Duration,
@@ -164,7 +162,6 @@ impl RadioOptions {
             quality,
             rate: self.rate(),
             burst: self.burst(),
-            radio_backlog: self.radio_backlog(),
             radio_path,
             radio_baud: self.radio_baud(),
             status_every: self.status_every(),

@@ -13,6 +13,10 @@ use crate::time::{Duration, Instant};
 
 const MICRO: u64 = 1_000_000;
 
+/// The binaries' limit (`--radio-backlog-ms`): with a change of mode queued behind it and
+/// LoRa SF7's air time for the change's own frame, the ground sees the change within ~0.5 s.
+pub const DEFAULT_RADIO_BACKLOG: Duration = Duration::from_millis(200);
+
 /// Estimated bytes in the radio not yet on air.
 #[derive(Debug, Clone)]
 pub struct RadioBacklog {

@@ -11,7 +11,7 @@ mod fair;
 mod pacer;
 mod scheduler;
 
-pub use backlog::RadioBacklog;
+pub use backlog::{DEFAULT_RADIO_BACKLOG, RadioBacklog};
 pub use bucket::TokenBucket;
 pub use class::Class;
 pub use fair::Origin;
