@@ -145,9 +145,6 @@ pub struct Bridge {
     scheduler: LinkScheduler,
     quality: LinkQuality,
     compactor: Option<Compactor>,
-    /// The compact frame last handed to the scheduler, decoded: while it waits there, the
-    /// next one is merged into it.
-    queued_compact: Option<CompactFrame>,
     mission: MissionRelay,
     commands: AckCache,
     watch: FcWatch,
@@ -191,7 +188,6 @@ impl Bridge {
             scheduler,
             quality: LinkQuality::new(config.quality, now),
             compactor: config.compact.map(Compactor::new),
-            queued_compact: None,
             mission: MissionRelay::new(config.mission),
             commands: {
                 let c = AckCache::new(ACK_HOLD, now);
@@ -827,19 +823,17 @@ impl Bridge {
                 }
             }
         }
-        if let Some(compactor) = &mut self.compactor {
+        if let Some(coalescing) = self.compactor.as_ref().map(Compactor::coalescing) {
             // A coalesced group must leave whole (one radio packet): with the commands, so no
             // other class's frame goes between its frames.
-            let class = if compactor.coalescing() {
+            let class = if coalescing {
                 Class::Command
             } else {
                 Class::Periodic
             };
-            let mut frames = Vec::new();
-            while let Some(polled) = compactor.poll_urgency(now) {
-                frames.push(polled);
-            }
-            for (msg, urgent) in frames {
+            while let Some((msg, urgent)) =
+                self.compactor.as_mut().and_then(|c| c.poll_urgency(now))
+            {
                 self.push_compact(msg, urgent, class, now);
             }
         }
@@ -878,14 +872,21 @@ impl Bridge {
         };
         let (system, component) = (self.radio_sender.system(), self.radio_sender.component());
         let id = ids::MAVLORA_COMPACT;
-        let waiting = self.scheduler.waiting(system, component, id);
-        let older = self.queued_compact.take().filter(|_| waiting.is_some());
-        let merged = older.map(|older| compact::merge(&older, &newer));
+        let older = self
+            .scheduler
+            .waiting_frame(system, component, id)
+            .and_then(|(waiting, f)| match f.decode::<MavMessage>() {
+                Ok(MavMessage::MAVLORA_COMPACT(d)) => {
+                    Some((waiting, CompactFrame::decode(&d).ok()?))
+                }
+                _ => None,
+            });
+        let waiting = older.as_ref().map(|(waiting, _)| *waiting);
+        let merged = older.map(|(_, older)| compact::merge(&older, &newer));
         // Nothing waits (or, never: ten samples at most always encode, the merge did not):
         // the new frame goes on its own.
-        let encoded = merged.and_then(|(m, loss)| m.encode().ok().map(|data| (m, data, loss)));
-        let Some((content, data, loss)) = encoded else {
-            self.queued_compact = Some(newer);
+        let encoded = merged.and_then(|(m, loss)| m.encode().ok().map(|data| (data, loss)));
+        let Some((data, loss)) = encoded else {
             let frame = self.radio_sender.frame(&msg);
             let class = if urgent { Class::Command } else { class };
             self.scheduler.push(frame, class, now);
@@ -893,7 +894,6 @@ impl Bridge {
         };
         self.stats.compact_merged += 1;
         self.stats.compact_samples_dropped += loss.samples as u64;
-        self.queued_compact = Some(content);
         let frame = self.radio_sender.frame(&MavMessage::MAVLORA_COMPACT(data));
         if urgent && waiting == Some(Class::Periodic) {
             // to the commands' queue, and nothing older left behind to arrive after it

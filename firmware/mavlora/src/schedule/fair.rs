@@ -117,9 +117,13 @@ impl FairQueue {
         Some(frame)
     }
 
-    /// Whether a waiting frame matches.
-    pub fn any(&self, matches: impl Fn(&OwnedFrame) -> bool) -> bool {
-        self.flows.iter().any(|f| f.frames.iter().any(&matches))
+    /// The newest waiting frame that matches: the one [`replace_newest`](Self::replace_newest)
+    /// replaces.
+    pub fn newest(&self, matches: impl Fn(&OwnedFrame) -> bool) -> Option<&OwnedFrame> {
+        self.flows
+            .iter()
+            .rev()
+            .find_map(|flow| flow.frames.iter().rev().find(|f| matches(f)))
     }
 
     /// Puts `frame` in the place of the newest waiting frame that matches (its origin's turn

@@ -409,21 +409,28 @@ impl LinkScheduler {
     /// commands ([`Class::Command`]) or the telemetry ([`Class::Periodic`], also for
     /// [`Class::Unlisted`]).
     pub fn waiting(&self, system: u8, component: u8, message: u32) -> Option<Class> {
+        self.waiting_frame(system, component, message)
+            .map(|(class, _)| class)
+    }
+
+    /// [`waiting`](Self::waiting), with the frame [`replace_waiting`](Self::replace_waiting)
+    /// would replace.
+    pub fn waiting_frame(
+        &self,
+        system: u8,
+        component: u8,
+        message: u32,
+    ) -> Option<(Class, &OwnedFrame)> {
         let same = |f: &OwnedFrame| {
             (f.system_id(), f.component_id(), f.message_id()) == (system, component, message)
         };
-        if self.commands.any(same) {
-            Some(Class::Command)
-        } else if self
-            .periodic
-            .iter()
-            .chain(&self.unlisted)
-            .any(|(_, f)| same(f))
-        {
-            Some(Class::Periodic)
-        } else {
-            None
+        if let Some(f) = self.commands.newest(same) {
+            return Some((Class::Command, f));
         }
+        [&self.periodic, &self.unlisted]
+            .into_iter()
+            .find_map(|q| q.iter().rev().map(|(_, f)| f).find(|f| same(f)))
+            .map(|f| (Class::Periodic, f))
     }
 
     /// Puts `frame` in the place of the newest waiting frame of its sender and message id,
